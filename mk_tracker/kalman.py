@@ -1,0 +1,224 @@
+"""Constant-velocity Kalman filter of an object centroid (Schizas et al. 2018, Secs. 2 and 4).
+
+State ``s = (cx, cy, vx, vy)``: the centroid in pixels and its velocity in pixels per
+second.  The motion model is (2.1) ``s(t) = A s(t-1) + u(t)`` with the transition matrix
+(2.2) and the process-noise covariance (2.3) of a continuous white-noise acceleration of
+spectral density ``sigma_u**2``.  The measurement is the estimated centroid (4.1)
+``c = H s + w`` with ``H = [I_2 0]`` and ``w ~ (0, sigma_w**2 I_2)``.
+
+``dt`` (the paper's Delta T) is always passed in seconds by the caller, computed from frame
+time stamps; it is never assumed to be one frame.  Hence ``sigma_u`` is in px / s^1.5 and the
+velocity in px / s.
+
+The module is shared by the thermal detector (Algorithm 2, one filter per object) and the
+multi-object tracker.  Everything is pure numpy; bad input raises :class:`KalmanError`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from mk_tracker.parameters import parameter, validate_config
+
+#: Measurement matrix H of (4.1): the filter observes the centroid only.
+MEASUREMENT_MATRIX = np.array([[1.0, 0.0, 0.0, 0.0],
+                               [0.0, 1.0, 0.0, 0.0]])
+
+
+class KalmanError(ValueError):
+    """A time step, measurement or noise level the filter cannot use."""
+
+
+@dataclass(frozen=True)
+class KalmanConfig:
+    """Noise levels of the constant-velocity model.
+
+    The paper gives no value of ``sigma_u`` (it asks that ``3 sigma_u`` be "a small number of
+    pixels" per frame); 30 px/s^1.5 lets a walking person's velocity change by ~5 px/s per
+    frame at 30 Hz.  For ``sigma_w`` it reports "less than 3 pixels"; 2 px is the default.
+    """
+
+    sigma_u: float = parameter(30.0, "Process noise std (2.3): white acceleration spectral "
+                               "density, px/s^1.5", minimum=0.0, maximum=1e6)
+    sigma_w: float = parameter(2.0, "Measurement noise std (4.1) of the centroid, px",
+                               minimum=1e-6, maximum=1e6)
+    initial_position_var: float = parameter(4.0, "Initial variance of the centroid, px^2",
+                                            minimum=1e-9, maximum=1e12)
+    initial_velocity_var: float = parameter(2500.0, "Initial variance of the velocity, "
+                                            "(px/s)^2", minimum=1e-9, maximum=1e12)
+
+
+def _check_dt(dt: float) -> float:
+    try:
+        value = float(dt)
+    except (TypeError, ValueError) as exc:
+        raise KalmanError(f"time step {dt!r} is not a number") from exc
+    if not math.isfinite(value) or value <= 0.0:
+        raise KalmanError(f"time step must be a positive finite number of seconds, got {dt!r}")
+    return value
+
+
+def _check_std(name: str, value: float, *, allow_zero: bool) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise KalmanError(f"{name} {value!r} is not a number") from exc
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        raise KalmanError(f"{name} must be a finite {'non-negative' if allow_zero else 'positive'}"
+                          f" number, got {value!r}")
+    return v
+
+
+def _as_point(name: str, value: Sequence[float]) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise KalmanError(f"{name} {value!r} is not two numbers") from exc
+    if arr.shape != (2,):
+        raise KalmanError(f"{name} must have two values (x, y), got {arr.size}")
+    if not np.all(np.isfinite(arr)):
+        raise KalmanError(f"{name} {arr.tolist()} has a NaN or infinite value")
+    return arr
+
+
+def transition_matrix(dt: float) -> np.ndarray:
+    """State transition matrix A of (2.2) for a step of ``dt`` seconds."""
+    dt = _check_dt(dt)
+    a = np.eye(4)
+    a[0, 2] = dt
+    a[1, 3] = dt
+    return a
+
+
+def process_noise(dt: float, sigma_u: float) -> np.ndarray:
+    """Process-noise covariance Sigma_u of (2.3) for a step of ``dt`` seconds.
+
+    ``sigma_u**2 * [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]]``.
+    """
+    dt = _check_dt(dt)
+    s2 = _check_std("sigma_u", sigma_u, allow_zero=True) ** 2
+    i2 = np.eye(2)
+    top = np.hstack([dt ** 3 / 3.0 * i2, dt ** 2 / 2.0 * i2])
+    bottom = np.hstack([dt ** 2 / 2.0 * i2, dt * i2])
+    return s2 * np.vstack([top, bottom])
+
+
+class ConstantVelocityKalman:
+    """Kalman filter of one centroid with the model (2.1)-(2.3), (4.1)-(4.5).
+
+    ``state`` is ``(cx, cy, vx, vy)`` and ``covariance`` its 4x4 error covariance P(t|t)
+    (or P(t|t-1) right after :meth:`predict`).  Noise levels default to
+    :class:`KalmanConfig`; :meth:`from_config` builds a filter from a config.
+    """
+
+    def __init__(self, center: Sequence[float], *, sigma_u: float | None = None,
+                 sigma_w: float | None = None, initial_velocity: Sequence[float] = (0.0, 0.0),
+                 initial_position_var: float | None = None,
+                 initial_velocity_var: float | None = None) -> None:
+        d = KalmanConfig()
+        self.sigma_u = _check_std("sigma_u", d.sigma_u if sigma_u is None else sigma_u,
+                                  allow_zero=True)
+        self.sigma_w = _check_std("sigma_w", d.sigma_w if sigma_w is None else sigma_w,
+                                  allow_zero=False)
+        pos_var = _check_std("initial_position_var", d.initial_position_var
+                             if initial_position_var is None else initial_position_var,
+                             allow_zero=False)
+        vel_var = _check_std("initial_velocity_var", d.initial_velocity_var
+                             if initial_velocity_var is None else initial_velocity_var,
+                             allow_zero=False)
+        c = _as_point("center", center)
+        v = _as_point("initial_velocity", initial_velocity)
+        self._state = np.concatenate([c, v])
+        self._cov = np.diag([pos_var, pos_var, vel_var, vel_var])
+
+    @classmethod
+    def from_config(cls, center: Sequence[float], config: KalmanConfig,
+                    initial_velocity: Sequence[float] = (0.0, 0.0)) -> "ConstantVelocityKalman":
+        """A filter at ``center`` with the noise levels of ``config`` (validated)."""
+        validate_config(config)
+        return cls(center, sigma_u=config.sigma_u, sigma_w=config.sigma_w,
+                   initial_velocity=initial_velocity,
+                   initial_position_var=config.initial_position_var,
+                   initial_velocity_var=config.initial_velocity_var)
+
+    @property
+    def state(self) -> np.ndarray:
+        """A copy of the state ``(cx, cy, vx, vy)``."""
+        return self._state.copy()
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """A copy of the 4x4 error covariance."""
+        return self._cov.copy()
+
+    @property
+    def center(self) -> np.ndarray:
+        """Estimated centroid ``(cx, cy)``."""
+        return self._state[:2].copy()
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Estimated velocity ``(vx, vy)`` in px/s."""
+        return self._state[2:].copy()
+
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(s(t|t-1), P(t|t-1))`` after ``dt`` seconds, without changing the filter.
+
+        (4.2): ``s(t|t-1) = A s(t-1|t-1)``.  (4.3): ``P(t|t-1) = A P(t-1|t-1) A^T + Sigma_u``;
+        the paper prints ``F^T`` in (4.3), a typo for ``A^T`` (F is its frame symbol).
+        """
+        a = transition_matrix(dt)
+        q = process_noise(dt, self.sigma_u)
+        state = a @ self._state
+        cov = a @ self._cov @ a.T + q
+        return state, 0.5 * (cov + cov.T)
+
+    def predict(self, dt: float) -> np.ndarray:
+        """Advance the filter by ``dt`` seconds, (4.2)-(4.3); returns the predicted state."""
+        self._state, self._cov = self.predicted(dt)
+        return self._state.copy()
+
+    def _measurement_std(self, sigma_w: float | None) -> float:
+        if sigma_w is None:
+            return self.sigma_w
+        return _check_std("sigma_w", sigma_w, allow_zero=False)
+
+    def innovation_covariance(self, sigma_w: float | None = None) -> np.ndarray:
+        """``H P H^T + sigma_w^2 I``, the bracket of (4.5)."""
+        r = self._measurement_std(sigma_w) ** 2
+        return self._cov[:2, :2] + r * np.eye(2)
+
+    def innovation_distance(self, measurement: Sequence[float],
+                            sigma_w: float | None = None) -> float:
+        """Squared Mahalanobis distance of ``measurement`` from the current ``H s``.
+
+        Chi-square with two degrees of freedom under the model (4.1), usable for gating
+        (e.g. 9.21 for 99%).  Call it after :meth:`predict`.
+        """
+        z = _as_point("measurement", measurement)
+        nu = z - self._state[:2]
+        s = self.innovation_covariance(sigma_w)
+        return float(nu @ np.linalg.solve(s, nu))
+
+    def update(self, measurement: Sequence[float], sigma_w: float | None = None) -> np.ndarray:
+        """Correct the state with a measured centroid, (4.4)-(4.5); returns the new state.
+
+        ``sigma_w`` overrides the measurement std for this call only (the tracker makes it
+        follow the match quality).  A NaN or malformed measurement raises
+        :class:`KalmanError` and leaves the filter unchanged.
+        """
+        z = _as_point("measurement", measurement)
+        s = self.innovation_covariance(sigma_w)
+        pht = self._cov[:, :2]                       # P H^T
+        gain = np.linalg.solve(s, pht.T).T           # (4.5): G = P H^T S^-1 (S symmetric)
+        state = self._state + gain @ (z - self._state[:2])
+        cov = (np.eye(4) - gain @ MEASUREMENT_MATRIX) @ self._cov   # (4.4)
+        cov = 0.5 * (cov + cov.T)
+        if not (np.all(np.isfinite(state)) and np.all(np.isfinite(cov))):
+            raise KalmanError("update produced a non-finite state; filter left unchanged")
+        self._state, self._cov = state, cov
+        return self._state.copy()

@@ -1,0 +1,142 @@
+"""Tests of the constant-velocity Kalman filter against hand-computed steps."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mk_tracker.kalman import (ConstantVelocityKalman, KalmanConfig, KalmanError,
+                               process_noise, transition_matrix)
+from mk_tracker.parameters import ParameterError, parameter_specs
+
+
+def test_transition_matrix_is_2_2():
+    a = transition_matrix(0.5)
+    expected = np.array([[1, 0, 0.5, 0], [0, 1, 0, 0.5], [0, 0, 1, 0], [0, 0, 0, 1]], float)
+    np.testing.assert_array_equal(a, expected)
+
+
+def test_process_noise_is_2_3():
+    q = process_noise(2.0, 3.0)
+    # sigma_u^2 = 9; dt^3/3 = 8/3, dt^2/2 = 2, dt = 2
+    expected = 9.0 * np.array([[8 / 3, 0, 2, 0], [0, 8 / 3, 0, 2],
+                               [2, 0, 2, 0], [0, 2, 0, 2]])
+    np.testing.assert_allclose(q, expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.1, float("nan"), float("inf"), "x", None])
+def test_bad_time_step_is_a_kalman_error(dt):
+    with pytest.raises(KalmanError):
+        transition_matrix(dt)
+    kf = ConstantVelocityKalman((0, 0))
+    with pytest.raises(KalmanError):
+        kf.predict(dt)
+    with pytest.raises(ValueError):  # KalmanError is a ValueError
+        kf.predicted(dt)
+
+
+def _filter():
+    return ConstantVelocityKalman((10.0, 20.0), sigma_u=1.0, sigma_w=2.0,
+                                  initial_position_var=4.0, initial_velocity_var=100.0)
+
+
+def test_predict_step_by_hand():
+    kf = _filter()
+    s = kf.predict(1.0)
+    np.testing.assert_allclose(s, [10, 20, 0, 0])
+    p = kf.covariance
+    # A P A^T = [[4+100, 100], [100, 100]] per axis, plus Q = [[1/3, 1/2], [1/2, 1]]
+    assert p[0, 0] == pytest.approx(104 + 1 / 3)
+    assert p[0, 2] == pytest.approx(100.5)
+    assert p[2, 2] == pytest.approx(101.0)
+    assert p[0, 1] == pytest.approx(0.0)
+    assert p[1, 1] == pytest.approx(104 + 1 / 3)
+
+
+def test_update_step_by_hand():
+    kf = _filter()
+    kf.predict(1.0)
+    s = kf.update((12.0, 20.0))
+    # S = 313/3 + 4 = 325/3; gains 313/325 (position) and 301.5/325 (velocity)
+    assert s[0] == pytest.approx(10 + 2 * 313 / 325)
+    assert s[2] == pytest.approx(2 * 301.5 / 325)
+    assert s[1] == pytest.approx(20.0)
+    assert s[3] == pytest.approx(0.0)
+    p = kf.covariance
+    assert p[0, 0] == pytest.approx(4 * 313 / 325)
+    assert p[0, 2] == pytest.approx(100.5 * 12 / 325)
+    assert p[2, 2] == pytest.approx(101 - 3 * 100.5 ** 2 / 325)
+
+
+def test_per_call_sigma_w_changes_the_gain_only_for_that_call():
+    a, b = _filter(), _filter()
+    a.predict(1.0)
+    b.predict(1.0)
+    a.update((12.0, 20.0), sigma_w=10.0)
+    b.update((12.0, 20.0))
+    # with sigma_w = 10: S = 313/3 + 100, gain = (313/3) / (613/3)
+    assert a.state[0] == pytest.approx(10 + 2 * 313 / 613)
+    assert a.sigma_w == 2.0
+    assert b.state[0] > a.state[0]
+
+
+def test_predicted_does_not_change_the_filter_and_velocity_moves_the_state():
+    kf = ConstantVelocityKalman((0.0, 0.0), initial_velocity=(10.0, -4.0))
+    before = kf.covariance
+    s, p = kf.predicted(0.1)
+    np.testing.assert_allclose(s, [1.0, -0.4, 10.0, -4.0])
+    np.testing.assert_array_equal(kf.state, [0.0, 0.0, 10.0, -4.0])
+    np.testing.assert_array_equal(kf.covariance, before)
+    assert p[0, 0] > before[0, 0]
+
+
+def test_innovation_distance_by_hand():
+    kf = _filter()
+    # P = 4 I on position, sigma_w = 2: S = 8 I; residual (4, 0) -> 16/8 = 2
+    assert kf.innovation_distance((14.0, 20.0)) == pytest.approx(2.0)
+    assert kf.innovation_distance((10.0, 20.0)) == pytest.approx(0.0)
+    # per-call sigma_w: S = (4 + 16) I -> 16/20
+    assert kf.innovation_distance((14.0, 20.0), sigma_w=4.0) == pytest.approx(0.8)
+
+
+@pytest.mark.parametrize("z", [(float("nan"), 1.0), (1.0, float("inf")), (1.0,), "ab", None])
+def test_bad_measurement_is_rejected_without_corrupting_the_state(z):
+    kf = _filter()
+    kf.predict(1.0)
+    state, cov = kf.state, kf.covariance
+    with pytest.raises(KalmanError):
+        kf.update(z)
+    np.testing.assert_array_equal(kf.state, state)
+    np.testing.assert_array_equal(kf.covariance, cov)
+
+
+def test_bad_noise_levels_are_rejected():
+    with pytest.raises(KalmanError):
+        ConstantVelocityKalman((0, 0), sigma_w=0.0)
+    with pytest.raises(KalmanError):
+        ConstantVelocityKalman((0, 0), sigma_u=-1.0)
+    with pytest.raises(KalmanError):
+        ConstantVelocityKalman((math.nan, 0))
+    with pytest.raises(KalmanError):
+        _filter().update((1, 1), sigma_w=float("nan"))
+
+
+def test_constant_velocity_track_converges_to_the_true_velocity():
+    kf = ConstantVelocityKalman((0.0, 0.0), sigma_u=1.0, sigma_w=1.0)
+    rng = np.random.default_rng(0)
+    dt = 1 / 30
+    for k in range(1, 200):
+        kf.predict(dt)
+        kf.update(np.array([30.0, -15.0]) * k * dt + rng.normal(0, 1.0, 2))
+    np.testing.assert_allclose(kf.velocity, [30.0, -15.0], atol=3.0)
+
+
+def test_config_is_declared_and_used():
+    names = {s.name for s in parameter_specs(KalmanConfig)}
+    assert names == {"sigma_u", "sigma_w", "initial_position_var", "initial_velocity_var"}
+    kf = ConstantVelocityKalman.from_config((1, 2), KalmanConfig(sigma_w=5.0,
+                                                                 initial_position_var=9.0))
+    assert kf.sigma_w == 5.0
+    assert kf.covariance[0, 0] == 9.0
+    with pytest.raises(ParameterError):
+        ConstantVelocityKalman.from_config((1, 2), KalmanConfig(sigma_w=-1.0))
