@@ -1,0 +1,260 @@
+"""``mk_launch``: start the bag player, both nodes and the recorder where ``ros2 launch`` is
+not available (the pip-installed rclpy wheels).
+
+It does what ``launch/mk_tracker.launch.py`` describes for a real ROS 2 install: every
+process gets the same parameters file and remappings, their output is printed line by line
+with a ``[name]`` prefix, and Ctrl-C (or SIGTERM) stops them all cleanly -- SIGINT to each,
+a grace period, then SIGTERM, then SIGKILL.  When the bag has been played (and ``--linger``
+seconds have passed so that the last frames are processed) everything is stopped the same
+way.  The exit status is 0 when every process ended on its own with status 0 or was stopped
+by us; it is 1 if any process crashed (exited non-zero, or died while it was expected to
+run), and the crash is named.
+
+This module does not import rclpy: it only manages processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Sequence, TextIO
+
+GRACE_S = 5.0
+
+
+class LaunchError(ValueError):
+    """Invalid launch options."""
+
+
+@dataclass(frozen=True)
+class ProcessSpec:
+    """One process to start.  ``essential`` processes stop the launch when they exit;
+    a non-essential one (the bag player) may finish on its own."""
+
+    name: str
+    argv: tuple[str, ...]
+    essential: bool = True
+    env: dict = field(default_factory=dict)
+
+
+def module_command(module: str, args: Sequence[str] = ()) -> tuple[str, ...]:
+    """Run ``module.main()`` with the current interpreter (the same venv), ``args`` as argv."""
+    code = f"import sys; from {module} import main; sys.exit(main())"
+    return (sys.executable, "-c", code, *args)
+
+
+def ros_args(params_file: str | None, remaps: Sequence[str] = (), node_name: str | None = None
+             ) -> list[str]:
+    """``--ros-args`` tail with the params file and ``from:=to`` remappings."""
+    tail: list[str] = []
+    if params_file:
+        tail += ["--params-file", params_file]
+    if node_name:
+        tail += ["-r", f"__node:={node_name}"]
+    for remap in remaps:
+        if ":=" not in remap:
+            raise LaunchError(f"remap {remap!r} is not of the form FROM:=TO")
+        tail += ["-r", remap]
+    return ["--ros-args", *tail] if tail else []
+
+
+def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
+    """The processes ``mk_launch`` starts for parsed command-line ``args``."""
+    if args.params_file and not os.path.isfile(args.params_file):
+        raise LaunchError(f"parameters file {args.params_file!r} does not exist")
+    if args.bag and not os.path.exists(args.bag):
+        raise LaunchError(f"bag {args.bag!r} does not exist")
+    specs: list[ProcessSpec] = []
+    if not args.no_detector:
+        specs.append(ProcessSpec("detector_node", module_command(
+            "mk_tracker.ros.detector_node", ros_args(args.params_file, args.remap))))
+    if not args.no_tracker:
+        specs.append(ProcessSpec("tracker_node", module_command(
+            "mk_tracker.ros.tracker_node", ros_args(args.params_file, args.remap))))
+    if args.record:
+        if not args.record_topics:
+            raise LaunchError("--record needs --record-topics")
+        rec = ["-o", args.record, "--storage", args.storage, *args.record_topics]
+        specs.append(ProcessSpec("bag_recorder", module_command(
+            "mk_tracker.ros.bag_recorder", rec)))
+    if args.bag:
+        play = [args.bag, "--rate", str(args.rate), "--wait-for-subscribers",
+                str(args.wait_for_subscribers)]
+        if args.clock:
+            play += ["--clock"]
+        for remap in args.remap:
+            play += ["--remap", remap]
+        specs.append(ProcessSpec("bag_player", module_command(
+            "mk_tracker.ros.bag_player", play), essential=False))
+    if not specs:
+        raise LaunchError("nothing to launch")
+    return specs
+
+
+class _Running:
+    def __init__(self, spec: ProcessSpec, out: TextIO, lock: threading.Lock) -> None:
+        env = dict(os.environ)
+        env.update(spec.env)
+        env.setdefault("PYTHONUNBUFFERED", "1")
+        self.spec = spec
+        self.stopped_by_us = False
+        self.proc = subprocess.Popen(spec.argv, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                     env=env, text=True, errors="replace", bufsize=1,
+                                     start_new_session=True)
+        self.pump = threading.Thread(target=self._copy, args=(out, lock), daemon=True)
+        self.pump.start()
+
+    def _copy(self, out: TextIO, lock: threading.Lock) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            with lock:
+                out.write(f"[{self.spec.name}] {line.rstrip()}\n")
+                out.flush()
+
+
+def _terminate(procs: list[_Running], grace_s: float, log) -> None:
+    """SIGINT every live process, wait; then SIGTERM; then SIGKILL."""
+    for sig, label in ((signal.SIGINT, "SIGINT"), (signal.SIGTERM, "SIGTERM"),
+                       (signal.SIGKILL, "SIGKILL")):
+        live = [p for p in procs if p.proc.poll() is None]
+        if not live:
+            return
+        if sig != signal.SIGINT:
+            log(f"{', '.join(p.spec.name for p in live)} still running: sending {label}")
+        for p in live:
+            p.stopped_by_us = True
+            try:
+                p.proc.send_signal(sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + grace_s
+        while time.monotonic() < deadline and any(p.proc.poll() is None for p in live):
+            time.sleep(0.05)
+    for p in procs:
+        p.proc.wait()
+
+
+def crashed(returncode: int, stopped_by_us: bool) -> bool:
+    """Whether an exit status is a crash: non-zero, unless it is the expected result of a
+    signal we sent (Python exits 130/-2 on SIGINT, -15 on SIGTERM, -9 on SIGKILL)."""
+    if returncode == 0:
+        return False
+    if stopped_by_us and returncode in (-signal.SIGINT, -signal.SIGTERM, -signal.SIGKILL,
+                                        130, 143):
+        return False
+    return True
+
+
+def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
+                  linger_s: float = 0.0, timeout_s: float | None = None,
+                  out: TextIO | None = None, stop_event: threading.Event | None = None,
+                  start_delay_s: float = 0.0) -> int:
+    """Start ``specs`` in order, relay their output, and stop them all; return 0 or 1.
+
+    The launch ends when ``stop_event`` is set (SIGINT/SIGTERM of ``mk_launch``), when an
+    essential process exits, when every non-essential process has finished and
+    ``linger_s`` has passed, or after ``timeout_s``.
+    """
+    out = out or sys.stdout
+    lock = threading.Lock()
+    stop_event = stop_event or threading.Event()
+
+    def log(text: str) -> None:
+        with lock:
+            out.write(f"[mk_launch] {text}\n")
+            out.flush()
+
+    procs: list[_Running] = []
+    try:
+        for spec in specs:
+            procs.append(_Running(spec, out, lock))
+            log(f"started {spec.name} (pid {procs[-1].proc.pid})")
+            if start_delay_s and spec is not specs[-1]:
+                stop_event.wait(start_delay_s)
+        started = time.monotonic()
+        optional = [p for p in procs if not p.spec.essential]
+        finished_at = None
+        while not stop_event.is_set():
+            dead = [p for p in procs if p.spec.essential and p.proc.poll() is not None]
+            if dead:
+                log(f"{dead[0].spec.name} exited with status {dead[0].proc.returncode}; "
+                    "stopping the others")
+                break
+            failed = [p for p in optional if p.proc.poll() not in (None, 0)]
+            if failed:
+                log(f"{failed[0].spec.name} failed with status {failed[0].proc.returncode}")
+                break
+            if optional and all(p.proc.poll() == 0 for p in optional):
+                if finished_at is None:
+                    finished_at = time.monotonic()
+                    log(f"{', '.join(p.spec.name for p in optional)} finished")
+                if time.monotonic() - finished_at >= linger_s:
+                    break
+            if timeout_s is not None and time.monotonic() - started >= timeout_s:
+                log(f"timeout of {timeout_s} s reached")
+                break
+            stop_event.wait(0.05)
+    finally:
+        _terminate(procs, grace_s, log)
+        for p in procs:
+            p.pump.join(timeout=2.0)
+    status = 0
+    for p in procs:
+        if crashed(p.proc.returncode, p.stopped_by_us):
+            log(f"{p.spec.name} crashed (status {p.proc.returncode})")
+            status = 1
+    log("all processes stopped" + (" (with failures)" if status else ""))
+    return status
+
+
+def configure_parser(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--bag", help="rosbag2 bag to play (omit to only run the nodes)")
+    parser.add_argument("--params-file", help="ROS 2 parameters YAML for both nodes")
+    parser.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
+                        help="topic remapping applied to the nodes and the player")
+    parser.add_argument("--rate", type=float, default=1.0, help="playback rate factor")
+    parser.add_argument("--clock", action="store_true", help="player publishes /clock")
+    parser.add_argument("--wait-for-subscribers", type=float, default=10.0, metavar="S",
+                        help="player waits up to S seconds for the nodes to subscribe")
+    parser.add_argument("--record", metavar="OUT", help="record into this new bag")
+    parser.add_argument("--record-topics", nargs="+", default=[], metavar="TOPIC")
+    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
+    parser.add_argument("--no-detector", action="store_true")
+    parser.add_argument("--no-tracker", action="store_true")
+    parser.add_argument("--linger", type=float, default=2.0, metavar="S",
+                        help="after the bag is played, keep running S seconds (default 2)")
+    parser.add_argument("--timeout", type=float, default=None, metavar="S",
+                        help="stop everything after S seconds")
+    parser.add_argument("--grace", type=float, default=GRACE_S, metavar="S",
+                        help="seconds between SIGINT, SIGTERM and SIGKILL on shutdown")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="mk_launch", description=__doc__.splitlines()[0])
+    configure_parser(parser)
+    args = parser.parse_args(argv)
+    try:
+        specs = build_specs(args)
+    except LaunchError as exc:
+        print(f"mk_launch: {exc}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+
+    def on_signal(signum, _frame) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    return run_processes(specs, grace_s=args.grace, linger_s=args.linger,
+                         timeout_s=args.timeout, stop_event=stop)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

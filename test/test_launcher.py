@@ -1,0 +1,153 @@
+"""mk_launch process management, with small Python stand-in processes (no DDS needed)."""
+
+import argparse
+import io
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from mk_tracker.ros.launcher import (LaunchError, ProcessSpec, build_specs, configure_parser,
+                                     crashed, ros_args, run_processes)
+
+
+def py(code: str) -> tuple[str, ...]:
+    return (sys.executable, "-u", "-c", code)
+
+
+# Exits 0 on SIGINT after writing a marker file: a well-behaved node.
+POLITE = """
+import signal, sys, time
+print('ready', flush=True)
+def stop(*_):
+    open(sys.argv[1], 'w').write('stopped')
+    sys.exit(0)
+signal.signal(signal.SIGINT, stop)
+while True: time.sleep(0.05)
+"""
+# Ignores SIGINT and SIGTERM: has to be killed.
+STUBBORN = """
+import signal, time
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+signal.signal(signal.SIGTERM, signal.SIG_IGN)
+print('ready', flush=True)
+while True: time.sleep(0.05)
+"""
+
+
+def test_output_is_prefixed_and_sigint_stops_everything_cleanly(tmp_path):
+    marker_a, marker_b = tmp_path / "a", tmp_path / "b"
+    out = io.StringIO()
+    stop = threading.Event()
+    threading.Timer(1.5, stop.set).start()
+    status = run_processes([ProcessSpec("alpha", py(POLITE) + (str(marker_a),)),
+                            ProcessSpec("beta", py(POLITE) + (str(marker_b),))],
+                           out=out, stop_event=stop, grace_s=3.0)
+    text = out.getvalue()
+    assert status == 0, text
+    assert "[alpha] ready" in text and "[beta] ready" in text
+    assert marker_a.read_text() == "stopped" and marker_b.read_text() == "stopped"
+
+
+def test_process_ignoring_signals_is_killed_after_the_grace_period():
+    out = io.StringIO()
+    stop = threading.Event()
+    threading.Timer(1.0, stop.set).start()
+    t0 = time.monotonic()
+    status = run_processes([ProcessSpec("stubborn", py(STUBBORN))], out=out,
+                           stop_event=stop, grace_s=0.5)
+    elapsed = time.monotonic() - t0
+    assert "SIGKILL" in out.getvalue()
+    assert status == 0  # killed by us on purpose: not a crash
+    assert elapsed < 5.0
+
+
+def test_a_crashing_node_stops_the_launch_and_gives_non_zero_status(tmp_path):
+    out = io.StringIO()
+    t0 = time.monotonic()
+    status = run_processes([ProcessSpec("good", py(POLITE) + (str(tmp_path / "m"),)),
+                            ProcessSpec("bad", py("import time; time.sleep(0.5); "
+                                                  "raise SystemExit(3)"))],
+                           out=out, grace_s=3.0, timeout_s=20)
+    text = out.getvalue()
+    assert status == 1
+    assert "bad crashed (status 3)" in text
+    assert (tmp_path / "m").read_text() == "stopped"  # the healthy one was stopped cleanly
+    assert time.monotonic() - t0 < 10
+
+
+def test_launch_ends_after_the_player_finishes_and_linger(tmp_path):
+    out = io.StringIO()
+    t0 = time.monotonic()
+    status = run_processes([ProcessSpec("node", py(POLITE) + (str(tmp_path / "m"),)),
+                            ProcessSpec("player", py("print('played')"), essential=False)],
+                           out=out, linger_s=1.0, grace_s=3.0, timeout_s=20)
+    assert status == 0, out.getvalue()
+    assert "[player] played" in out.getvalue()
+    assert 1.0 <= time.monotonic() - t0 < 8
+
+
+def test_failing_player_is_reported():
+    out = io.StringIO()
+    status = run_processes([ProcessSpec("player", py("raise SystemExit(2)"), essential=False)],
+                           out=out, grace_s=1.0, timeout_s=20)
+    assert status == 1 and "player failed with status 2" in out.getvalue()
+
+
+def test_crash_classification():
+    assert not crashed(0, False)
+    assert crashed(1, False)
+    assert crashed(-signal.SIGSEGV, True)
+    assert not crashed(-signal.SIGINT, True)
+    assert crashed(-signal.SIGINT, False)
+
+
+def test_ros_args_and_specs(tmp_path):
+    assert ros_args("p.yaml", ["/image:=/cam"]) == ["--ros-args", "--params-file", "p.yaml",
+                                                    "-r", "/image:=/cam"]
+    with pytest.raises(LaunchError):
+        ros_args(None, ["/image"])
+    params = tmp_path / "p.yaml"
+    params.write_text("{}\n")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    parser = argparse.ArgumentParser()
+    configure_parser(parser)
+    args = parser.parse_args(["--bag", str(bag), "--params-file", str(params), "--record",
+                              str(tmp_path / "out"), "--record-topics", "/tracks"])
+    specs = build_specs(args)
+    assert [s.name for s in specs] == ["detector_node", "tracker_node", "bag_recorder",
+                                       "bag_player"]
+    assert [s.essential for s in specs] == [True, True, True, False]
+    assert all(str(params) in s.argv for s in specs[:2])
+    with pytest.raises(LaunchError, match="does not exist"):
+        build_specs(parser.parse_args(["--bag", str(tmp_path / "missing")]))
+    with pytest.raises(LaunchError, match="record-topics"):
+        build_specs(parser.parse_args(["--record", str(tmp_path / "o")]))
+
+
+def test_mk_launch_command_stops_children_on_sigint(tmp_path):
+    """The real executable: SIGINT to mk_launch stops a node that then exits cleanly."""
+    env = dict(os.environ, ROS_DOMAIN_ID="151", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    proc = subprocess.Popen([sys.executable, "-m", "mk_tracker.ros.launcher", "--no-detector",
+                             "--no-tracker", "--record", str(tmp_path / "rec"),
+                             "--record-topics", "/nothing", "--grace", "5"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=env, cwd=Path(__file__).resolve().parents[1])
+    try:
+        time.sleep(3.0)
+        proc.send_signal(signal.SIGINT)
+        output, _ = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert "[mk_launch] started bag_recorder" in output
+    assert "all processes stopped" in output and "crashed" not in output, output
+    assert proc.returncode == 0, output
+    assert (tmp_path / "rec" / "metadata.yaml").is_file(), output
