@@ -1,0 +1,501 @@
+"""Multi-object tracker: Kalman filtering + multiple-kernel refinement + detection association.
+
+This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
+:meth:`MultiObjectTracker.step` per RGB frame does, in order:
+
+1. **Input checks.**  A time stamp that goes backwards (a bag played in a loop) resets the
+   tracker and says so in ``events``; a frame whose size differs from the previous one is
+   skipped and counted (call :meth:`reset` to accept a new size).
+2. **Detections to the frame.**  Each detection carries a box, a score, a stamp and an image
+   plane.  Thermal-plane boxes are mapped into the RGB plane by the configured 3x3 homography
+   (:func:`mk_tracker.boxes.transform_box`); boxes with NaN or non-positive sizes, or
+   entirely outside the image, are skipped and counted; detections whose stamp differs from
+   the frame's by more than ``stale_tolerance`` are dropped and counted; the others are
+   brought to the frame time with each track's Kalman velocity (constant-velocity model
+   (2.1)-(2.2) of Schizas et al. 2018).
+3. **Prediction.**  Every track's Kalman filter is advanced to the frame time, (4.2)-(4.3).
+4. **Multiple-kernel refinement** (Chu et al. 2013, Sec. IV-D): for each confirmed or
+   occluded track with an appearance model, the Kalman prediction initialises the
+   multiple-kernel search whose result is a Kalman measurement.  Its similarity sets the
+   measurement noise (:func:`mk_tracker.track.measurement_sigma`) and, below
+   ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).
+5. **Association** (:mod:`mk_tracker.association`): Hungarian assignment of detections to
+   tentative/confirmed/occluded tracks on overlap + Kalman-gated distance; then the
+   remaining detections against *lost* tracks, where the appearance model must also match
+   (re-acquisition with the old id).  Remaining detections start tentative tracks.
+6. **Update and lifecycle** (:mod:`mk_tracker.track`).
+
+The refiner is any object with ``start(image, box) -> target``,
+``refine(image, target, predicted_center=None) -> result`` (with ``box``, ``similarity``
+and ``lost``) and ``appearance_similarity(image, target, box) -> float``:
+:class:`mk_tracker.multi_kernel.MultiKernelTracker` in production, a fake in unit tests.
+Per-frame work is proportional to the number of tracks; pixels are only touched by the
+refiner, inside each target's search region.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Protocol, Sequence
+
+import numpy as np
+
+from mk_tracker.association import (AssociationConfig, assign, association_cost,
+                                    mahalanobis_matrix)
+from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
+from mk_tracker.kalman import KalmanConfig
+from mk_tracker.parameters import ParameterError, parameter, validate_config
+from mk_tracker.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
+                              next_state)
+
+IDENTITY_HOMOGRAPHY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+PLANES = ("rgb", "thermal")
+
+
+class TrackerInputError(ValueError):
+    """An input the tracker cannot use at all (not an image, singular homography, ...)."""
+
+
+@dataclass(frozen=True)
+class MultiObjectTrackerConfig:
+    """Every constant of the multi-object tracker (nested configs flatten with dots)."""
+
+    kalman: KalmanConfig = parameter(KalmanConfig(), "Constant-velocity Kalman filter")
+    association: AssociationConfig = parameter(AssociationConfig(),
+                                               "Detection-to-track assignment")
+    lifecycle: LifecycleConfig = parameter(LifecycleConfig(), "Track states and smoothing")
+    homography: tuple = parameter(
+        IDENTITY_HOMOGRAPHY, "Row-major 3x3 homography mapping thermal pixels to RGB pixels")
+    stale_tolerance: float = parameter(
+        0.5, "Detections whose stamp differs from the frame's by more than this many seconds "
+        "are dropped", minimum=0.0, maximum=1e4)
+    backwards_tolerance: float = parameter(
+        1e-6, "A frame stamp earlier than the previous one by more than this (s) resets the "
+        "tracker", minimum=0.0, maximum=1e4)
+    min_detection_score: float = parameter(
+        -1e9, "Detections with a lower score are ignored", minimum=-1e12, maximum=1e12)
+    new_track_score: float = parameter(
+        0.0, "A detection needs at least this score to start a track", minimum=-1e12,
+        maximum=1e12)
+    new_track_max_iou: float = parameter(
+        0.6, "An unassigned detection overlapping a live track by more than this IoU does "
+        "not start a new track (duplicate)", minimum=0.0, maximum=1.0)
+    refine_consistency_iou: float = parameter(
+        0.3, "A refinement is fused with the assigned detection only if their boxes overlap "
+        "by at least this IoU", minimum=0.0, maximum=1.0)
+    reacquire_gate: float = parameter(
+        13.8, "Chi-square gate (2 dof) for a detection to re-acquire a lost track",
+        minimum=0.1, maximum=1e4)
+    reacquire_similarity: float = parameter(
+        0.5, "Appearance similarity a detection needs to re-acquire a lost track",
+        minimum=0.0, maximum=1.0)
+    reacquire_max_size_ratio: float = parameter(
+        1.6, "Largest height ratio between a lost track and a re-acquiring detection",
+        minimum=1.0, maximum=100.0)
+    appearance_update_interval: float = parameter(
+        1.0, "Seconds between refreshes of a track's appearance model from an isolated "
+        "detection (0 = every frame)", minimum=0.0, maximum=1e4)
+    isolation_iou: float = parameter(
+        0.05, "A detection overlapping another track by more than this IoU is not used to "
+        "refresh an appearance model", minimum=0.0, maximum=1.0)
+    max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
+                                "not started", minimum=1, maximum=100000)
+
+
+@dataclass(frozen=True)
+class FrameDetection:
+    """A detection as the tracker consumes it.  ``stamp`` None = the frame's stamp."""
+
+    box: tuple[float, float, float, float]
+    score: float = 1.0
+    stamp: float | None = None
+    plane: str = "rgb"
+
+
+class Refiner(Protocol):
+    def start(self, image_bgr: np.ndarray, box: Sequence[float]) -> Any: ...
+
+    def refine(self, image_bgr: np.ndarray, state: Any,
+               predicted_center: Sequence[float] | None = None) -> Any: ...
+
+    def appearance_similarity(self, image_bgr: np.ndarray, state: Any,
+                              box: Sequence[float]) -> float: ...
+
+
+@dataclass
+class FrameResult:
+    """Output of one :meth:`MultiObjectTracker.step`.
+
+    ``tracks`` holds every live track (including ``lost`` ones, without a meaningful box);
+    :meth:`reported` only those a consumer should draw or score.  Counters are for this
+    frame; :attr:`MultiObjectTracker.totals` accumulates them.
+    """
+
+    stamp: float
+    tracks: list[TrackOutput] = field(default_factory=list)
+    deleted_ids: list[int] = field(default_factory=list)
+    dropped_stale: int = 0
+    skipped_bad_detections: int = 0
+    resets: int = 0
+    skipped_frame: bool = False
+    events: list[str] = field(default_factory=list)
+
+    def reported(self) -> list[TrackOutput]:
+        """Tracks in an output state (confirmed or occluded)."""
+        names = {s.value for s in OUTPUT_STATES}
+        return [t for t in self.tracks if t.state in names]
+
+
+@dataclass
+class _Prepared:
+    box: np.ndarray        # in the RGB plane, at the detection's stamp
+    score: float
+    lag: float             # frame stamp - detection stamp (s)
+
+
+def _homography_matrix(values: Sequence[float]) -> np.ndarray:
+    try:
+        h = np.asarray(values, dtype=np.float64).reshape(3, 3)
+    except (TypeError, ValueError) as exc:
+        raise TrackerInputError(f"homography must be 9 numbers, got {values!r}") from exc
+    if not np.all(np.isfinite(h)):
+        raise TrackerInputError("homography has NaN or infinite values")
+    scale = max(float(np.abs(h).max()), 1e-300)
+    if abs(np.linalg.det(h / scale)) < 1e-12:
+        raise TrackerInputError(f"homography {h.tolist()} is singular")
+    return h
+
+
+def _quality(score: float) -> float:
+    return min(max(float(score), 0.0), 1.0)
+
+
+class MultiObjectTracker:
+    """Tracks people through occlusion; see the module docstring for one step's work."""
+
+    def __init__(self, config: MultiObjectTrackerConfig | None = None, *,
+                 refiner: Refiner | None = None) -> None:
+        self.config = config or MultiObjectTrackerConfig()
+        try:
+            validate_config(self.config)
+        except ParameterError as exc:
+            raise TrackerInputError(str(exc)) from exc
+        self.homography = _homography_matrix(self.config.homography)
+        self.refiner = refiner
+        self._next_id = 1
+        self.tracks: list[Track] = []
+        self.last_stamp: float | None = None
+        self.frame_size: tuple[int, int] | None = None
+        self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
+                       "resets": 0, "skipped_frames": 0}
+
+    # -- public API -----------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget every track and the previous frame (ids keep counting up, never reused)."""
+        self.tracks = []
+        self.last_stamp = None
+        self.frame_size = None
+
+    def start_track(self, image_bgr: np.ndarray, stamp: float, box: Sequence[float]) -> int:
+        """Start a confirmed track on ``box`` by hand (single-target protocol); returns its id."""
+        self._check_image(image_bgr)
+        try:
+            b = as_box(box)
+        except InvalidBoxError as exc:
+            raise TrackerInputError(str(exc)) from exc
+        stamp = self._check_stamp(stamp)
+        track = self._new_track(b, stamp, 1.0, TrackState.CONFIRMED)
+        track.hits = self.config.lifecycle.min_hits
+        if self.refiner is not None:
+            track.target = self.refiner.start(image_bgr, tuple(b))
+            track.target_stamp = stamp
+        if self.frame_size is None:
+            self.frame_size = image_bgr.shape[:2]
+        return track.id
+
+    def step(self, image_bgr: np.ndarray, stamp: float,
+             detections: Iterable[Any] = ()) -> FrameResult:
+        """Process one RGB frame at ``stamp`` (seconds) with its detections."""
+        self._check_image(image_bgr)
+        stamp = self._check_stamp(stamp)
+        result = FrameResult(stamp=stamp)
+        self.totals["frames"] += 1
+        size = tuple(image_bgr.shape[:2])
+        if self.last_stamp is not None and stamp < self.last_stamp - self.config.backwards_tolerance:
+            result.events.append(f"time went backwards by {self.last_stamp - stamp:.3f} s: reset")
+            result.resets = 1
+            self.reset()
+        if self.frame_size is not None and size != self.frame_size:
+            result.skipped_frame = True
+            result.events.append(f"frame {size[1]}x{size[0]} differs from the previous "
+                                 f"{self.frame_size[1]}x{self.frame_size[0]}: skipped "
+                                 f"(reset() accepts a new size)")
+            self._count(result)
+            self.totals["skipped_frames"] += 1
+            result.tracks = [t.output() for t in self.tracks]
+            return result
+        self.frame_size = size
+        self.last_stamp = stamp
+        height, width = size
+
+        dets = self._prepare(detections, stamp, width, height, result)
+        live = [t for t in self.tracks if t.state is not TrackState.DELETED]
+        for t in live:
+            t.predict(stamp)
+
+        # 4. multiple-kernel refinement from the Kalman prediction (Chu et al. Sec. IV-D)
+        refined: dict[int, tuple[np.ndarray, float]] = {}
+        for t in live:
+            t.refined_box = None
+            if (self.refiner is not None and t.target is not None
+                    and t.state in (TrackState.CONFIRMED, TrackState.OCCLUDED)
+                    and self._in_image(t, width, height)):
+                res = self.refiner.refine(image_bgr, t.target, predicted_center=tuple(t.center))
+                sim = float(getattr(res, "similarity", 0.0))
+                box = getattr(res, "box", None)
+                if (not getattr(res, "lost", False) and box is not None and math.isfinite(sim)
+                        and all(math.isfinite(float(v)) for v in box)):
+                    refined[t.id] = (np.asarray(box, dtype=np.float64), sim)
+                    t.refined_box = refined[t.id][0]
+                new_state = getattr(res, "state", None)
+                if new_state is not None:
+                    t.target = new_state
+
+        # 5a. detections vs tentative / confirmed / occluded tracks
+        active = [t for t in live if t.state is not TrackState.LOST]
+        matched_track: dict[int, int] = {}          # detection index -> track id
+        if active and dets:
+            a = self._match(active, dets, self.config.association.gate)
+            for r, k in a.matches:
+                matched_track[k] = active[r].id
+        # 5b. remaining detections vs lost tracks (re-acquisition)
+        lost = [t for t in live if t.state is TrackState.LOST]
+        remaining = [k for k in range(len(dets)) if k not in matched_track]
+        if lost and remaining:
+            for r, k in self._reacquire(lost, [dets[k] for k in remaining], image_bgr):
+                matched_track[remaining[k]] = lost[r].id
+                result.events.append(f"track {lost[r].id} re-acquired")
+
+        # 6. updates and lifecycle
+        by_id = {t.id: t for t in live}
+        detected: dict[int, _Prepared] = {by_id[tid].id: dets[k]
+                                          for k, tid in matched_track.items()}
+        det_boxes_now = {tid: self._at_frame_time(by_id[tid], d)
+                         for tid, d in detected.items()}
+        for t in live:
+            self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
+                               detected.get(t.id), refined.get(t.id), width, height,
+                               det_boxes_now)
+        # new tentative tracks
+        live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
+                               and t.state is not TrackState.LOST]).reshape(-1, 4)
+        for k, d in enumerate(dets):
+            if k in matched_track or d.score < self.config.new_track_score:
+                continue
+            if len(live) >= self.config.max_tracks:
+                result.events.append("max_tracks reached: detection not started")
+                break
+            if live_boxes.shape[0] and iou_matrix(d.box[None], live_boxes).max() > \
+                    self.config.new_track_max_iou:
+                continue
+            t = self._new_track(d.box, stamp, d.score, TrackState.TENTATIVE)
+            live.append(t)
+            live_boxes = np.vstack([live_boxes, t.box[None]])
+            if self.config.lifecycle.min_hits <= 1:
+                t.state = TrackState.CONFIRMED
+                self._refresh_appearance(t, image_bgr, d.box, stamp, force=True)
+        for t in self.tracks:
+            if t.state is TrackState.DELETED:
+                result.deleted_ids.append(t.id)
+        self.tracks = [t for t in self.tracks if t.state is not TrackState.DELETED]
+        result.tracks = [t.output() for t in self.tracks]
+        self._count(result)
+        return result
+
+    # -- internals ------------------------------------------------------------------------
+    def _count(self, result: FrameResult) -> None:
+        self.totals["dropped_stale"] += result.dropped_stale
+        self.totals["skipped_bad_detections"] += result.skipped_bad_detections
+        self.totals["resets"] += result.resets
+
+    @staticmethod
+    def _check_image(image: Any) -> None:
+        if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) \
+                or image.shape[0] < 1 or image.shape[1] < 1:
+            raise TrackerInputError(f"image must be an HxW or HxWxC numpy array, got "
+                                    f"{getattr(image, 'shape', type(image).__name__)}")
+
+    @staticmethod
+    def _check_stamp(stamp: Any) -> float:
+        try:
+            s = float(stamp)
+        except (TypeError, ValueError) as exc:
+            raise TrackerInputError(f"stamp {stamp!r} is not a number") from exc
+        if not math.isfinite(s):
+            raise TrackerInputError(f"stamp {stamp!r} is not finite")
+        return s
+
+    def _new_track(self, box: np.ndarray, stamp: float, score: float,
+                   state: TrackState) -> Track:
+        t = Track(self._next_id, box, stamp, score=_quality(score), kalman=self.config.kalman,
+                  config=self.config.lifecycle, state=state)
+        self._next_id += 1
+        self.tracks.append(t)
+        return t
+
+    def _prepare(self, detections: Iterable[Any], stamp: float, width: int, height: int,
+                 result: FrameResult) -> list[_Prepared]:
+        out: list[_Prepared] = []
+        for det in detections:
+            try:
+                box = as_box(getattr(det, "box"))
+                score = float(getattr(det, "score", 1.0))
+                det_stamp = getattr(det, "stamp", None)
+                det_stamp = stamp if det_stamp is None else float(det_stamp)
+                plane = str(getattr(det, "plane", "rgb") or "rgb").lower()
+                if plane not in PLANES or not math.isfinite(score) \
+                        or not math.isfinite(det_stamp):
+                    raise InvalidBoxError(f"bad plane/score/stamp {plane!r} {score} {det_stamp}")
+                if plane == "thermal":
+                    box = np.asarray(transform_box(box, self.homography))
+            except (InvalidBoxError, AttributeError, TypeError, ValueError):
+                result.skipped_bad_detections += 1
+                continue
+            lag = stamp - det_stamp
+            if abs(lag) > self.config.stale_tolerance:
+                result.dropped_stale += 1
+                continue
+            if score < self.config.min_detection_score:
+                continue
+            clipped = clip_box(box, width, height)
+            if clipped is None:
+                result.skipped_bad_detections += 1
+                continue
+            out.append(_Prepared(box=np.asarray(clipped), score=score, lag=lag))
+        if result.dropped_stale:
+            result.events.append(f"dropped {result.dropped_stale} detection(s) older or newer "
+                                 f"than {self.config.stale_tolerance} s")
+        if result.skipped_bad_detections:
+            result.events.append(f"skipped {result.skipped_bad_detections} bad detection(s) "
+                                 "(NaN, non-positive size, bad plane or outside the image)")
+        return out
+
+    @staticmethod
+    def _in_image(t: Track, width: int, height: int) -> bool:
+        cx, cy = t.center
+        return 0.0 <= cx < width and 0.0 <= cy < height
+
+    def _det_geometry(self, tracks: list[Track], dets: list[_Prepared]
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """Detection boxes per track at the frame time ``(T, D, 4)`` and centres ``(T, D, 2)``."""
+        boxes = np.array([d.box for d in dets])                        # (D, 4)
+        lags = np.array([d.lag for d in dets])                         # (D,)
+        vel = np.array([t.kf.velocity for t in tracks]).reshape(-1, 2)  # (T, 2)
+        shift = vel[:, None, :] * lags[None, :, None]                  # (T, D, 2)
+        per_track = np.broadcast_to(boxes[None], (len(tracks),) + boxes.shape).copy()
+        per_track[..., :2] += shift
+        centres = per_track[..., :2] + per_track[..., 2:] / 2.0
+        return per_track, centres
+
+    def _innovation_covs(self, tracks: list[Track]) -> np.ndarray:
+        return np.array([t.innovation_covariance(t.size[1]) for t in tracks]).reshape(-1, 2, 2)
+
+    def _match(self, tracks: list[Track], dets: list[_Prepared], gate: float):
+        boxes, centres = self._det_geometry(tracks, dets)
+        maha = mahalanobis_matrix(np.array([t.center for t in tracks]),
+                                  self._innovation_covs(tracks), centres)
+        track_boxes = np.array([t.box for t in tracks])
+        cost = association_cost(track_boxes, boxes, maha, self.config.association)
+        return assign(cost, self.config.association.max_cost)
+
+    def _reacquire(self, lost: list[Track], dets: list[_Prepared],
+                   image: np.ndarray) -> list[tuple[int, int]]:
+        """Matches ``(lost index, det index)`` by gated distance, size and appearance."""
+        boxes, centres = self._det_geometry(lost, dets)
+        maha = mahalanobis_matrix(np.array([t.center for t in lost]),
+                                  self._innovation_covs(lost), centres)
+        cost = np.full(maha.shape, np.inf)
+        ratio_max = self.config.reacquire_max_size_ratio
+        for i, t in enumerate(lost):
+            for j, d in enumerate(dets):
+                if maha[i, j] > self.config.reacquire_gate:
+                    continue
+                ratio = d.box[3] / max(t.size[1], 1e-9)
+                if not (1.0 / ratio_max <= ratio <= ratio_max):
+                    continue
+                sim = 1.0
+                if self.refiner is not None and t.target is not None:
+                    sim = float(self.refiner.appearance_similarity(image, t.target,
+                                                                   tuple(d.box)))
+                    if not math.isfinite(sim) or sim < self.config.reacquire_similarity:
+                        continue
+                cost[i, j] = (1.0 - sim) + 0.5 * maha[i, j] / self.config.reacquire_gate
+        return assign(cost, math.inf).matches
+
+    @staticmethod
+    def _at_frame_time(t: Track, d: _Prepared) -> np.ndarray:
+        box = d.box.copy()
+        box[:2] += t.kf.velocity * d.lag
+        return box
+
+    def _refresh_appearance(self, t: Track, image: np.ndarray, box: np.ndarray, stamp: float,
+                            force: bool = False) -> None:
+        if self.refiner is None:
+            return
+        due = (t.target is None or force or t.target_stamp is None
+               or stamp - t.target_stamp >= self.config.appearance_update_interval)
+        if due:
+            t.target = self.refiner.start(image, tuple(float(v) for v in box))
+            t.target_stamp = stamp
+
+    def _update_track(self, t: Track, stamp: float, image: np.ndarray,
+                      det_box: np.ndarray | None, det: _Prepared | None,
+                      refined: tuple[np.ndarray, float] | None, width: int, height: int,
+                      all_det_boxes: dict[int, np.ndarray]) -> None:
+        cfg = self.config.lifecycle
+        was = t.state
+        sim = refined[1] if refined is not None else None
+        visible = sim is not None and sim >= cfg.occlusion_similarity
+        if det_box is not None:
+            if was is TrackState.LOST:
+                # re-acquired: restart the filter's position at the detection, keep velocity
+                t.kf.update(det_box[:2] + det_box[2:] / 2.0, sigma_w=cfg.min_noise_px)
+                t.size = det_box[2:].copy()
+            else:
+                t.correct(det_box, _quality(det.score))
+                if refined is not None and iou(refined[0], det_box) >= \
+                        self.config.refine_consistency_iou:
+                    t.correct(refined[0], sim)
+            t.hits += 1
+            t.tentative_misses = 0
+            t.last_detection = stamp
+            t.last_seen = stamp
+            t.score = sim if sim is not None else _quality(det.score)
+        else:
+            t.tentative_misses += 1
+            if visible:
+                t.correct(refined[0], sim)
+                t.last_seen = stamp
+            t.score = sim if sim is not None else 0.0
+        new = next_state(was, detected=det_box is not None, visible=visible,
+                         in_image=self._in_image(t, width, height), hits=t.hits,
+                         tentative_misses=t.tentative_misses,
+                         unseen_time=stamp - t.last_seen,
+                         lost_time=0.0 if t.lost_since is None else stamp - t.lost_since,
+                         config=cfg)
+        if new is TrackState.LOST and was is not TrackState.LOST:
+            t.lost_since = stamp
+        if new is not TrackState.LOST:
+            t.lost_since = None
+        t.state = new
+        if det_box is not None and new is TrackState.CONFIRMED:
+            others = [b for tid, b in all_det_boxes.items() if tid != t.id]
+            others += [o.box for o in self.tracks
+                       if o.id != t.id and o.state in OUTPUT_STATES]
+            isolated = all(iou(det_box, b) <= self.config.isolation_iou for b in others)
+            if t.target is None or (isolated and (sim is None or sim >= cfg.occlusion_similarity
+                                                  or was is TrackState.LOST)):
+                self._refresh_appearance(t, image, det_box, stamp,
+                                         force=t.target is None)
+        t.finish_frame()

@@ -1,0 +1,227 @@
+"""One tracked person: Kalman state, smoothed box size, appearance model and lifecycle.
+
+States (:class:`TrackState`) and the rules of :func:`next_state`:
+
+* ``tentative`` -- started from an unassigned detection; becomes ``confirmed`` after
+  ``min_hits`` detections, is deleted after more than ``max_tentative_misses`` consecutive
+  frames without one (a false positive never gets an output id of its own for long);
+* ``confirmed`` -- seen this frame, by a detection or by a multiple-kernel refinement whose
+  similarity is at least ``occlusion_similarity``;
+* ``occluded`` (coasting) -- neither: the Kalman prediction (4.2)-(4.3) continues alone while
+  the multiple-kernel search keeps running from the prediction; its adaptive kernel weights
+  (Chu et al. 2013, Sec. II-D, (7)-(8)) shift trust to the kernels that are still visible;
+* ``lost`` -- coasted for longer than ``max_coast_time`` (or the prediction left the image):
+  no output box, but the track is kept for ``max_lost_time`` so that a detection near its
+  predicted position that matches its appearance model takes its id back.  This answers the
+  limitation Chu et al. state in Sec. V-D (long total occlusion);
+* ``deleted`` -- final.  Ids are never reused.
+
+The centre is filtered by :class:`mk_tracker.kalman.ConstantVelocityKalman` ((2.1)-(2.3),
+(4.1)-(4.5) of Schizas et al. 2018).  The measurement noise of every update follows the match
+quality (:func:`measurement_sigma`): a poor multiple-kernel similarity or a low detection score
+informs the filter less.  Box size and reported velocity are exponentially smoothed so the
+output does not jitter.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mk_tracker.boxes import center_to_xywh
+from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
+from mk_tracker.parameters import parameter
+
+
+class TrackState(str, enum.Enum):
+    """Lifecycle state of a track (see the module docstring)."""
+
+    TENTATIVE = "tentative"
+    CONFIRMED = "confirmed"
+    OCCLUDED = "occluded"
+    LOST = "lost"
+    DELETED = "deleted"
+
+
+#: States whose box is reported as a tracked target (MOTChallenge output, the node's topic).
+OUTPUT_STATES = (TrackState.CONFIRMED, TrackState.OCCLUDED)
+
+
+@dataclass(frozen=True)
+class LifecycleConfig:
+    """Constants of the track lifecycle and of its smoothing."""
+
+    min_hits: int = parameter(3, "Detections a tentative track needs to be confirmed",
+                              minimum=1, maximum=1000)
+    max_tentative_misses: int = parameter(
+        1, "Consecutive frames without a detection after which a tentative track is deleted",
+        minimum=0, maximum=1000)
+    occlusion_similarity: float = parameter(
+        0.6, "Multiple-kernel similarity below which an undetected track is occluded "
+        "(coasting on the Kalman prediction)", minimum=0.0, maximum=1.0)
+    max_coast_time: float = parameter(
+        1.0, "Seconds a track may coast (occluded, no detection) before it is lost",
+        minimum=0.0, maximum=1e4)
+    max_lost_time: float = parameter(
+        4.0, "Seconds a lost track is kept for re-acquisition before it is deleted",
+        minimum=0.0, maximum=1e5)
+    size_smoothing: float = parameter(
+        0.3, "Weight of a new measured box size in the exponential size smoothing "
+        "(scaled by match quality; 1 = no smoothing)", minimum=0.0, maximum=1.0)
+    velocity_smoothing: float = parameter(
+        0.5, "Weight of the newest Kalman velocity in the reported (smoothed) velocity",
+        minimum=0.0, maximum=1.0)
+    measurement_noise: float = parameter(
+        0.04, "Centroid measurement std (4.1) of a perfect match, as a fraction of the box "
+        "height", minimum=1e-4, maximum=10.0)
+    min_noise_px: float = parameter(1.0, "Lower bound of the centroid measurement std, px",
+                                    minimum=1e-3, maximum=1e4)
+    quality_floor: float = parameter(
+        0.1, "Lowest match quality used to scale the noise: std = noise / max(q, floor)",
+        minimum=1e-3, maximum=1.0)
+
+
+def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig) -> float:
+    """Std (px) of a centroid measurement (4.1) whose match quality is ``quality`` in [0, 1].
+
+    ``sigma_w = max(measurement_noise * h, min_noise_px) / max(quality, quality_floor)``: a
+    similarity of 0.5 doubles the std, so the gain (4.5) trusts that measurement less.
+    """
+    q = quality if math.isfinite(quality) else 0.0
+    q = min(max(q, config.quality_floor), 1.0)
+    base = max(config.measurement_noise * float(box_height), config.min_noise_px)
+    return base / q
+
+
+def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bool,
+               hits: int, tentative_misses: int, unseen_time: float, lost_time: float,
+               config: LifecycleConfig) -> TrackState:
+    """The lifecycle transition of one track for one frame (pure function).
+
+    ``detected``: a detection was assigned this frame.  ``visible``: the multiple-kernel
+    refinement matched with at least ``occlusion_similarity``.  ``in_image``: the predicted
+    box overlaps the image.  ``hits``: detections so far (this one included).
+    ``tentative_misses``: consecutive undetected frames (this one included).
+    ``unseen_time``: seconds since the track was last detected or visible.  ``lost_time``:
+    seconds since it became lost.
+    """
+    if state is TrackState.DELETED:
+        return state
+    if state is TrackState.TENTATIVE:
+        if detected:
+            return TrackState.CONFIRMED if hits >= config.min_hits else TrackState.TENTATIVE
+        if tentative_misses > config.max_tentative_misses or not in_image:
+            return TrackState.DELETED
+        return TrackState.TENTATIVE
+    if detected:
+        return TrackState.CONFIRMED
+    if state is TrackState.LOST:
+        return TrackState.DELETED if lost_time > config.max_lost_time else TrackState.LOST
+    if not in_image:
+        return TrackState.LOST
+    if visible:
+        return TrackState.CONFIRMED
+    if unseen_time > config.max_coast_time:
+        return TrackState.LOST
+    return TrackState.OCCLUDED
+
+
+@dataclass(frozen=True)
+class TrackOutput:
+    """What the tracker reports about one track in one frame.
+
+    ``box`` is ``(x, y, w, h)`` at the frame time; ``score`` the match quality this frame
+    (multiple-kernel similarity, or the detection score when no refiner runs; 0 when
+    coasting); ``velocity`` ``(vx, vy)`` in px/s; ``age`` seconds since the track started;
+    ``time_since_detection`` seconds since a detection was last assigned.
+    """
+
+    id: int
+    state: str
+    box: tuple[float, float, float, float]
+    score: float
+    velocity: tuple[float, float]
+    age: float
+    time_since_detection: float
+    hits: int
+
+
+class Track:
+    """Mutable per-track state; the tracker drives it, :func:`next_state` decides its state."""
+
+    def __init__(self, track_id: int, box: np.ndarray, stamp: float, *, score: float,
+                 kalman: KalmanConfig, config: LifecycleConfig,
+                 state: TrackState = TrackState.TENTATIVE) -> None:
+        x, y, w, h = (float(v) for v in box)
+        self.id = int(track_id)
+        self.config = config
+        self.kf = ConstantVelocityKalman.from_config((x + w / 2.0, y + h / 2.0), kalman)
+        self.size = np.array([w, h])
+        self.state = state
+        self.created = float(stamp)
+        self.stamp = float(stamp)
+        self.last_detection = float(stamp)
+        self.last_seen = float(stamp)
+        self.lost_since: float | None = None
+        self.hits = 1
+        self.tentative_misses = 0
+        self.score = float(score)
+        self.smoothed_velocity = np.zeros(2)
+        self.target: Any = None            # the refiner's appearance model (TargetState)
+        self.target_stamp: float | None = None
+        self.refined_box: np.ndarray | None = None
+
+    # -- geometry -----------------------------------------------------------------------
+    @property
+    def center(self) -> np.ndarray:
+        return self.kf.center
+
+    @property
+    def box(self) -> np.ndarray:
+        """Current box ``(x, y, w, h)``: Kalman centre with the smoothed size."""
+        cx, cy = self.kf.center
+        return np.array(center_to_xywh(cx, cy, self.size[0], self.size[1]))
+
+    def predict(self, stamp: float) -> None:
+        """Advance the Kalman filter to ``stamp`` ((4.2)-(4.3)); no-op for dt <= 0."""
+        dt = float(stamp) - self.stamp
+        if dt > 0:
+            self.kf.predict(dt)
+        self.stamp = float(stamp)
+
+    def innovation_covariance(self, box_height: float, quality: float = 1.0) -> np.ndarray:
+        """``H P H^T + sigma_w^2 I`` with the quality-dependent measurement std."""
+        return self.kf.innovation_covariance(measurement_sigma(box_height, quality,
+                                                               self.config))
+
+    def correct(self, box: np.ndarray, quality: float) -> None:
+        """Kalman update (4.4)-(4.5) with the centre of ``box``, and size smoothing.
+
+        The measurement std and the size-smoothing weight both follow ``quality``.
+        """
+        x, y, w, h = (float(v) for v in box)
+        q = min(max(float(quality), 0.0), 1.0) if math.isfinite(quality) else 0.0
+        self.kf.update((x + w / 2.0, y + h / 2.0),
+                       sigma_w=measurement_sigma(h, q, self.config))
+        alpha = self.config.size_smoothing * max(q, self.config.quality_floor)
+        self.size = (1.0 - alpha) * self.size + alpha * np.array([w, h])
+
+    def finish_frame(self) -> None:
+        """Update the reported (smoothed) velocity after this frame's corrections."""
+        a = self.config.velocity_smoothing
+        self.smoothed_velocity = (1.0 - a) * self.smoothed_velocity + a * self.kf.velocity
+
+    def output(self) -> TrackOutput:
+        b = self.box
+        return TrackOutput(id=self.id, state=self.state.value,
+                           box=(float(b[0]), float(b[1]), float(b[2]), float(b[3])),
+                           score=float(self.score),
+                           velocity=(float(self.smoothed_velocity[0]),
+                                     float(self.smoothed_velocity[1])),
+                           age=self.stamp - self.created,
+                           time_since_detection=self.stamp - self.last_detection,
+                           hits=self.hits)
