@@ -1,0 +1,256 @@
+"""Kernel-weighted colour histograms, the K-L cost, the mean-shift vector and the scale ratio.
+
+The appearance model of Chu et al. 2013 (Sec. III-A, III-E, IV-A, Appendix C), after
+Comaniciu, Ramesh and Meer 2003:
+
+* Pixels are quantised into ``m`` colour bins ``b(z)`` (HSV by default, Sec. IV-A).
+* A kernel is an ellipse with centre ``x`` and half-axes ``(a_x, a_y)``; a pixel ``z`` has the
+  normalised squared distance ``v = ((z_x - x_x)/a_x)^2 + ((z_y - x_y)/a_y)^2`` and contributes
+  ``k(v)`` to its bin.  ``k`` is the *roof* profile ``k(v) = 1 - v`` on ``v < 1`` (piecewise
+  linear, so ``g = -k' = 1`` is piecewise constant and the mean-shift step is a Newton step,
+  Sec. V-A) or a truncated Gaussian profile.
+* Target model ``q`` and candidate ``p(x)`` are such histograms normalised to sum 1.
+* Cost ``J_i(x) = sum_u q_u log(q_u / p_u(x))``, the K-L distance (Appendix C).  The candidate
+  is smoothed, ``p~ = (1 - eps) p + eps / m``, so ``J`` is finite and still ``>= 0``.
+* Similarity ``sim_i = exp(-J_i)`` in ``(0, 1]``: 1 for identical histograms, decreasing as
+  the cost grows -- the cost is ``-log`` of the similarity, a monotone version of eq. (2)
+  ``J ~ 1/sim``.  A kernel with no pixel inside the image has similarity 0.
+* Mean-shift vector (Appendix C, (C.3)): ``m(x) = sum z w g / sum w g - x`` with pixel weights
+  ``w = q_u / p_u(x)`` (K-L, Appendix C) or ``sqrt(q_u / p_u(x))`` (Bhattacharyya, Comaniciu's
+  original).  ``J_x = -m(x)`` up to a positive factor (C.4).
+* Scale ratio ``r(h) = grad f(h) / (h f(h))`` of eqs. (9)-(10), from the same by-products.
+
+Everything here works on a small region of interest (ROI) of bin indices; nothing reads
+pixels outside it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+COLOUR_SPACES = ("hsv", "bgr")
+PROFILES = ("roof", "gaussian")
+PIXEL_WEIGHTINGS = ("kl", "bhattacharyya")
+
+#: OpenCV 8-bit HSV hue range.
+_HUE_RANGE = 180
+
+
+class InvalidImageError(ValueError):
+    """An image is not a usable ``H x W x 3`` BGR array."""
+
+
+def check_image(image: np.ndarray) -> np.ndarray:
+    """Return ``image`` if it is an ``H x W x 3`` array, else raise :class:`InvalidImageError`."""
+    if not isinstance(image, np.ndarray):
+        raise InvalidImageError(f"image must be a numpy array, got {type(image).__name__}")
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise InvalidImageError(f"image must be H x W x 3 (BGR), got shape {image.shape}")
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise InvalidImageError("image is empty")
+    if image.dtype != np.uint8 and not np.issubdtype(image.dtype, np.floating):
+        raise InvalidImageError(f"image must be uint8 or float, got {image.dtype}")
+    return image
+
+
+def roi_has_nan(roi: np.ndarray) -> bool:
+    """True when a float ROI holds a NaN or infinite value (uint8 never does)."""
+    return roi.dtype != np.uint8 and not bool(np.all(np.isfinite(roi)))
+
+
+def number_of_bins(bins: tuple[int, int, int]) -> int:
+    """Total number of histogram bins ``m``."""
+    return int(bins[0]) * int(bins[1]) * int(bins[2])
+
+
+def quantize(roi_bgr: np.ndarray, colour_space: str, bins: tuple[int, int, int]) -> np.ndarray:
+    """Bin index ``b(z)`` of every pixel of a BGR ROI, int array of the ROI's shape.
+
+    ``colour_space`` ``"hsv"`` converts with OpenCV (8-bit hue in ``[0, 180)``) and bins
+    ``(hue, saturation, value)``; ``"bgr"`` bins the raw channels.  Float ROIs are taken to be
+    in ``[0, 255]`` and clipped; they must not hold NaN (see :func:`roi_has_nan`).
+    """
+    if colour_space not in COLOUR_SPACES:
+        raise ValueError(f"colour_space must be one of {COLOUR_SPACES}, got {colour_space!r}")
+    if roi_bgr.dtype != np.uint8:
+        roi_bgr = np.clip(roi_bgr, 0, 255).astype(np.uint8)
+    roi_bgr = np.ascontiguousarray(roi_bgr)
+    b0, b1, b2 = (int(b) for b in bins)
+    if colour_space == "hsv":
+        conv = cv2.cvtColor(roi_bgr, cv2.COLOR_BGR2HSV)
+        c0 = conv[..., 0].astype(np.int32) * b0 // _HUE_RANGE
+        np.minimum(c0, b0 - 1, out=c0)
+    else:
+        conv = roi_bgr
+        c0 = conv[..., 0].astype(np.int32) * b0 >> 8
+    c1 = conv[..., 1].astype(np.int32) * b1 >> 8
+    c2 = conv[..., 2].astype(np.int32) * b2 >> 8
+    return (c0 * b1 + c1) * b2 + c2
+
+
+@dataclass
+class KernelSample:
+    """The pixels under one kernel: bin index, profile values, coordinates and ``v``."""
+
+    bins: np.ndarray      # (P,) int bin index b(z_i)
+    k: np.ndarray         # (P,) profile k(v_i)
+    g: np.ndarray         # (P,) g(v_i) = -k'(v_i)
+    xs: np.ndarray        # (P,) pixel-centre x in image coordinates
+    ys: np.ndarray        # (P,) pixel-centre y
+    v: np.ndarray         # (P,) normalised squared distance
+
+    @property
+    def empty(self) -> bool:
+        return self.k.size == 0 or float(self.k.sum()) <= 0.0
+
+
+def profile_values(v: np.ndarray, profile: str) -> tuple[np.ndarray, np.ndarray]:
+    """``k(v)`` and ``g(v) = -k'(v)`` of a profile, for ``v`` inside the support ``v < 1``.
+
+    ``roof``: ``k = 1 - v``, ``g = 1``.  ``gaussian``: ``k = exp(-2 v)``, ``g = 2 exp(-2 v)``
+    (a Gaussian with sigma = half the bandwidth, truncated at the ellipse).
+    """
+    if profile == "roof":
+        return 1.0 - v, np.ones_like(v)
+    if profile == "gaussian":
+        k = np.exp(-2.0 * v)
+        return k, 2.0 * k
+    raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
+
+
+def sample_kernel(bin_roi: np.ndarray, roi_origin: tuple[int, int], centre: np.ndarray,
+                  half_axes: np.ndarray, profile: str = "roof") -> KernelSample:
+    """Collect the ROI pixels whose centres fall strictly inside the kernel ellipse.
+
+    ``bin_roi`` holds bin indices of the ROI whose top-left pixel is ``roi_origin = (ox, oy)``
+    in the image.  Pixels of the ellipse outside the ROI are simply absent (the kernel sees
+    only what is inside its search region).
+    """
+    ox, oy = int(roi_origin[0]), int(roi_origin[1])
+    rh, rw = bin_roi.shape
+    cx, cy = float(centre[0]), float(centre[1])
+    ax, ay = float(half_axes[0]), float(half_axes[1])
+    c0 = max(int(np.ceil(cx - ax - 0.5)) - ox, 0)
+    c1 = min(int(np.floor(cx + ax - 0.5)) - ox + 1, rw)
+    r0 = max(int(np.ceil(cy - ay - 0.5)) - oy, 0)
+    r1 = min(int(np.floor(cy + ay - 0.5)) - oy + 1, rh)
+    if c1 <= c0 or r1 <= r0:
+        empty_f = np.zeros(0)
+        return KernelSample(np.zeros(0, dtype=np.int64), empty_f, empty_f, empty_f, empty_f,
+                            empty_f)
+    xs = np.arange(c0 + ox, c1 + ox, dtype=np.float64) + 0.5
+    ys = np.arange(r0 + oy, r1 + oy, dtype=np.float64) + 0.5
+    dx2 = ((xs - cx) / ax) ** 2
+    dy2 = ((ys - cy) / ay) ** 2
+    v = dy2[:, None] + dx2[None, :]
+    inside = v < 1.0
+    rows, cols = np.nonzero(inside)
+    v_in = v[rows, cols]
+    k, g = profile_values(v_in, profile)
+    return KernelSample(bins=bin_roi[r0:r1, c0:c1][rows, cols], k=k, g=g, xs=xs[cols],
+                        ys=ys[rows], v=v_in)
+
+
+def kernel_histogram(sample: KernelSample, n_bins: int) -> np.ndarray:
+    """Kernel-weighted histogram ``q_u = C sum_i k(v_i) delta[b(z_i) - u]``, sums to 1.
+
+    An empty kernel gives an all-zero histogram.
+    """
+    hist = np.bincount(sample.bins, weights=sample.k, minlength=n_bins)
+    total = hist.sum()
+    if total <= 0:
+        return np.zeros(n_bins)
+    return hist / total
+
+
+def smoothed(p: np.ndarray, epsilon: float) -> np.ndarray:
+    """``(1 - eps) p + eps / m``: a histogram with no empty bin, still summing to 1."""
+    return (1.0 - epsilon) * p + epsilon / p.size
+
+
+def kl_cost(q: np.ndarray, p: np.ndarray, epsilon: float = 0.01) -> float:
+    """K-L distance ``J = sum_u q_u log(q_u / p~_u)`` of Appendix C, with ``p~`` smoothed."""
+    ps = smoothed(p, epsilon)
+    nz = q > 0
+    return float(np.sum(q[nz] * np.log(q[nz] / ps[nz])))
+
+
+def similarity_from_cost(cost: float) -> float:
+    """``sim = exp(-J)`` in ``(0, 1]`` -- the mapping between eq. (2)'s cost and similarity."""
+    return float(np.exp(-max(cost, 0.0)))
+
+
+def pixel_weights(sample: KernelSample, q: np.ndarray, p: np.ndarray, epsilon: float,
+                  weighting: str = "kl") -> np.ndarray:
+    """Per-pixel weights ``w_i``: ``q_u/p~_u`` (K-L, Appendix C) or its square root."""
+    ratio = q / smoothed(p, epsilon)
+    if weighting == "bhattacharyya":
+        ratio = np.sqrt(ratio)
+    elif weighting != "kl":
+        raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
+    return ratio[sample.bins]
+
+
+def mean_shift_vector(sample: KernelSample, weights: np.ndarray, centre: np.ndarray
+                      ) -> np.ndarray:
+    """Mean-shift vector ``m(x) = sum z w g / sum w g - x`` (C.3); zero for an empty kernel.
+
+    ``J_x = -m(x)`` for the kernel's two coordinates (C.4).
+    """
+    wg = weights * sample.g
+    total = float(wg.sum())
+    if not total > 0:
+        return np.zeros(2)
+    return np.array([float(wg @ sample.xs) / total - float(centre[0]),
+                     float(wg @ sample.ys) / total - float(centre[1])])
+
+
+def scale_ratio(sample: KernelSample, weights: np.ndarray, half_axes: np.ndarray) -> float:
+    """``r(h) = grad f(h) / (h f(h))`` from eqs. (9)-(10), ``h = sqrt(a_x^2 + a_y^2)``.
+
+    From (9): ``r = (2 / h^2) [sum w g v / sum w k - sum g v / sum k]``.  Positive when widening
+    the kernel would raise the density estimate (1), i.e. the target looks larger than the
+    kernel.  Zero for an empty kernel.
+    """
+    sk = float(sample.k.sum())
+    wk = float(weights @ sample.k)
+    if not (sk > 0 and wk > 0):
+        return 0.0
+    gv = sample.g * sample.v
+    h2 = float(half_axes[0]) ** 2 + float(half_axes[1]) ** 2
+    return 2.0 / h2 * (float(weights @ gv) / wk - float(gv.sum()) / sk)
+
+
+@dataclass
+class KernelEvaluation:
+    """One kernel evaluated at one position: candidate, cost, similarity, mean shift."""
+
+    p: np.ndarray
+    cost: float
+    similarity: float
+    mean_shift: np.ndarray
+    scale_ratio: float
+    n_pixels: int
+
+
+def evaluate_kernel(bin_roi: np.ndarray, roi_origin: tuple[int, int], centre: np.ndarray,
+                    half_axes: np.ndarray, q: np.ndarray, *, profile: str = "roof",
+                    epsilon: float = 0.01, weighting: str = "kl",
+                    with_scale: bool = False) -> KernelEvaluation:
+    """Candidate ``p(x)``, ``J_i``, ``sim_i``, mean shift ``m`` (and ``r(h)``) of one kernel.
+
+    A kernel with no pixel in the ROI has cost ``inf``, similarity 0 and no mean shift.
+    """
+    sample = sample_kernel(bin_roi, roi_origin, centre, half_axes, profile)
+    n_bins = q.size
+    if sample.empty:
+        return KernelEvaluation(np.zeros(n_bins), float("inf"), 0.0, np.zeros(2), 0.0, 0)
+    p = kernel_histogram(sample, n_bins)
+    cost = kl_cost(q, p, epsilon)
+    w = pixel_weights(sample, q, p, epsilon, weighting)
+    ms = mean_shift_vector(sample, w, centre)
+    r = scale_ratio(sample, w, half_axes) if with_scale else 0.0
+    return KernelEvaluation(p, cost, similarity_from_cost(cost), ms, r, int(sample.k.size))

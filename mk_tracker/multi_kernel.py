@@ -1,0 +1,616 @@
+"""Multiple-kernel tracking with projected gradients (Chu, Hwang, Pai, Lan, IEEE TMM 2013).
+
+One target is ``N`` elliptical kernels (layouts in :mod:`mk_tracker.kernel_layouts`) whose
+centres form the state ``x = [x_1 y_1 ... x_N y_N]^T`` (Sec. IV-A).  Each kernel carries a
+colour-histogram target model ``q_i`` and has a K-L cost ``J_i(x)`` (Appendix C,
+:mod:`mk_tracker.kernel_histograms`).  Per frame the tracker solves (4)
+
+    min_x  J(x) = sum_i W_i J_i(x)   (3), (7)   subject to  C(x) = 0   (12)-(13)
+
+with the projected-gradient iteration of Algorithm 1 and the step (5)/(8):
+
+    dx_A = alpha (-I + C_x (C_x^T C_x)^+ C_x^T) W J_x,     dx_B = -C_x (C_x^T C_x)^+ C(x)
+
+where ``J_x`` is minus the kernels' mean-shift vectors (C.4).  Afterwards the scale is updated
+from the bandwidth derivative of the density estimate (9)-(11), and the models are blended
+towards the current candidates, both only when the mean similarity is above a gate (0.3).
+
+Rank deficiency.  ``C_x^T C_x`` is often singular: 4 kernels give 12 constraints in an
+8-dimensional state (rank at most 6: the constraints only see pairwise differences), and two
+kernels stacked vertically have ``L_x = 0``, so the x-constraint ``(x_1 - x_2)^2`` has a zero
+gradient when satisfied.  :func:`projected_gradient_step` therefore
+
+1. scales every constraint gradient (column of ``C_x``) and its value to unit gradient norm
+   (so that each row of ``C_x^T dx = -C`` measures a violation in pixels) and drops the
+   columns whose gradient is zero;
+2. takes the SVD ``U S V^T`` of the scaled ``C_x`` and keeps singular values above
+   ``rank_tolerance * s_max``.
+
+``U_r U_r^T`` is then exactly ``C_x (C_x^T C_x)^+ C_x^T``, the orthogonal projector on the
+span of the constraint gradients (column scaling does not change that span), and
+``dx_B = -U_r S_r^{-1} V_r^T C`` is the minimum-norm least-squares solution of (A.1); when
+``C_x`` has full column rank both equal the paper's formulas.  No inverse of a singular
+matrix is ever formed, so there is no ``LinAlgError`` and no NaN; a per-kernel step limit of
+one bandwidth guards against jumps.
+
+Constraint thresholds.  The paper sets ``eps_C`` per constraint "in the range 0.05 to 9
+depending on the object size".  Here a single pixel tolerance ``e`` (``constraint_tolerance_px``)
+is turned into each constraint's threshold ``((L + e)^2 - L^2) / (L^2 + 1)``, i.e. a kernel
+pair may be ``e`` pixels off its initial offset, which is size dependent in the same way.
+
+State and mutation.  :meth:`MultiKernelTracker.refine` *mutates* the :class:`TargetState` it
+is given: on success the kernel centres move to the result; the scale and the models change
+only when the mean similarity is above ``similarity_gate``.  When the result is ``lost`` the
+state's kernels, scale and models are left as they were (only ``state.lost`` and
+``state.similarity`` change).  Use :meth:`TargetState.copy` to refine without side effects.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field, replace
+from itertools import combinations
+
+import numpy as np
+
+from mk_tracker.boxes import BoxLike, InvalidBoxError, as_box, clip_box
+from mk_tracker.kernel_histograms import (
+    COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES, InvalidImageError, KernelEvaluation,
+    check_image, evaluate_kernel, kernel_histogram, kl_cost, number_of_bins, quantize,
+    roi_has_nan, sample_kernel, similarity_from_cost)
+from mk_tracker.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_layout, kernels_bounding_box
+from mk_tracker.parameters import parameter, validate_config
+
+
+class TrackingInputError(ValueError):
+    """A box or image given to the tracker cannot be used (empty, outside, NaN, uniform)."""
+
+
+@dataclass(frozen=True)
+class MultiKernelConfig:
+    """Parameters of the multiple-kernel tracker; defaults are the paper's values (Sec. IV-A)."""
+
+    num_kernels: int = parameter(
+        2, "Kernels per target (1 = single-kernel mean shift; 2/4 Fig. 4; 5/6 Fig. 14)",
+        choices=SUPPORTED_KERNEL_COUNTS)
+    colour_space: str = parameter("hsv", "Colour space of the histograms (Sec. IV-A: HSV)",
+                                  choices=COLOUR_SPACES)
+    hue_bins: int = parameter(16, "Histogram bins along hue (or blue for bgr)",
+                              minimum=1, maximum=180)
+    saturation_bins: int = parameter(8, "Histogram bins along saturation (or green)",
+                                     minimum=1, maximum=256)
+    value_bins: int = parameter(4, "Histogram bins along value (or red)",
+                                minimum=1, maximum=256)
+    profile: str = parameter("roof", "Kernel profile k: roof (piecewise linear, g constant, "
+                             "Sec. V-A) or truncated gaussian", choices=PROFILES)
+    pixel_weighting: str = parameter(
+        "kl", "Pixel weights of the mean shift: q/p for the K-L cost (Appendix C) or "
+        "sqrt(q/p) (Bhattacharyya, Comaniciu et al.)", choices=PIXEL_WEIGHTINGS)
+    histogram_epsilon: float = parameter(
+        0.01, "Mass eps mixed uniformly into candidate histograms, (1-eps)p + eps/m, so the "
+        "K-L cost stays finite", minimum=1e-9, maximum=0.5)
+    max_iterations: int = parameter(5, "T, the iteration limit of Algorithm 1",
+                                    minimum=1, maximum=100)
+    epsilon_j_factor: float = parameter(
+        0.7, "eps_J = factor * N: Algorithm 1 stops when J < eps_J and |C| < eps_C",
+        minimum=0.0, maximum=100.0)
+    constraint_tolerance_px: float = parameter(
+        1.0, "Pixel tolerance e giving each constraint's eps_C = ((L+e)^2-L^2)/(L^2+1)",
+        minimum=0.0, maximum=100.0)
+    alpha: float = parameter(1.0, "Step size alpha of (5)/(8)", minimum=0.0, maximum=10.0)
+    use_projected_gradient: bool = parameter(
+        True, "Keep C_x(C_x^T C_x)^+ C_x^T in dx_A; False is the 'without projected "
+        "gradient' ablation of Table II")
+    adaptive_weights: bool = parameter(
+        True, "Weights W_i proportional to sim_i, summing to N (7)-(8); False: W = I")
+    scale_update: bool = parameter(True, "Update the scale with (9)-(11)")
+    beta: float = parameter(9e3, "beta of (10), gain of the scale change", minimum=0.0)
+    similarity_gate: float = parameter(
+        0.3, "Model and scale are updated only when the mean kernel similarity exceeds this",
+        minimum=0.0, maximum=1.0)
+    max_scale_change: float = parameter(
+        0.05, "Largest |Delta s| per frame (not in the paper; bounds a noisy (10))",
+        minimum=0.0, maximum=1.0)
+    min_scale: float = parameter(0.25, "Smallest scale relative to the first box",
+                                 minimum=0.01, maximum=1.0)
+    max_scale: float = parameter(4.0, "Largest scale relative to the first box",
+                                 minimum=1.0, maximum=100.0)
+    model_update_rate: float = parameter(
+        0.1, "Blend rate of a kernel's model towards its current candidate when above the "
+        "gate (the paper does not give it; 0 freezes the models)", minimum=0.0, maximum=1.0)
+    lost_similarity: float = parameter(
+        0.1, "A result whose mean kernel similarity is below this is reported lost",
+        minimum=0.0, maximum=1.0)
+    search_margin: float = parameter(
+        0.5, "Search region = box at the start position grown by this fraction of its size "
+        "on every side; no pixel outside it is read", minimum=0.05, maximum=5.0)
+    min_step_px: float = parameter(
+        0.25, "Stop iterating when no kernel moves more than this (Comaniciu's epsilon; "
+        "0 disables)", minimum=0.0, maximum=10.0)
+    max_step_fraction: float = parameter(
+        1.0, "Largest move of a kernel per iteration, as a fraction of its half-axes",
+        minimum=0.01, maximum=10.0)
+    rank_tolerance: float = parameter(
+        1e-6, "Singular values of the scaled C_x below this times the largest are dropped",
+        minimum=1e-15, maximum=0.1)
+
+    @property
+    def bins(self) -> tuple[int, int, int]:
+        return (self.hue_bins, self.saturation_bins, self.value_bins)
+
+
+def mean_shift_baseline_config(**overrides) -> MultiKernelConfig:
+    """Single-kernel mean shift of Comaniciu, Ramesh and Meer (the paper's baseline [2]).
+
+    One kernel, Bhattacharyya pixel weights ``sqrt(q/p)``, iterate until the step is below
+    ``min_step_px`` (no cost threshold), no adaptive weights (meaningless with one kernel) and
+    no scale update.
+    """
+    base = dict(num_kernels=1, pixel_weighting="bhattacharyya", epsilon_j_factor=0.0,
+                max_iterations=20, adaptive_weights=False, scale_update=False)
+    base.update(overrides)
+    return MultiKernelConfig(**base)
+
+
+# --------------------------------------------------------------------------------------------
+# Constraints (12)-(13) and the projected-gradient step (5)/(8)
+# --------------------------------------------------------------------------------------------
+
+def kernel_pairs(num_kernels: int) -> np.ndarray:
+    """All pairs ``(i, j)``, ``i < j``, shape ``(N(N-1)/2, 2)``; each gives two constraints."""
+    pairs = list(combinations(range(num_kernels), 2))
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+
+
+def pair_distances(centres: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``L_x`` and ``L_y`` of every pair that make (12)-(13) zero at ``centres``."""
+    c = np.asarray(centres, dtype=np.float64)
+    d = c[pairs[:, 0]] - c[pairs[:, 1]]
+    return np.abs(d[:, 0]), np.abs(d[:, 1])
+
+
+def constraint_values(centres: np.ndarray, pairs: np.ndarray, lx: np.ndarray, ly: np.ndarray
+                      ) -> np.ndarray:
+    """``C(x)``, shape ``(2P,)``: for pair ``p`` entry ``2p`` is (12), ``2p+1`` is (13).
+
+    ``c_1 = ((x_i - x_j)^2 - L_x^2) / (L_x^2 + 1)``, ``c_2`` likewise in y.
+    """
+    c = np.asarray(centres, dtype=np.float64)
+    d = c[pairs[:, 0]] - c[pairs[:, 1]]
+    out = np.empty(2 * len(pairs))
+    out[0::2] = (d[:, 0] ** 2 - lx ** 2) / (lx ** 2 + 1.0)
+    out[1::2] = (d[:, 1] ** 2 - ly ** 2) / (ly ** 2 + 1.0)
+    return out
+
+
+def constraint_jacobian(centres: np.ndarray, pairs: np.ndarray, lx: np.ndarray, ly: np.ndarray
+                        ) -> np.ndarray:
+    """``C_x``, shape ``(n, m) = (2N, 2P)``: column ``k`` is the gradient of constraint ``k``."""
+    c = np.asarray(centres, dtype=np.float64)
+    n = 2 * c.shape[0]
+    jac = np.zeros((n, 2 * len(pairs)))
+    d = c[pairs[:, 0]] - c[pairs[:, 1]]
+    cols = np.arange(len(pairs))
+    gx = 2.0 * d[:, 0] / (lx ** 2 + 1.0)
+    gy = 2.0 * d[:, 1] / (ly ** 2 + 1.0)
+    jac[2 * pairs[:, 0], 2 * cols] = gx
+    jac[2 * pairs[:, 1], 2 * cols] = -gx
+    jac[2 * pairs[:, 0] + 1, 2 * cols + 1] = gy
+    jac[2 * pairs[:, 1] + 1, 2 * cols + 1] = -gy
+    return jac
+
+
+def constraint_thresholds(lx: np.ndarray, ly: np.ndarray, tolerance_px: float) -> np.ndarray:
+    """``eps_C`` per constraint: the value of (12)/(13) when a pair is ``e`` px off its L."""
+    e = float(tolerance_px)
+    out = np.empty(2 * len(lx))
+    out[0::2] = ((lx + e) ** 2 - lx ** 2) / (lx ** 2 + 1.0)
+    out[1::2] = ((ly + e) ** 2 - ly ** 2) / (ly ** 2 + 1.0)
+    return out
+
+
+def constraint_projector(jac: np.ndarray, values: np.ndarray, rank_tolerance: float = 1e-6
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """``Pi = C_x (C_x^T C_x)^+ C_x^T`` and ``dx_B = -C_x (C_x^T C_x)^+ C(x)``, rank-safe.
+
+    See the module docstring: columns are scaled to unit norm (zero columns dropped), then
+    an SVD with relative tolerance ``rank_tolerance`` gives the projector on their span and
+    the minimum-norm least-squares ``dx_B`` of (A.1).
+    """
+    n = jac.shape[0]
+    if jac.size == 0:
+        return np.zeros((n, n)), np.zeros(n)
+    norms = np.sqrt(np.sum(jac * jac, axis=0))
+    scale = max(float(norms.max()), 1.0)
+    keep = norms > 1e-12 * scale
+    if not np.any(keep):
+        return np.zeros((n, n)), np.zeros(n)
+    a = jac[:, keep] / norms[keep]
+    b = values[keep] / norms[keep]
+    u, s, vt = np.linalg.svd(a, full_matrices=False)
+    r = s > rank_tolerance * s[0]
+    ur = u[:, r]
+    proj = ur @ ur.T
+    dx_b = -(ur @ ((vt[r] @ b) / s[r]))
+    return proj, dx_b
+
+
+def projected_gradient_step(jx: np.ndarray, jac: np.ndarray, values: np.ndarray,
+                            weights: np.ndarray | None = None, alpha: float = 1.0,
+                            use_projected_gradient: bool = True,
+                            rank_tolerance: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """``(dx_A, dx_B)`` of (8) (of (5) when ``weights`` is None).
+
+    ``jx`` is ``J_x`` (length ``n = 2N``), ``jac`` is ``C_x`` (``n x m``), ``values`` is
+    ``C(x)``, ``weights`` the kernel weights ``W_i`` (length ``N``).  With
+    ``use_projected_gradient=False`` the projector is dropped from ``dx_A`` (Table II
+    ablation): ``dx_A = -alpha W J_x``; ``dx_B`` is unchanged.
+    """
+    jx = np.asarray(jx, dtype=np.float64)
+    if weights is not None:
+        jx = np.repeat(np.asarray(weights, dtype=np.float64), 2) * jx
+    proj, dx_b = constraint_projector(jac, values, rank_tolerance)
+    if use_projected_gradient:
+        dx_a = alpha * (proj @ jx - jx)
+    else:
+        dx_a = -alpha * jx
+    return dx_a, dx_b
+
+
+def adaptive_weights(similarities: np.ndarray) -> np.ndarray:
+    """``W_i ~ sim_i`` normalised to sum ``N`` (7)-(8); uniform when every sim is 0."""
+    s = np.asarray(similarities, dtype=np.float64)
+    total = float(s.sum())
+    if not total > 0:
+        return np.ones_like(s)
+    return s * (s.size / total)
+
+
+# --------------------------------------------------------------------------------------------
+# Per-target state and results
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class TargetState:
+    """Everything one target carries between frames.
+
+    ``centres`` are the kernel centres (N, 2); the kernel half-axes are
+    ``base_half_axes * scale``; the pair distances of (12)-(13) are ``base_lx * scale`` and
+    ``base_ly * scale``; ``models`` are the target histograms ``q_i`` (N, m).
+    """
+
+    centres: np.ndarray
+    base_half_axes: np.ndarray
+    scale: float
+    models: np.ndarray
+    base_lx: np.ndarray
+    base_ly: np.ndarray
+    pairs: np.ndarray
+    similarity: float = 1.0
+    lost: bool = False
+    frames: int = 0
+
+    @property
+    def num_kernels(self) -> int:
+        return int(self.centres.shape[0])
+
+    @property
+    def half_axes(self) -> np.ndarray:
+        return self.base_half_axes * self.scale
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        """Bounding box of the kernels' extremes, eq. (14)."""
+        return kernels_bounding_box(self.centres, self.half_axes)
+
+    @property
+    def center(self) -> np.ndarray:
+        """Centroid ``((x_min + x_max)/2, (y_min + y_max)/2)`` of eq. (14)."""
+        x, y, w, h = self.box
+        return np.array([x + w / 2.0, y + h / 2.0])
+
+    def copy(self) -> "TargetState":
+        return copy.deepcopy(self)
+
+
+@dataclass
+class RefinementResult:
+    """Outcome of one :meth:`MultiKernelTracker.refine`.
+
+    ``box`` is (x, y, w, h) from the kernels' extremes (14), ``center`` its centroid;
+    ``similarity`` the mean of ``kernel_similarities`` (each ``exp(-J_i)`` in [0, 1]);
+    ``weights`` the adaptive W_i; ``kernel_centres``/``kernel_axes`` the ellipses for drawing;
+    ``lost`` with ``reason`` ("" when tracked, else "outside_image", "nan_pixels" or
+    "low_similarity").
+    """
+
+    box: tuple[float, float, float, float]
+    center: tuple[float, float]
+    similarity: float
+    kernel_similarities: np.ndarray
+    weights: np.ndarray
+    kernel_centres: np.ndarray
+    kernel_axes: np.ndarray
+    iterations: int
+    lost: bool
+    reason: str = ""
+    cost: float = float("nan")
+    scale: float = 1.0
+    cost_history: list = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------------------------
+# The tracker
+# --------------------------------------------------------------------------------------------
+
+def _checked_image(image: np.ndarray) -> np.ndarray:
+    try:
+        return check_image(image)
+    except InvalidImageError as exc:
+        raise TrackingInputError(str(exc)) from exc
+
+
+def _region(box: tuple[float, float, float, float], margin: float, width: int, height: int
+            ) -> tuple[int, int, int, int] | None:
+    """Integer search region ``(x0, y0, x1, y1)`` of ``box`` grown by ``margin``, clipped."""
+    x, y, w, h = box
+    grown = (x - margin * w, y - margin * h, w * (1 + 2 * margin), h * (1 + 2 * margin))
+    clipped = clip_box(grown, width, height)
+    if clipped is None:
+        return None
+    cx, cy, cw, ch = clipped
+    x0, y0 = int(np.floor(cx)), int(np.floor(cy))
+    x1, y1 = int(np.ceil(cx + cw)), int(np.ceil(cy + ch))
+    if x1 <= x0 or y1 <= y0:
+        return None
+    return x0, y0, x1, y1
+
+
+class MultiKernelTracker:
+    """The projected-gradient multiple-kernel tracker; holds only its configuration.
+
+    Targets are :class:`TargetState` objects created by :meth:`start`, so one tracker serves
+    any number of targets.
+    """
+
+    def __init__(self, config: MultiKernelConfig | None = None):
+        self.config = config if config is not None else MultiKernelConfig()
+        validate_config(self.config)
+        self.n_bins = number_of_bins(self.config.bins)
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _bins(self, image: np.ndarray, region: tuple[int, int, int, int]) -> np.ndarray | None:
+        x0, y0, x1, y1 = region
+        roi = image[y0:y1, x0:x1]
+        if roi_has_nan(roi):
+            return None
+        return quantize(roi, self.config.colour_space, self.config.bins)
+
+    def _evaluate(self, bin_roi, origin, centres, axes, models, with_scale=False
+                  ) -> list[KernelEvaluation]:
+        cfg = self.config
+        return [evaluate_kernel(bin_roi, origin, centres[i], axes[i], models[i],
+                                profile=cfg.profile, epsilon=cfg.histogram_epsilon,
+                                weighting=cfg.pixel_weighting, with_scale=with_scale)
+                for i in range(centres.shape[0])]
+
+    # -- public API ------------------------------------------------------------------------
+    def start(self, image_bgr: np.ndarray, box: BoxLike) -> TargetState:
+        """Build a target from ``box`` (x, y, w, h) in ``image_bgr`` (H x W x 3 BGR).
+
+        The kernels of the configured layout are placed in the box, each kernel's model is the
+        histogram under it, and ``L_x``, ``L_y`` are set so (12)-(13) hold.  Raises
+        :class:`TrackingInputError` for an empty, zero-area, non-finite or out-of-image box,
+        a bad image, NaN pixels, a kernel with no pixel, or a uniform-colour target (its
+        histogram puts everything in one bin, so there is nothing to track).
+        """
+        image = _checked_image(image_bgr)
+        try:
+            b = tuple(float(v) for v in as_box(box))
+        except InvalidBoxError as exc:
+            raise TrackingInputError(str(exc)) from exc
+        height, width = image.shape[:2]
+        if clip_box(b, width, height) is None:
+            raise TrackingInputError(f"box {b} is entirely outside the {width}x{height} image")
+        cfg = self.config
+        centres, axes = kernel_layout(b, cfg.num_kernels)
+        region = _region(b, 0.0, width, height)
+        if region is None:
+            raise TrackingInputError(f"box {b} covers no whole pixel of the image")
+        bin_roi = self._bins(image, region)
+        if bin_roi is None:
+            raise TrackingInputError("the target region holds NaN or infinite pixels")
+        origin = (region[0], region[1])
+        models = np.zeros((cfg.num_kernels, self.n_bins))
+        for i in range(cfg.num_kernels):
+            sample = sample_kernel(bin_roi, origin, centres[i], axes[i], cfg.profile)
+            if sample.empty:
+                raise TrackingInputError(
+                    f"kernel {i} of box {b} has no pixel inside the image (box too small or "
+                    f"mostly outside)")
+            models[i] = kernel_histogram(sample, self.n_bins)
+        if float(models.mean(axis=0).max()) >= 0.999:
+            raise TrackingInputError(
+                "the target has a uniform colour (one histogram bin holds all its mass); a "
+                "colour-histogram tracker cannot localise it")
+        pairs = kernel_pairs(cfg.num_kernels)
+        lx, ly = pair_distances(centres, pairs)
+        return TargetState(centres=centres, base_half_axes=axes, scale=1.0, models=models,
+                           base_lx=lx, base_ly=ly, pairs=pairs, similarity=1.0)
+
+    def refine(self, image_bgr: np.ndarray, state: TargetState,
+               predicted_center: tuple[float, float] | np.ndarray | None = None
+               ) -> RefinementResult:
+        """Run Algorithm 1 on ``image_bgr`` for one target and update ``state``.
+
+        The search starts from the state's kernels, translated so their centroid (14) is at
+        ``predicted_center`` when given (Sec. IV-D: the Kalman prediction initialises the
+        search; the result is the measurement).  Only pixels of the search region (the start
+        box grown by ``search_margin``) are read.  See the module docstring for how the state
+        is mutated.  Never raises for a bad frame: a target outside the image, NaN pixels or
+        a similarity below ``lost_similarity`` give ``lost=True`` with a ``reason``; a badly
+        shaped image raises :class:`TrackingInputError`.
+        """
+        cfg = self.config
+        image = _checked_image(image_bgr)
+        height, width = image.shape[:2]
+        n_k = state.num_kernels
+        axes = state.half_axes
+        x = state.centres.astype(np.float64).copy()
+        if predicted_center is not None:
+            pc = np.asarray(predicted_center, dtype=np.float64).reshape(-1)
+            if pc.shape != (2,) or not np.all(np.isfinite(pc)):
+                raise TrackingInputError(f"predicted_center {predicted_center!r} is not two "
+                                         f"finite numbers")
+            x += pc - state.center
+        start_box = kernels_bounding_box(x, axes)
+        region = _region(start_box, cfg.search_margin, width, height)
+        if region is None:
+            return self._lost(state, x, axes, "outside_image")
+        bin_roi = self._bins(image, region)
+        if bin_roi is None:
+            return self._lost(state, x, axes, "nan_pixels")
+        origin = (region[0], region[1])
+        lo = np.array([region[0], region[1]], dtype=np.float64)
+        hi = np.array([region[2], region[3]], dtype=np.float64)
+
+        lx, ly = state.base_lx * state.scale, state.base_ly * state.scale
+        eps_c = constraint_thresholds(lx, ly, cfg.constraint_tolerance_px)
+        eps_j = cfg.epsilon_j_factor * n_k
+        max_step = cfg.max_step_fraction * axes
+
+        evals = self._evaluate(bin_roi, origin, x, axes, state.models)
+        iterations = 0
+        history = []
+        for _ in range(cfg.max_iterations):
+            sims = np.array([e.similarity for e in evals])
+            w = adaptive_weights(sims) if cfg.adaptive_weights else np.ones(n_k)
+            costs = np.array([e.cost for e in evals])
+            total = float(np.sum(w * np.where(np.isfinite(costs), costs, 0.0)))
+            history.append(total)
+            c = constraint_values(x, state.pairs, lx, ly)
+            c_ok = bool(np.all(np.abs(c) < eps_c))
+            j_ok = total < eps_j
+            if c_ok and j_ok:
+                break
+            jx = -np.concatenate([e.mean_shift for e in evals])
+            jac = constraint_jacobian(x, state.pairs, lx, ly)
+            dx_a, dx_b = projected_gradient_step(jx, jac, c, w, cfg.alpha,
+                                                 cfg.use_projected_gradient,
+                                                 cfg.rank_tolerance)
+            if c_ok:
+                dx = dx_a
+            elif j_ok:
+                dx = dx_b
+            else:
+                dx = dx_a + dx_b
+            step = np.clip(dx.reshape(n_k, 2), -max_step, max_step)
+            step = np.nan_to_num(step, nan=0.0, posinf=0.0, neginf=0.0)
+            x = np.clip(x + step, lo, hi)
+            iterations += 1
+            evals = self._evaluate(bin_roi, origin, x, axes, state.models)
+            if float(np.abs(step).max()) < cfg.min_step_px:
+                break
+
+        sims = np.array([e.similarity for e in evals])
+        w = adaptive_weights(sims) if cfg.adaptive_weights else np.ones(n_k)
+        costs = np.array([e.cost for e in evals])
+        total = float(np.sum(w * np.where(np.isfinite(costs), costs, 0.0)))
+        mean_sim = float(sims.mean())
+        if not mean_sim >= cfg.lost_similarity or mean_sim == 0.0:
+            result = self._lost(state, x, axes, "low_similarity", sims, w)
+            result.iterations = iterations
+            return result
+
+        state.centres = x
+        state.similarity = mean_sim
+        state.lost = False
+        state.frames += 1
+        if mean_sim > cfg.similarity_gate:
+            if cfg.model_update_rate > 0:
+                rate = cfg.model_update_rate
+                for i, e in enumerate(evals):
+                    if e.similarity > cfg.similarity_gate and e.n_pixels > 0:
+                        state.models[i] = (1.0 - rate) * state.models[i] + rate * e.p
+            if cfg.scale_update and cfg.beta > 0:
+                self._update_scale(bin_roi, origin, state, w)
+        axes = state.half_axes
+        box = kernels_bounding_box(state.centres, axes)
+        return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
+                                similarity=mean_sim, kernel_similarities=sims, weights=w,
+                                kernel_centres=state.centres.copy(), kernel_axes=axes.copy(),
+                                iterations=iterations, lost=False, cost=total,
+                                scale=state.scale, cost_history=history)
+
+    def _update_scale(self, bin_roi, origin, state: TargetState, weights: np.ndarray) -> None:
+        """Eqs. (9)-(11): ``Delta s = beta r(h)``, ``s_t = s_{t-1}(1 + Delta s)``.
+
+        ``r`` is the W-weighted mean of the kernels' ratios.  The kernels' offsets from the
+        centroid (14) and the distances L are rescaled with the scale, so (12)-(13) still hold.
+        """
+        cfg = self.config
+        evals = self._evaluate(bin_roi, origin, state.centres, state.half_axes, state.models,
+                               with_scale=True)
+        r = float(np.sum(weights * np.array([e.scale_ratio for e in evals]))) / len(evals)
+        ds = float(np.clip(cfg.beta * r, -cfg.max_scale_change, cfg.max_scale_change))
+        new_scale = float(np.clip(state.scale * (1.0 + ds), cfg.min_scale, cfg.max_scale))
+        if not np.isfinite(new_scale) or new_scale == state.scale:
+            return
+        ratio = new_scale / state.scale
+        centroid = state.center
+        state.centres = centroid + (state.centres - centroid) * ratio
+        state.scale = new_scale
+
+    def _lost(self, state: TargetState, x: np.ndarray, axes: np.ndarray, reason: str,
+              sims: np.ndarray | None = None, weights: np.ndarray | None = None
+              ) -> RefinementResult:
+        n_k = state.num_kernels
+        sims = np.zeros(n_k) if sims is None else sims
+        state.lost = True
+        state.similarity = float(sims.mean())
+        box = kernels_bounding_box(x, axes)
+        return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
+                                similarity=float(sims.mean()), kernel_similarities=sims,
+                                weights=np.ones(n_k) if weights is None else weights,
+                                kernel_centres=x.copy(), kernel_axes=axes.copy(),
+                                iterations=0, lost=True, reason=reason, scale=state.scale)
+
+    def appearance_similarity(self, image_bgr: np.ndarray, state: TargetState, box: BoxLike
+                              ) -> float:
+        """Mean over kernels of ``exp(-J_i)`` for the state's layout placed in ``box``.
+
+        In [0, 1]; 0 when the box is outside the image or its pixels are NaN.  Only the
+        pixels of ``box`` are read; the state is not changed.  Raises
+        :class:`TrackingInputError` for a non-finite or zero-area box or a bad image.
+        """
+        image = _checked_image(image_bgr)
+        try:
+            b = tuple(float(v) for v in as_box(box))
+        except InvalidBoxError as exc:
+            raise TrackingInputError(str(exc)) from exc
+        height, width = image.shape[:2]
+        region = _region(b, 0.0, width, height)
+        if region is None:
+            return 0.0
+        bin_roi = self._bins(image, region)
+        if bin_roi is None:
+            return 0.0
+        centres, axes = kernel_layout(b, state.num_kernels)
+        sims = []
+        for i in range(state.num_kernels):
+            sample = sample_kernel(bin_roi, (region[0], region[1]), centres[i], axes[i],
+                                   self.config.profile)
+            if sample.empty:
+                sims.append(0.0)
+                continue
+            p = kernel_histogram(sample, self.n_bins)
+            sims.append(similarity_from_cost(kl_cost(state.models[i], p,
+                                                     self.config.histogram_epsilon)))
+        return float(np.clip(np.mean(sims), 0.0, 1.0))
+
+
+def with_overrides(config: MultiKernelConfig, **changes) -> MultiKernelConfig:
+    """A validated copy of ``config`` with ``changes`` (e.g. ablation switches)."""
+    out = replace(config, **changes)
+    validate_config(out)
+    return out
