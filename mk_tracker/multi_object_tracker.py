@@ -45,6 +45,7 @@ from mk_tracker.association import (AssociationConfig, assign, association_cost,
                                     mahalanobis_matrix)
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
+from mk_tracker.multi_kernel import MultiKernelConfig, MultiKernelTracker
 from mk_tracker.parameters import ParameterError, parameter, validate_config
 from mk_tracker.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
                               next_state)
@@ -65,6 +66,11 @@ class MultiObjectTrackerConfig:
     association: AssociationConfig = parameter(AssociationConfig(),
                                                "Detection-to-track assignment")
     lifecycle: LifecycleConfig = parameter(LifecycleConfig(), "Track states and smoothing")
+    multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
+                                                "Multiple-kernel refinement (Chu et al. 2013)")
+    use_multi_kernel: bool = parameter(
+        True, "Refine every confirmed/occluded track with the multiple-kernel tracker "
+        "(Sec. IV-D); false = detections and Kalman prediction only")
     homography: tuple = parameter(
         IDENTITY_HOMOGRAPHY, "Row-major 3x3 homography mapping thermal pixels to RGB pixels")
     stale_tolerance: float = parameter(
@@ -182,6 +188,8 @@ class MultiObjectTracker:
         except ParameterError as exc:
             raise TrackerInputError(str(exc)) from exc
         self.homography = _homography_matrix(self.config.homography)
+        if refiner is None and self.config.use_multi_kernel:
+            refiner = MultiKernelTracker(self.config.multi_kernel)
         self.refiner = refiner
         self._next_id = 1
         self.tracks: list[Track] = []
@@ -205,11 +213,15 @@ class MultiObjectTracker:
         except InvalidBoxError as exc:
             raise TrackerInputError(str(exc)) from exc
         stamp = self._check_stamp(stamp)
+        target = None
+        if self.refiner is not None:
+            try:
+                target = self.refiner.start(image_bgr, tuple(float(v) for v in b))
+            except ValueError as exc:
+                raise TrackerInputError(f"cannot start a target on {tuple(b)}: {exc}") from exc
         track = self._new_track(b, stamp, 1.0, TrackState.CONFIRMED)
         track.hits = self.config.lifecycle.min_hits
-        if self.refiner is not None:
-            track.target = self.refiner.start(image_bgr, tuple(b))
-            track.target_stamp = stamp
+        track.target, track.target_stamp = target, stamp
         if self.frame_size is None:
             self.frame_size = image_bgr.shape[:2]
         return track.id
@@ -251,7 +263,12 @@ class MultiObjectTracker:
             if (self.refiner is not None and t.target is not None
                     and t.state in (TrackState.CONFIRMED, TrackState.OCCLUDED)
                     and self._in_image(t, width, height)):
-                res = self.refiner.refine(image_bgr, t.target, predicted_center=tuple(t.center))
+                try:
+                    res = self.refiner.refine(image_bgr, t.target,
+                                              predicted_center=tuple(t.center))
+                except ValueError as exc:       # the refiner's own input errors
+                    result.events.append(f"track {t.id}: refinement failed: {exc}")
+                    continue
                 sim = float(getattr(res, "similarity", 0.0))
                 box = getattr(res, "box", None)
                 if (not getattr(res, "lost", False) and box is not None and math.isfinite(sim)
@@ -426,8 +443,11 @@ class MultiObjectTracker:
                     continue
                 sim = 1.0
                 if self.refiner is not None and t.target is not None:
-                    sim = float(self.refiner.appearance_similarity(image, t.target,
-                                                                   tuple(d.box)))
+                    try:
+                        sim = float(self.refiner.appearance_similarity(image, t.target,
+                                                                       tuple(d.box)))
+                    except ValueError:
+                        continue
                     if not math.isfinite(sim) or sim < self.config.reacquire_similarity:
                         continue
                 cost[i, j] = (1.0 - sim) + 0.5 * maha[i, j] / self.config.reacquire_gate
@@ -446,7 +466,12 @@ class MultiObjectTracker:
         due = (t.target is None or force or t.target_stamp is None
                or stamp - t.target_stamp >= self.config.appearance_update_interval)
         if due:
-            t.target = self.refiner.start(image, tuple(float(v) for v in box))
+            try:
+                t.target = self.refiner.start(image, tuple(float(v) for v in box))
+            except ValueError:
+                # e.g. a uniform-colour or mostly out-of-image box: keep the old model (if
+                # any) and try again on a later detection
+                return
             t.target_stamp = stamp
 
     def _update_track(self, t: Track, stamp: float, image: np.ndarray,
