@@ -944,17 +944,19 @@ def occlusion_scene(seed: int = 0, hidden_frames: int = 20, full: bool = True,
 def crossing_scene(seed: int = 0, frames: int = 120, speed: float = 3.0) -> SyntheticScene:
     """Two people cross, with full mutual occlusion at the crossing (640x480, 25 fps).
 
-    Person 1 walks left -> right slightly lower in the image (in front), person 2 right ->
-    left 4 px higher (behind), same size; their boxes coincide at mid-sequence, when person 2
-    is completely hidden (visible_fraction ~0).
+    Person 1 is close to the camera (200 px tall, feet on row 450) and walks left -> right
+    at ``speed``; person 2 is farther away (64 px tall, feet on row 354) and walks right ->
+    left at ``speed / 2``.  Both reach x = 320 at frame ``frames // 2``; person 2's whole
+    silhouette then lies behind person 1's torso, so it is completely hidden
+    (visible_fraction 0) for several frames around the crossing.
     """
-    h = 160.0
-    travel = speed * (frames - 1)
-    p1 = PersonSpec(waypoints=((320.0 - travel / 2, 340.0), (320.0 + travel / 2, 340.0)),
-                    speed=speed, height=h, upper_color=(30, 30, 210), lower_color=(140, 70, 20),
-                    after_last="continue")
-    p2 = PersonSpec(waypoints=((320.0 + travel / 2, 336.0), (320.0 - travel / 2, 336.0)),
-                    speed=speed, height=h, upper_color=(40, 190, 40),
+    meet = frames // 2
+    p1 = PersonSpec(waypoints=((320.0 - speed * meet, 450.0), (320.0 + speed * meet, 450.0)),
+                    speed=speed, height=200.0, upper_color=(30, 30, 210),
+                    lower_color=(140, 70, 20), after_last="continue")
+    v2 = speed / 2.0
+    p2 = PersonSpec(waypoints=((320.0 + v2 * meet, 354.0), (320.0 - v2 * meet, 354.0)),
+                    speed=v2, height=64.0, upper_color=(40, 190, 40),
                     lower_color=(30, 160, 200), after_last="continue")
     return make_scene(SceneConfig(seed=seed, frames=frames, people=(p1, p2)))
 
