@@ -1,0 +1,151 @@
+"""Colour histograms, K-L cost, mean-shift vector and scale ratio (Chu 2013 App. C, (9)-(10))."""
+
+import numpy as np
+import pytest
+
+from mk_tracker.kernel_histograms import (InvalidImageError, check_image, evaluate_kernel,
+                                          kernel_histogram, kl_cost, mean_shift_vector,
+                                          number_of_bins, pixel_weights, profile_values,
+                                          quantize, sample_kernel, scale_ratio,
+                                          similarity_from_cost)
+
+BINS = (16, 8, 4)
+M = number_of_bins(BINS)
+RED = (0, 0, 255)
+BLUE = (255, 0, 0)
+GREY = (128, 128, 128)
+
+
+def _image(h=120, w=160, colour=GREY):
+    img = np.empty((h, w, 3), np.uint8)
+    img[:] = colour
+    return img
+
+
+def test_hsv_quantisation_of_pure_colours():
+    img = np.array([[RED, BLUE]], np.uint8)
+    b = quantize(img, "hsv", BINS)
+    # red: hue 0, full saturation and value
+    assert b[0, 0] == (0 * 8 + 7) * 4 + 3
+    # blue: OpenCV hue 120 of 180 -> bin 120*16//180 = 10
+    assert b[0, 1] == (10 * 8 + 7) * 4 + 3
+    assert quantize(img, "bgr", (4, 4, 4))[0, 0] == (0 * 4 + 0) * 4 + 3
+
+
+def test_roof_profile_is_linear_with_constant_g():
+    v = np.array([0.0, 0.25, 0.5, 0.99])
+    k, g = profile_values(v, "roof")
+    assert np.allclose(k, 1 - v) and np.allclose(g, 1.0)
+    k, g = profile_values(v, "gaussian")
+    assert np.all(np.diff(k) < 0) and np.allclose(g, 2 * k)
+
+
+def test_histogram_weights_pixels_by_the_profile():
+    img = _image(colour=BLUE)
+    img[:, :80] = RED                   # left half red, right half blue
+    bins = quantize(img, "hsv", BINS)
+    centred = kernel_histogram(sample_kernel(bins, (0, 0), np.array([80.0, 60.0]),
+                                             np.array([20.0, 20.0])), M)
+    assert centred.sum() == pytest.approx(1.0)
+    red_bin, blue_bin = bins[0, 0], bins[0, 159]
+    assert centred[red_bin] == pytest.approx(0.5, abs=0.03)
+    # moved right: blue dominates, and the few red pixels at the rim weigh little (k ~ 0)
+    right = kernel_histogram(sample_kernel(bins, (0, 0), np.array([95.0, 60.0]),
+                                           np.array([20.0, 20.0])), M)
+    assert right[blue_bin] > 0.9
+
+
+def test_kl_cost_and_similarity():
+    rng = np.random.default_rng(1)
+    q = rng.random(M)
+    q /= q.sum()
+    assert kl_cost(q, q) == pytest.approx(0.0, abs=1e-3)
+    assert similarity_from_cost(kl_cost(q, q)) == pytest.approx(1.0, abs=1e-3)
+    p = rng.random(M)
+    p /= p.sum()
+    assert kl_cost(q, p) > 0.1
+    # a histogram that shares no bin with q: finite cost (smoothing), tiny similarity
+    disjoint = np.zeros(M)
+    disjoint[q.argmin()] = 1.0
+    cost = kl_cost(np.eye(M)[q.argmax()], disjoint)
+    assert np.isfinite(cost) and cost > 5
+    assert 0.0 < similarity_from_cost(cost) < 0.01
+
+
+def _blob_scene():
+    rng = np.random.default_rng(3)
+    img = rng.integers(90, 160, size=(120, 160, 3)).astype(np.uint8)
+    img[:, :, 1] = img[:, :, 0]
+    img[40:80, 70:100] = RED            # the target: a red block centred at (85, 60)
+    return img
+
+
+def test_mean_shift_points_to_the_weighted_mode():
+    img = _blob_scene()
+    bins = quantize(img, "hsv", BINS)
+    axes = np.array([15.0, 20.0])
+    q = kernel_histogram(sample_kernel(bins, (0, 0), np.array([85.0, 60.0]), axes), M)
+    for offset in ([7.0, -5.0], [-6.0, 8.0], [0.0, 9.0]):
+        start = np.array([85.0, 60.0]) + offset
+        s = sample_kernel(bins, (0, 0), start, axes)
+        p = kernel_histogram(s, M)
+        m = mean_shift_vector(s, pixel_weights(s, q, p, 0.01), start)
+        back = -np.asarray(offset)
+        cos = m @ back / (np.linalg.norm(m) * np.linalg.norm(back))
+        assert cos > 0.9 and np.linalg.norm(m) > 1.0
+
+
+def test_mean_shift_is_zero_at_a_symmetric_mode():
+    img = _blob_scene()
+    bins = quantize(img, "hsv", BINS)
+    axes = np.array([15.0, 20.0])
+    centre = np.array([85.0, 60.0])
+    s = sample_kernel(bins, (0, 0), centre, axes)
+    q = kernel_histogram(s, M)
+    m = mean_shift_vector(s, pixel_weights(s, q, q, 0.01), centre)
+    assert np.linalg.norm(m) < 0.5
+
+
+def _disc_scene(radius):
+    yy, xx = np.mgrid[0:200, 0:200]
+    img = _image(200, 200, BLUE)
+    img[(xx + 0.5 - 100) ** 2 + (yy + 0.5 - 100) ** 2 < radius ** 2] = RED
+    return quantize(img, "hsv", BINS)
+
+
+def test_scale_ratio_sign_follows_the_size_change():
+    axes = np.array([40.0, 40.0])
+    centre = np.array([100.0, 100.0])
+    q = kernel_histogram(sample_kernel(_disc_scene(30), (0, 0), centre, axes), M)
+    ratios = {}
+    for radius in (24, 30, 36):
+        bins = _disc_scene(radius)
+        s = sample_kernel(bins, (0, 0), centre, axes)
+        p = kernel_histogram(s, M)
+        ratios[radius] = scale_ratio(s, pixel_weights(s, q, p, 0.01), axes)
+    assert ratios[36] > 0 > ratios[24]
+    assert abs(ratios[30]) < 0.2 * min(abs(ratios[36]), abs(ratios[24]))
+
+
+def test_a_kernel_outside_the_region_is_empty_not_an_error():
+    bins = quantize(_image(), "hsv", BINS)
+    q = np.full(M, 1.0 / M)
+    ev = evaluate_kernel(bins, (0, 0), np.array([500.0, 500.0]), np.array([10.0, 10.0]), q)
+    assert ev.similarity == 0.0 and ev.cost == np.inf and ev.n_pixels == 0
+    assert np.all(ev.mean_shift == 0)
+
+
+def test_sample_only_reads_the_roi_with_its_origin():
+    img = _blob_scene()
+    full = quantize(img, "hsv", BINS)
+    roi = full[30:90, 60:110]
+    a = sample_kernel(full, (0, 0), np.array([85.3, 60.7]), np.array([12.0, 18.0]))
+    b = sample_kernel(roi, (60, 30), np.array([85.3, 60.7]), np.array([12.0, 18.0]))
+    assert np.array_equal(a.bins, b.bins) and np.allclose(a.xs, b.xs) and np.allclose(a.k, b.k)
+
+
+@pytest.mark.parametrize("bad", [np.zeros((10, 10), np.uint8), np.zeros((0, 5, 3), np.uint8),
+                                 np.zeros((4, 4, 3), np.int64), [[1, 2, 3]]])
+def test_bad_images_raise_our_error(bad):
+    with pytest.raises(InvalidImageError):
+        check_image(bad)
