@@ -1,0 +1,402 @@
+"""``tracker_node``: multiple-kernel tracking of people in RGB video, as a ROS 2 node.
+
+A thin adapter around :class:`mk_tracker.multi_object_tracker.MultiObjectTracker` with the
+projected-gradient multiple-kernel refiner (:mod:`mk_tracker.multi_kernel`, Chu et al. 2013) and Kalman filtering; every decision (association, staleness of
+detections, time going backwards, lifecycle) is the library's.
+
+Topics (names are parameters):
+
+* subscribes ``image_raw`` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, mono8), sensor-data
+  QoS, depth 1; only the newest frame is processed, overwritten frames are counted and
+  reported (:class:`mk_tracker.ros.latest_frame.LatestFrameWorker`);
+* subscribes ``thermal/detections`` (vision_msgs/Detection2DArray from any publisher);
+  the last ``detection_buffer`` messages are kept and handed to the tracker with their own
+  stamps at the next frame.  A message whose ``header.frame_id`` equals the image's frame is
+  in the RGB plane; one equal to ``thermal_frame_id`` is mapped with ``tracker.homography``;
+  any other frame is logged and skipped;
+* subscribes ``~/start_track`` (vision_msgs/Detection2D): starts a track on its box by hand
+  (box in the RGB plane, or in the thermal plane when its frame is ``thermal_frame_id``);
+* publishes ``tracks`` (vision_msgs/Detection2DArray, header of the RGB image, ``id`` = the
+  track id, score = similarity) and, when ``publish_debug_image`` is true,
+  ``~/debug_image`` (bgr8) with boxes, ids, states and the kernels as ellipses.
+
+Parameters: ``tracker.*`` (MultiObjectTrackerConfig, e.g. ``tracker.kalman.sigma_u``,
+``tracker.homography``, ``tracker.multi_kernel.num_kernels``) and the node's own
+(:class:`TrackerNodeConfig`); see :mod:`mk_tracker.ros.parameter_bridge` for the scheme.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import Image
+
+from mk_tracker.boxes import InvalidBoxError, as_box, transform_box
+from mk_tracker.debug_drawing import (KernelEllipse, TrackDrawing, draw_detections,
+                                      draw_text_lines, draw_tracks)
+from mk_tracker.detection_messages import (Detection, DetectionMessageError,
+                                           make_detection_array, read_detection,
+                                           read_detection_array)
+from mk_tracker.image_conversion import (ImageConversionError, image_to_numpy, numpy_to_image,
+                                         to_bgr)
+from mk_tracker.message_types import ros_message_types, stamp_to_seconds
+from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
+                                             MultiObjectTrackerConfig, TrackerInputError)
+from mk_tracker.parameters import ParameterError, parameter
+from mk_tracker.ros.latest_frame import LatestFrameWorker
+from mk_tracker.ros.parameter_bridge import ParameterBridge
+from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
+
+RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
+NO_BOX = (0.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class TrackerNodeConfig:
+    """The node's own parameters (flat names; QoS grouped as ``image_qos.*`` ...)."""
+
+    image_topic: str = parameter("image_raw", "RGB image topic (sensor_msgs/Image)",
+                                 read_only=True)
+    detections_topic: str = parameter(
+        "thermal/detections", "Detections topic (vision_msgs/Detection2DArray)", read_only=True)
+    tracks_topic: str = parameter("tracks", "Output topic of tracked boxes", read_only=True)
+    image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
+                                                 "QoS of the image subscription")
+    detections_qos: SubscriptionQosConfig = parameter(
+        SubscriptionQosConfig(depth=10), "QoS of the detections subscription")
+    publish_debug_image: bool = parameter(False, "Publish ~/debug_image (bgr8)")
+    thermal_frame_id: str = parameter(
+        "thermal_camera", "Detections with this header.frame_id are in the thermal plane and "
+        "are mapped with tracker.homography")
+    detection_buffer: int = parameter(
+        5, "Detection messages kept between two processed frames (oldest dropped first)",
+        minimum=1, maximum=1000, read_only=True)
+    initial_box: tuple = parameter(
+        NO_BOX, "[x, y, w, h] (top-left, px) of a track started on the first frame; "
+        "w = h = 0 disables", minimum=0.0, read_only=True)
+    class_id: str = parameter("person", "class_id written into the tracks' results")
+    report_period: float = parameter(
+        5.0, "Seconds between the logs of dropped frames and skipped input", minimum=0.1,
+        maximum=3600.0)
+
+
+def check_node_config(config: TrackerNodeConfig) -> None:
+    """Constraints a range cannot express: an initial box is 4 numbers, both sides > 0."""
+    box = config.initial_box
+    if len(box) != 4:
+        raise ParameterError(f"initial_box: needs 4 values [x, y, w, h], got {len(box)}")
+    if tuple(float(v) for v in box) != NO_BOX and not (box[2] > 0 and box[3] > 0):
+        raise ParameterError(f"initial_box: width and height must be > 0 (or all zero to "
+                             f"disable), got {list(box)}")
+
+
+def check_tracker_config(config: MultiObjectTrackerConfig) -> None:
+    """The library's own check of a config (singular homography ...), as a ParameterError."""
+    try:
+        MultiObjectTracker(config)
+    except TrackerInputError as exc:
+        raise ParameterError(f"homography/config rejected by the tracker: {exc}") from exc
+
+
+@dataclass
+class _DetectionBatch:
+    stamp: float
+    frame_id: str
+    detections: list[Detection]
+
+
+@dataclass
+class _Counters:
+    frames: int = 0
+    bad_images: int = 0
+    bad_detection_messages: int = 0
+    bad_detections: int = 0
+    unknown_frame: int = 0
+    overflowed_detection_messages: int = 0
+    last_report: float = field(default_factory=time.monotonic)
+    reported_drops: int = 0
+
+
+class TrackerNode(Node):
+    """The tracker node; see the module docstring."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("tracker_node", **kwargs)
+        self._types = ros_message_types()
+        self._buffer_lock = threading.Lock()   # detection buffer and start requests
+        self._tracker_lock = threading.Lock()  # the tracker (worker thread vs parameters)
+        self._bridge = ParameterBridge(self)
+        self.node_config: TrackerNodeConfig = self._bridge.add_config(
+            "", TrackerNodeConfig(), extra_check=check_node_config,
+            on_change=self._on_node_config)
+        tracker_cfg = self._bridge.add_config("tracker", MultiObjectTrackerConfig(),
+                                              extra_check=check_tracker_config,
+                                              on_change=self._on_tracker_config)
+        self.tracker = MultiObjectTracker(tracker_cfg)
+        self._bridge.activate()
+
+        cfg = self.node_config
+        self._detections: deque[_DetectionBatch] = deque(maxlen=cfg.detection_buffer)
+        self._start_requests: deque[tuple[str, Detection]] = deque(maxlen=10)
+        self._initial_box_pending = tuple(float(v) for v in cfg.initial_box) != NO_BOX
+        self._counters = _Counters()
+        self._last_stamp: float | None = None
+
+        from vision_msgs.msg import Detection2D, Detection2DArray
+        self._tracks_pub = self.create_publisher(Detection2DArray, cfg.tracks_topic,
+                                                 publisher_qos(10))
+        self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
+        self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
+                                         name="tracker_node-frames").start()
+        self.create_subscription(Image, cfg.image_topic, self._worker.submit,
+                                 subscription_qos(cfg.image_qos))
+        self.create_subscription(Detection2DArray, cfg.detections_topic,
+                                 self._on_detections, subscription_qos(cfg.detections_qos))
+        # reliable, like ``ros2 topic pub``: a hand-made command should not be lost
+        self.create_subscription(Detection2D, "~/start_track", self._on_start_track,
+                                 subscription_qos(SubscriptionQosConfig("reliable", 10)))
+        self.get_logger().info(
+            f"tracking {self.resolve_topic_name(cfg.image_topic)} with detections from "
+            f"{self.resolve_topic_name(cfg.detections_topic)} -> "
+            f"{self.resolve_topic_name(cfg.tracks_topic)}; "
+            f"{tracker_cfg.multi_kernel.num_kernels} kernels per target")
+
+    # -- parameters ----------------------------------------------------------------------
+    def _on_node_config(self, config: TrackerNodeConfig) -> None:
+        self.node_config = config
+
+    def _on_tracker_config(self, config: MultiObjectTrackerConfig) -> None:
+        # MultiObjectTracker has no way to change its config in place (tracks keep the
+        # Kalman/lifecycle constants they were created with).  A new tracker applies the
+        # change everywhere, at the price of restarting the tracks.
+        with self._tracker_lock:
+            self.tracker = MultiObjectTracker(config)
+        self.get_logger().warning("tracker restarted with the new parameters (tracks reset)")
+
+    # -- subscriptions (executor thread: store and return) -------------------------------
+    def _on_detections(self, msg: Any) -> None:
+        try:
+            detections, skipped = read_detection_array(msg, on_error="skip")
+            stamp = stamp_to_seconds(msg.header.stamp)
+        except (DetectionMessageError, ValueError, AttributeError) as exc:
+            self._counters.bad_detection_messages += 1
+            self.get_logger().warning(f"skipping a detections message: {exc}",
+                                      throttle_duration_sec=1.0)
+            return
+        if skipped:
+            self._counters.bad_detections += skipped
+            self.get_logger().warning(
+                f"skipped {skipped} bad detection(s) (NaN or non-positive size, bad score) in "
+                f"a message from frame {msg.header.frame_id!r}", throttle_duration_sec=1.0)
+        with self._buffer_lock:
+            if len(self._detections) == self._detections.maxlen:
+                self._counters.overflowed_detection_messages += 1
+            self._detections.append(_DetectionBatch(stamp, msg.header.frame_id, detections))
+
+    def _on_start_track(self, msg: Any) -> None:
+        try:
+            detection = read_detection(msg)
+        except DetectionMessageError as exc:
+            self.get_logger().warning(f"ignoring ~/start_track: {exc}")
+            return
+        with self._buffer_lock:
+            self._start_requests.append((msg.header.frame_id, detection))
+
+    # -- frame processing (worker thread) ------------------------------------------------
+    def _on_worker_error(self, exc: BaseException) -> None:
+        self.get_logger().error(f"frame processing failed ({type(exc).__name__}: {exc}); "
+                                "frame skipped", throttle_duration_sec=1.0)
+
+    def _plane(self, frame_id: str, image_frame: str) -> str | None:
+        if frame_id == image_frame:
+            return "rgb"
+        if frame_id == self.node_config.thermal_frame_id:
+            return "thermal"
+        return None
+
+    def _process_image(self, msg: Image) -> None:
+        counters = self._counters
+        try:
+            if msg.encoding not in RGB_ENCODINGS:
+                raise ImageConversionError(
+                    f"encoding {msg.encoding!r} is not an RGB tracker input "
+                    f"(supported: {', '.join(RGB_ENCODINGS)})")
+            pixels = image_to_numpy(msg)
+            bgr = np.ascontiguousarray(to_bgr(pixels, msg.encoding))
+        except ImageConversionError as exc:
+            counters.bad_images += 1
+            self.get_logger().warning(f"skipping an image: {exc}", throttle_duration_sec=1.0)
+            return
+        stamp = stamp_to_seconds(msg.header.stamp)
+        frame = msg.header.frame_id
+        with self._buffer_lock:
+            batches = list(self._detections)
+            self._detections.clear()
+            starts = list(self._start_requests)
+            self._start_requests.clear()
+        with self._tracker_lock:
+            tracker = self.tracker
+            dets: list[FrameDetection] = []
+            for batch in batches:
+                plane = self._plane(batch.frame_id, frame)
+                if plane is None:
+                    counters.unknown_frame += 1
+                    self.get_logger().warning(
+                        f"skipping detections in unknown frame {batch.frame_id!r} (image frame "
+                        f"{frame!r}, thermal_frame_id {self.node_config.thermal_frame_id!r})",
+                        throttle_duration_sec=1.0)
+                    continue
+                dets.extend(FrameDetection(box=d.box, score=d.score, stamp=batch.stamp,
+                                           plane=plane) for d in batch.detections)
+            if self._last_stamp is not None and stamp < self._last_stamp:
+                self.get_logger().warning(
+                    f"image time went backwards by {self._last_stamp - stamp:.3f} s "
+                    "(bag restarted?); the tracker decides what to do", throttle_duration_sec=1.0)
+            self._last_stamp = stamp
+            try:
+                self._start_tracks(tracker, bgr, stamp, frame, starts)
+                result = tracker.step(bgr, stamp, dets)
+            except (TrackerInputError, ValueError) as exc:
+                counters.bad_images += 1
+                self.get_logger().warning(f"tracker rejected a frame: {exc}",
+                                          throttle_duration_sec=1.0)
+                return
+            kernels = self._kernel_drawings(tracker)
+        counters.frames += 1
+        for event in result.events:
+            self.get_logger().info(event, throttle_duration_sec=0.5)
+        reported = result.reported()
+        class_id = self.node_config.class_id
+        out = [Detection(box=t.box, score=min(max(t.score, 0.0), 1.0), class_id=class_id,
+                         id=str(t.id)) for t in reported if _finite(t.box)]
+        self._tracks_pub.publish(make_detection_array(out, msg.header, self._types))
+        if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
+            self._publish_debug(bgr, msg.header, reported, kernels, dets, tracker)
+        self._report()
+
+    def _start_tracks(self, tracker: MultiObjectTracker, bgr: np.ndarray, stamp: float,
+                      frame: str, starts: list[tuple[str, Detection]]) -> None:
+        requests: list[tuple[str, tuple]] = []
+        if self._initial_box_pending:
+            self._initial_box_pending = False
+            requests.append(("initial_box", tuple(self.node_config.initial_box)))
+        for frame_id, det in starts:
+            plane = self._plane(frame_id, frame) if frame_id else "rgb"
+            if plane is None:
+                self.get_logger().warning(f"~/start_track in unknown frame {frame_id!r} ignored")
+                continue
+            box = det.box
+            if plane == "thermal":
+                try:
+                    box = transform_box(box, tracker.homography)
+                except InvalidBoxError as exc:
+                    self.get_logger().warning(f"~/start_track box cannot be mapped: {exc}")
+                    continue
+            requests.append(("~/start_track", box))
+        for source, box in requests:
+            try:
+                track_id = tracker.start_track(bgr, stamp, box)
+            except ValueError as exc:
+                self.get_logger().warning(f"cannot start a track from {source} {box}: {exc}")
+                continue
+            self.get_logger().info(f"started track {track_id} from {source} at {box}")
+
+    @staticmethod
+    def _kernel_drawings(tracker: MultiObjectTracker) -> dict[int, list[KernelEllipse]]:
+        """Kernel ellipses per track id, read from the tracks' multiple-kernel targets."""
+        out: dict[int, list[KernelEllipse]] = {}
+        for track in getattr(tracker, "tracks", []):
+            target = getattr(track, "target", None)
+            if target is None:
+                continue
+            try:
+                centres = np.asarray(target.centres, dtype=float)
+                axes = np.asarray(target.half_axes, dtype=float)
+            except (AttributeError, TypeError, ValueError):
+                continue
+            out[track.id] = [KernelEllipse((c[0], c[1]), (a[0], a[1]))
+                             for c, a in zip(centres, axes)]
+        return out
+
+    def _publish_debug(self, bgr: np.ndarray, header: Any, reported: list, kernels: dict,
+                       dets: list[FrameDetection], tracker: MultiObjectTracker) -> None:
+        det_boxes = []
+        for d in dets:
+            try:
+                det_boxes.append(transform_box(d.box, tracker.homography)
+                                 if d.plane == "thermal" else as_box(d.box))
+            except InvalidBoxError:
+                continue
+        canvas = draw_detections(bgr, det_boxes)
+        canvas = draw_tracks(canvas, [TrackDrawing(t.box, t.id, t.state, t.score,
+                                                   kernels.get(t.id, ())) for t in reported])
+        w = self._worker
+        canvas = draw_text_lines(canvas, [f"tracks {len(reported)}  frames {w.processed + 1}"
+                                          f"  dropped {w.dropped}"])
+        self._debug_pub.publish(numpy_to_image(canvas, "bgr8", header, types=self._types))
+
+    def _report(self) -> None:
+        c = self._counters
+        now = time.monotonic()
+        if now - c.last_report < self.node_config.report_period:
+            return
+        c.last_report = now
+        dropped = self._worker.dropped
+        totals = self.tracker.totals
+        if dropped > c.reported_drops or c.bad_images or c.unknown_frame:
+            self.get_logger().info(
+                f"{c.frames} frames tracked, {dropped} dropped (newer frame arrived first), "
+                f"{c.bad_images} bad images, {c.bad_detection_messages} bad detection "
+                f"messages, {c.bad_detections} bad detections, {c.unknown_frame} detection "
+                f"messages in unknown frames, {c.overflowed_detection_messages} overflowed; "
+                f"tracker: {totals}")
+        c.reported_drops = dropped
+
+    # -- shutdown ------------------------------------------------------------------------
+    def statistics(self) -> dict[str, int]:
+        c = self._counters
+        return {"frames": c.frames, "dropped": self._worker.dropped,
+                "bad_images": c.bad_images, "unknown_frame": c.unknown_frame,
+                "bad_detection_messages": c.bad_detection_messages,
+                "bad_detections": c.bad_detections}
+
+    def destroy_node(self) -> None:
+        self._worker.stop()
+        self.get_logger().info(f"shutting down: {self.statistics()}")
+        super().destroy_node()
+
+
+def _finite(box: tuple) -> bool:
+    return all(np.isfinite(v) for v in box) and box[2] > 0 and box[3] > 0
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of the ``tracker_node`` console script."""
+    rclpy.init(args=args)
+    try:
+        node = TrackerNode()
+    except (ParameterError, ImportError) as exc:
+        print(f"tracker_node: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
