@@ -333,13 +333,13 @@ def _person_parts(phase: int) -> np.ndarray:
         cv2.rectangle(parts, (foot_x - 7, foot_y - 6), (foot_x + 7, H - 1), 5, thickness=-1)
     # arms (upper-body colour), slightly swinging against the legs
     for side in (-1, 1):
-        cv2.line(parts, (cx + side * 21, int(0.19 * H)),
-                 (int(round(cx + side * (25 - 2 * spread))), int(0.52 * H)), 3, thickness=9)
-        cv2.circle(parts, (int(round(cx + side * (25 - 2 * spread))), int(0.53 * H)), 4, 1,
-                   thickness=-1)
+        hand_x = int(round(cx + side * (27 - 2 * spread)))
+        cv2.line(parts, (cx + side * 24, int(0.19 * H)), (hand_x, int(0.52 * H)), 3,
+                 thickness=9)
+        cv2.circle(parts, (hand_x, int(0.53 * H)), 4, 1, thickness=-1)
     # torso: shoulders-to-hips rounded trapezoid
-    cv2.ellipse(parts, (cx, int(0.23 * H)), (22, 10), 0, 180, 360, 3, thickness=-1)
-    torso = np.array([[cx - 22, int(0.23 * H)], [cx + 22, int(0.23 * H)],
+    cv2.ellipse(parts, (cx, int(0.23 * H)), (24, 10), 0, 180, 360, 3, thickness=-1)
+    torso = np.array([[cx - 24, int(0.23 * H)], [cx + 24, int(0.23 * H)],
                       [cx + 17, int(0.56 * H)], [cx - 17, int(0.56 * H)]], np.int32)
     cv2.fillConvexPoly(parts, torso, 3)
     # neck and head
@@ -993,8 +993,20 @@ def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int 
     people = []
     for _ in range(int(n_people)):
         speed = float(rng.uniform(1.0, 3.0))
-        n_wp = int(frames * speed / (0.15 * width)) + 3
-        wps = np.stack([rng.uniform(x0, x1, n_wp), rng.uniform(y0, y1, n_wp)], axis=1)
+        # a random walk of legs 0.1-0.3 width long, reflected into the floor area
+        n_wp = int(frames * speed / (0.1 * width)) + 3
+        legs = rng.uniform(0.1, 0.3, n_wp) * width
+        angles = rng.uniform(-np.pi, np.pi, n_wp)
+        wps = np.empty((n_wp, 2))
+        wps[0] = rng.uniform(x0, x1), rng.uniform(y0, y1)
+        for j in range(1, n_wp):
+            p = wps[j - 1] + legs[j] * np.array([np.cos(angles[j]), np.sin(angles[j])])
+            for axis, lo, hi in ((0, x0, x1), (1, y0, y1)):
+                if p[axis] < lo:
+                    p[axis] = min(2 * lo - p[axis], hi)
+                elif p[axis] > hi:
+                    p[axis] = max(2 * hi - p[axis], lo)
+            wps[j] = p
         people.append(PersonSpec(waypoints=tuple(map(tuple, wps.round(2).tolist())),
                                  speed=round(speed, 3), height=0.3 * height,
                                  torso_temperature=float(rng.uniform(301.5, 304.0))))
@@ -1022,7 +1034,7 @@ def static_warm_objects_scene(seed: int = 0, frames: int = 100) -> SyntheticScen
             WarmObjectSpec(box=(520.0, 270.0, 80.0, 45.0), temperature=318.0),
             WarmObjectSpec(box=(300.0, 40.0, 36.0, 36.0), temperature=322.0, shape="ellipse",
                            color=(220, 240, 250)))
-    person = PersonSpec(waypoints=((120.0, 420.0), (520.0, 400.0)), speed=3.0, height=150.0,
+    person = PersonSpec(waypoints=((190.0, 440.0), (470.0, 430.0)), speed=3.0, height=150.0,
                         torso_temperature=302.0, upper_color=(30, 140, 230),
                         lower_color=(90, 40, 40), after_last="stop")
     return make_scene(SceneConfig(seed=seed, frames=frames, people=(person,),
