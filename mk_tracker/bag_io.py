@@ -96,7 +96,9 @@ class BagWriter:
     ``storage`` is ``"mcap"`` or ``"sqlite3"``.  The directory must not exist yet.
     Topics are declared with :meth:`add_topic` (or implicitly by :meth:`write`, which takes
     the type from the message's ``__msgtype__``).  Messages must be instances of the
-    writer's typestore classes (``bag_message_types(writer.typestore)``).
+    writer's typestore classes (``bag_message_types(writer.typestore)``) or already
+    serialized CDR bytes.  The bag directory is created by :meth:`open` (called by ``with``
+    or, lazily, by the first :meth:`add_topic`); a writer closed before that creates nothing.
     """
 
     def __init__(self, path: str | Path, storage: str = "mcap", *, typestore: Any = None):
@@ -133,10 +135,18 @@ class BagWriter:
             writer, self._writer = self._writer, None
             writer.close()
 
-    def add_topic(self, topic: str, msgtype: str, qos: Sequence[Any] = ()) -> None:
-        """Declare ``topic`` with ROS type ``msgtype`` (e.g. ``sensor_msgs/msg/Image``)."""
+    def add_topic(self, topic: str, msgtype: str, qos: Sequence[Any] = (), *,
+                  offered_qos_profiles: Sequence[Any] | None = None) -> None:
+        """Declare ``topic`` with ROS type ``msgtype`` (e.g. ``sensor_msgs/msg/Image``).
+
+        ``qos`` (alias ``offered_qos_profiles``): the publishers' QoS profiles stored in the
+        bag, as rosbags ``Qos`` records or dicts with the rmw enum values of ``history``,
+        ``depth``, ``reliability``, ``durability`` (and optionally ``liveliness``).
+        """
         if self._writer is None:
-            raise BagError(f"{self.path}: the writer is not open (use 'with BagWriter(...)')")
+            self.open()
+        if offered_qos_profiles is not None:
+            qos = offered_qos_profiles
         if topic in self._connections:
             known = self._connections[topic].msgtype
             if known != msgtype:
@@ -146,7 +156,8 @@ class BagWriter:
         if msgtype not in self.typestore.types:
             raise BagError(f"{self.path}: message type {msgtype} is unknown to the typestore")
         self._connections[topic] = self._writer.add_connection(
-            topic, msgtype, typestore=self.typestore, offered_qos_profiles=list(qos))
+            topic, msgtype, typestore=self.typestore,
+            offered_qos_profiles=[_as_qos(q, self.path) for q in qos])
         self.counts[topic] = 0
 
     def write_raw(self, topic: str, timestamp_ns: int, cdr: bytes | memoryview) -> None:
@@ -161,7 +172,11 @@ class BagWriter:
         self.counts[topic] += 1
 
     def write(self, topic: str, timestamp_ns: int, msg: Any) -> None:
-        """Serialize ``msg`` with the typestore and write it (declaring the topic if new)."""
+        """Serialize ``msg`` with the typestore and write it (declaring the topic if new).
+        Bytes-like ``msg`` is taken as serialized CDR (:meth:`write_raw`)."""
+        if isinstance(msg, (bytes, bytearray, memoryview)):
+            self.write_raw(topic, timestamp_ns, msg)
+            return
         msgtype = getattr(msg, "__msgtype__", None)
         if msgtype is None:
             raise BagError(f"{self.path}: {type(msg).__name__} is not a rosbags message "
@@ -176,6 +191,29 @@ class BagWriter:
         except Exception as exc:  # rosbags raises assorted errors for wrong field types
             raise BagError(f"{self.path}: cannot serialize {msgtype} for {topic}: {exc}") from exc
         self.write_raw(topic, timestamp_ns, cdr)
+
+
+def _as_qos(profile: Any, path: Path) -> Any:
+    """A rosbags ``Qos`` from a ``Qos`` or a dict of rmw enum values."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+
+    if isinstance(profile, Qos):
+        return profile
+    if not isinstance(profile, dict):
+        raise BagError(f"{path}: QoS profile {profile!r} is neither a rosbags Qos nor a dict")
+    try:
+        never = QosTime(0, 0)
+        return Qos(history=QosHistory(int(profile.get("history", 1))),
+                   depth=int(profile.get("depth", 0)),
+                   reliability=QosReliability(int(profile.get("reliability", 1))),
+                   durability=QosDurability(int(profile.get("durability", 2))),
+                   deadline=never, lifespan=never,
+                   liveliness=QosLiveliness(int(profile.get("liveliness", 1))),
+                   liveliness_lease_duration=never,
+                   avoid_ros_namespace_conventions=False)
+    except (TypeError, ValueError) as exc:
+        raise BagError(f"{path}: invalid QoS profile {profile!r}: {exc}") from exc
 
 
 # --------------------------------------------------------------------------------------

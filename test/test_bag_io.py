@@ -246,3 +246,27 @@ def test_missing_listed_file_and_missing_bag(tmp_path):
     (meta_path).write_text("rosbag2_bagfile_information: [unclosed")
     with pytest.raises(BagError, match="metadata.yaml: unreadable"):
         open_bag(path)
+
+
+def test_raw_cdr_lazy_open_and_qos(tmp_path):
+    path = tmp_path / "rec"
+    writer = BagWriter(path, "sqlite3", typestore=STORE)
+    assert not path.exists()  # nothing created before the first topic
+    writer.add_topic("/image_raw", "sensor_msgs/msg/Image",
+                     offered_qos_profiles=[{"history": 1, "depth": 5, "reliability": 2,
+                                            "durability": 2}])
+    img = numpy_to_image(frame(1), "bgr8", make_header(TYPES, "camera", 7), types=TYPES)
+    writer.write("/image_raw", 7, bytes(STORE.serialize_cdr(img, "sensor_msgs/msg/Image")))
+    with pytest.raises(BagError, match="invalid QoS"):
+        writer.add_topic("/x", "std_msgs/msg/Header", [{"reliability": 42}])
+    writer.close()
+    meta = yaml.safe_load((path / "metadata.yaml").read_text())
+    (entry,) = meta["rosbag2_bagfile_information"]["topics_with_message_count"]
+    (profile,) = entry["topic_metadata"]["offered_qos_profiles"]
+    assert (profile["reliability"], profile["durability"], profile["depth"]) == \
+        ("best_effort", "volatile", 5)
+    with open_bag(path) as bag:
+        (msg,) = [bag.deserialize(m) for m in bag.messages()]
+    np.testing.assert_array_equal(image_to_numpy(msg), frame(1))
+    BagWriter(tmp_path / "unused").close()
+    assert not (tmp_path / "unused").exists()
