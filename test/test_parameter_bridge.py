@@ -193,3 +193,38 @@ def test_generated_yaml_loads_as_a_params_file(tmp_path):
             node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
+
+
+@pytest.mark.parametrize("node_name, module_name, path", [
+    ("tracker_node", "mk_tracker.ros.tracker_node", "config/tracker.yaml"),
+    ("detector_node", "mk_tracker.ros.detector_node", "config/detector.yaml"),
+])
+def test_shipped_params_files_declare_every_parameter_at_its_default(node_name, module_name,
+                                                                     path):
+    import importlib
+    from pathlib import Path
+
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        pytest.skip(f"{module_name} cannot be imported here: {exc}")
+    shipped = yaml.safe_load((Path(__file__).resolve().parents[1] / path).read_text())
+    params = shipped[node_name]["ros__parameters"]
+
+    def flat(tree, prefix=""):
+        for key, value in tree.items():
+            if isinstance(value, dict):
+                yield from flat(value, f"{prefix}{key}.")
+            else:
+                yield f"{prefix}{key}", value
+
+    found = dict(flat(params))
+    expected = {}
+    for prefix, config in module.default_configs().items():
+        for spec in parameter_specs(config):
+            name = f"{prefix}.{spec.name}" if prefix else spec.name
+            default = spec.default
+            expected[name] = list(default) if isinstance(default, tuple) else default
+    assert found == expected, (
+        f"{path} is out of date: regenerate it with "
+        f"`.venv/bin/python -m mk_tracker.ros.parameter_bridge {node_name} > {path}`")

@@ -282,9 +282,13 @@ def _yaml_scalar(value: Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
+        if not math.isfinite(value):
+            raise TypeError(f"cannot write the non-finite default {value!r} to a params file")
         text = repr(value)
-        return text if ("." in text or "e" in text or "inf" in text or "nan" in text) \
-            else text + ".0"
+        mantissa, _, exponent = text.partition("e")
+        if "." not in mantissa:          # YAML 1.1 (PyYAML) needs the dot: 1.0e-06
+            mantissa += ".0"
+        return f"{mantissa}e{exponent}" if exponent else mantissa
     if isinstance(value, int):
         return str(value)
     if isinstance(value, str):
@@ -292,3 +296,27 @@ def _yaml_scalar(value: Any) -> str:
     if isinstance(value, list):
         return "[" + ", ".join(_yaml_scalar(v) for v in value) + "]"
     raise TypeError(f"cannot write {value!r} as a ROS parameter")
+
+
+NODES = {"tracker_node": "mk_tracker.ros.tracker_node",
+         "detector_node": "mk_tracker.ros.detector_node"}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m mk_tracker.ros.parameter_bridge NODE``: print NODE's default params file.
+
+    The shipped config/tracker.yaml and config/detector.yaml are this output.
+    """
+    import argparse
+    import importlib
+
+    parser = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
+    parser.add_argument("node", choices=sorted(NODES))
+    args = parser.parse_args(argv)
+    module = importlib.import_module(NODES[args.node])
+    print(config_yaml(args.node, module.default_configs()), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -89,6 +89,11 @@ class TrackerNodeConfig:
         maximum=3600.0)
 
 
+def default_configs() -> dict[str, Any]:
+    """Every config the node declares, by parameter prefix (for config/tracker.yaml)."""
+    return {"": TrackerNodeConfig(), "tracker": MultiObjectTrackerConfig()}
+
+
 def check_node_config(config: TrackerNodeConfig) -> None:
     """Constraints a range cannot express: an initial box is 4 numbers, both sides > 0."""
     box = config.initial_box

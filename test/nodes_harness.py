@@ -1,0 +1,156 @@
+"""Helpers of the node integration tests (test_nodes_*.py): node processes and a test peer.
+
+* :func:`ros_env` -- environment of one test: its own ROS_DOMAIN_ID, discovery limited to
+  localhost, the shared-memory Fast DDS profile of config/fastdds_shm.xml.
+* :class:`NodeProcess` -- a node started as a separate process
+  (``python -m mk_tracker.ros.<node> --ros-args ...``) in its own process group; ``stop()``
+  sends SIGINT, then SIGTERM, then SIGKILL to the whole group, so nothing is left behind.
+* :class:`Peer` -- an rclpy node in the test process (own context and executor) with
+  publishers, collecting subscriptions and ``spin_until``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+REPO = Path(__file__).resolve().parents[1]
+FASTDDS_PROFILE = REPO / "config" / "fastdds_shm.xml"
+_counter = itertools.count()
+
+
+def unique_domain() -> int:
+    """A ROS domain id for one test, spread by pid so parallel sessions rarely collide."""
+    return 1 + (os.getpid() * 13 + next(_counter) * 7) % 100
+
+
+def ros_env(domain: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env.update({
+        "ROS_DOMAIN_ID": str(domain),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "FASTRTPS_DEFAULT_PROFILES_FILE": str(FASTDDS_PROFILE),
+        "FASTDDS_DEFAULT_PROFILES_FILE": str(FASTDDS_PROFILE),
+        "PYTHONPATH": os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(os.pathsep),
+        "PYTHONUNBUFFERED": "1",
+        "RCUTILS_COLORIZED_OUTPUT": "0",
+        "RCUTILS_LOGGING_BUFFERED_STREAM": "0",
+    })
+    env.pop("ROS_LOCALHOST_ONLY", None)
+    return env
+
+
+def apply_env_to_test_process(monkeypatch: Any, domain: int) -> None:
+    """Same discovery settings in the test process (rmw reads them when a context starts)."""
+    for key, value in ros_env(domain).items():
+        if key.startswith(("ROS_", "FASTRTPS_", "FASTDDS_")):
+            monkeypatch.setenv(key, value)
+
+
+class NodeProcess:
+    """One node as a child process; output goes to ``log_path``."""
+
+    def __init__(self, module: str, ros_args: list[str], env: dict[str, str],
+                 log_path: Path) -> None:
+        self.log_path = log_path
+        self._log = open(log_path, "w")
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", module, "--ros-args", *ros_args],
+            env=env, cwd=str(REPO), stdout=self._log, stderr=subprocess.STDOUT,
+            start_new_session=True)
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def output(self) -> str:
+        self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+    def wait_for_output(self, text: str, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if text in self.output():
+                return True
+            if not self.alive():
+                return text in self.output()
+            time.sleep(0.05)
+        return False
+
+    def stop(self) -> int | None:
+        """SIGINT, then SIGTERM, then SIGKILL to the process group; returns the exit code."""
+        if self.proc.poll() is None:
+            for sig, wait in ((signal.SIGINT, 5.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
+                try:
+                    os.killpg(self.proc.pid, sig)
+                except ProcessLookupError:
+                    break
+                try:
+                    self.proc.wait(wait)
+                    break
+                except subprocess.TimeoutExpired:
+                    continue
+        try:                       # anything the node may have spawned in its group
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        self._log.close()
+        return self.proc.returncode
+
+
+class Peer:
+    """An rclpy node in the test process, on its own context."""
+
+    def __init__(self, domain: int, name: str = "test_peer") -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain, args=[])
+        self.node = Node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.received: dict[str, list] = {}
+
+    def publisher(self, msg_type: Any, topic: str, qos: Any) -> Any:
+        return self.node.create_publisher(msg_type, topic, qos)
+
+    def collect(self, msg_type: Any, topic: str, qos: Any) -> list:
+        """Subscribe ``topic``; its messages are appended to the returned list."""
+        store = self.received.setdefault(topic, [])
+        self.node.create_subscription(msg_type, topic, store.append, qos)
+        return store
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            self.executor.spin_once(timeout_sec=0.01)
+        return predicate()
+
+    def spin_for(self, seconds: float) -> None:
+        self.spin_until(lambda: False, seconds)
+
+    def close(self) -> None:
+        import rclpy
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def stamp_of(msg: Any) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def make_stamp(seconds: float) -> Any:
+    from builtin_interfaces.msg import Time
+    ns = int(round(seconds * 1e9))
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
