@@ -285,9 +285,11 @@ _MCAP_MAGIC = b"\x89MCAP0\r\n"
 class _McapScan(_StorageFile):
     """Tolerant linear scan of an MCAP file that may be truncated or damaged.
 
-    Reads records from the start until the first record that does not fit or does not
-    parse, collecting schemas, channels and messages (also inside chunks).  Used only when
-    the indexed reader failed and the caller asked to skip what is unreadable.
+    Reads records from the start, collecting schemas, channels and messages (also inside
+    chunks).  A record whose content does not parse is skipped; a record that runs past the
+    end of its chunk ends that chunk, past the end of the file ends the scan (the complete
+    records at the start of a truncated uncompressed chunk are kept).  Used only when the
+    indexed reader failed and the caller asked to skip what is unreadable.
     """
 
     def __init__(self, path: Path, reason: str):
@@ -335,10 +337,9 @@ class _McapScan(_StorageFile):
             body = buf[body_start:body_end]
             try:
                 self._record(op, body, decompress)
-            except Exception as exc:  # damaged record content: report, stop this stream
+            except Exception as exc:  # damaged record content: report, skip the record
                 self.problems.append(f"{self.path}: damaged record (op {op:#x}) at byte {pos}: "
-                                     f"{exc}; stopped there")
-                return
+                                     f"{exc}; skipped")
             if op == 0x02:  # footer: end of file
                 return
             pos = body_end
@@ -745,7 +746,7 @@ class BagReader:
         delivered: dict[str, int] = {}
         for ts, _, topic, data in heapq.merge(*streams, key=lambda m: (m[0], m[1])):
             delivered[topic] = delivered.get(topic, 0) + 1
-            yield BagMessage(topic, types[topic], ts, data)
+            yield BagMessage(topic, types.get(topic, ""), ts, data)
         if selected is None and start_ns is None and stop_ns is None:
             announced = self._found_counts()
             for name, n in sorted(announced.items()):
@@ -755,14 +756,25 @@ class BagReader:
 
     def _guarded(self, index: int, f: _StorageFile, topics, start, stop
                  ) -> Iterator[tuple[int, int, str, bytes]]:
+        delivered: dict[tuple[int, str], int] = {}
         try:
             for ts, topic, data in f.messages(topics, start, stop):
+                delivered[ts, topic] = delivered.get((ts, topic), 0) + 1
                 yield ts, index, topic, data
         except BagError as exc:
             self._problem(str(exc))
         except Exception as exc:  # damage inside a storage file found while reading
-            self._problem(f"{f.path}: damaged data while reading "
-                          f"({type(exc).__name__}: {exc})")
+            reason = f"damaged data while reading ({type(exc).__name__}: {exc})"
+            self._problem(f"{f.path}: {reason}")
+            if isinstance(f, _McapFile):
+                # skip mode: rescan the file and deliver what the index could not
+                scan = _McapScan(f.path, reason)
+                self.problems.extend(scan.problems)
+                for ts, topic, data in scan.messages(topics, start, stop):
+                    if delivered.get((ts, topic), 0) > 0:
+                        delivered[ts, topic] -= 1
+                        continue
+                    yield ts, index, topic, data
         finally:
             self.problems.extend(f.problems)
             f.problems.clear()

@@ -270,3 +270,32 @@ def test_raw_cdr_lazy_open_and_qos(tmp_path):
     np.testing.assert_array_equal(image_to_numpy(msg), frame(1))
     BagWriter(tmp_path / "unused").close()
     assert not (tmp_path / "unused").exists()
+
+
+def test_damaged_record_inside_mcap_chunk(tmp_path):
+    """A broken record in the middle chunk: raise, or deliver the other chunks."""
+    import struct
+
+    path = write_scene(tmp_path / "bag", "mcap", n=12, size=(240, 320))
+    data_file = storage_file(path)
+    data = bytearray(data_file.read_bytes())
+    pos, chunks = 8, []
+    while data[pos] != 0x02:  # walk the top-level records up to the footer
+        (length,) = struct.unpack_from("<Q", data, pos + 1)
+        if data[pos] == 0x06:
+            chunks.append(pos)
+        pos += 9 + length
+    assert len(chunks) >= 3  # 230 kB frames, rosbags closes a chunk after 1 MiB
+    first_record = chunks[1] + 9 + 28 + 4 + 8  # header, times/sizes/crc, "", records length
+    struct.pack_into("<Q", data, first_record + 1, 10**12)  # absurd record length
+    data_file.write_bytes(bytes(data))
+    with pytest.raises(BagError, match="bag.mcap: damaged data"):
+        with open_bag(path) as bag:
+            list(bag.messages())
+    with open_bag(path, on_error="skip") as bag:
+        stamps = [m.timestamp_ns for m in bag.messages(["/image_raw"])]
+    all_stamps = [1_000_000_000 + i * 40_000_000 for i in range(12)]
+    assert set(stamps) < set(all_stamps)
+    assert stamps[-1] == all_stamps[-1]  # the chunk after the damage was recovered
+    assert len(stamps) == len(set(stamps))  # nothing delivered twice
+    assert any("damaged" in p for p in bag.problems)
