@@ -431,48 +431,62 @@ def _simulate_paths(people: Sequence[PersonSpec], frames: int,
     """Foot points ``(frames, P, 2)`` of every target: constant velocity between waypoints,
     heading turning by at most ``turn_rate`` rad per frame; a target heads for the next
     waypoint once the current one is within its turning radius (smooth corners)."""
-    P = len(people)
-    out = np.zeros((frames, P, 2))
-    if P == 0:
-        return out
-    n_wp = np.array([len(p.waypoints) for p in people])
-    wps = np.zeros((P, int(n_wp.max()), 2))
-    for k, p in enumerate(people):
-        wps[k, :n_wp[k]] = np.asarray(p.waypoints, dtype=np.float64)
-        wps[k, n_wp[k]:] = wps[k, n_wp[k] - 1]
-    speed = np.array([p.speed for p in people], dtype=np.float64)
-    start = np.array([p.start_frame for p in people])
-    cont = np.array([p.after_last == "continue" for p in people])
-    rows = np.arange(P)
-    pos = wps[:, 0].copy()
-    target = np.minimum(1, n_wp - 1)
-    done = n_wp <= 1
-    d0 = wps[rows, target] - pos
-    heading = np.arctan2(d0[:, 1], d0[:, 0])
-    radius = np.maximum(speed, 1.05 * speed / turn_rate)
-    for t in range(frames):
-        out[t] = pos
-        d = wps[rows, target] - pos
-        dist = np.hypot(d[:, 0], d[:, 1])
-        last = target >= n_wp - 1
-        advance = ~done & ~last & (dist <= radius)
-        target = np.where(advance, target + 1, target)
-        finish = ~done & last & (dist <= np.maximum(speed, 1e-9))
-        d = wps[rows, target] - pos
-        dist = np.hypot(d[:, 0], d[:, 1])
-        last = target >= n_wp - 1
-        desired = np.arctan2(d[:, 1], d[:, 0])
-        delta = (desired - heading + np.pi) % (2 * np.pi) - np.pi
-        # near the final waypoint steer straight at it so it cannot be circled for ever
-        free = last & (dist <= radius)
-        step = np.where(free, delta, np.clip(delta, -turn_rate, turn_rate))
-        active = t >= start
-        heading = np.where(~done & active, heading + step, heading)
-        move_len = np.where(done, np.where(cont, speed, 0.0),
-                            np.where(last & ~cont, np.minimum(speed, dist), speed))
-        move_len = np.where(active, move_len, 0.0)
-        pos = pos + move_len[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
-        done = done | finish
+    out = np.zeros((frames, len(people), 2))
+    for k, person in enumerate(people):
+        out[:, k] = _simulate_path(person, frames, turn_rate)
+    return out
+
+
+def _simulate_path(p: PersonSpec, frames: int, turn_rate: float) -> np.ndarray:
+    """``(frames, 2)`` foot points of one target (see :func:`_simulate_paths`)."""
+    wps = [(float(x), float(y)) for x, y in p.waypoints]
+    out = np.empty((frames, 2))
+    x, y = wps[0]
+    speed = float(p.speed)
+    cont = p.after_last == "continue"
+    n = len(wps)
+    target = min(1, n - 1)
+    done = n <= 1
+    heading = math.atan2(wps[target][1] - y, wps[target][0] - x)
+    radius = max(speed, 1.05 * speed / turn_rate)
+    two_pi = 2.0 * math.pi
+    t = 0
+    xs: list[float] = []
+    ys: list[float] = []
+    while t < frames:
+        xs.append(x)
+        ys.append(y)
+        if done:   # stopped for good, or walking straight on: the rest is closed-form
+            if cont:
+                steps = np.clip(np.arange(t, frames) - max(t, p.start_frame), 0, None)
+                direction = np.array([math.cos(heading), math.sin(heading)])
+                out[t:] = np.array([x, y]) + (steps * speed)[:, None] * direction
+            else:
+                out[t:] = x, y
+            break
+        tx, ty = wps[target]
+        dist = math.hypot(tx - x, ty - y)
+        last = target >= n - 1
+        finish = False
+        if not last and dist <= radius:
+            target += 1
+            tx, ty = wps[target]
+            dist = math.hypot(tx - x, ty - y)
+            last = target >= n - 1
+        elif last and dist <= max(speed, 1e-9):
+            finish = True
+        if t >= p.start_frame:
+            delta = (math.atan2(ty - y, tx - x) - heading + math.pi) % two_pi - math.pi
+            if not (last and dist <= radius):   # near the final waypoint steer straight at
+                delta = min(max(delta, -turn_rate), turn_rate)  # it (never circle it)
+            heading += delta
+            move = min(speed, dist) if (last and not cont) else speed
+            x += move * math.cos(heading)
+            y += move * math.sin(heading)
+        done = finish
+        t += 1
+    out[:len(xs), 0] = xs
+    out[:len(ys), 1] = ys
     return out
 
 
