@@ -24,10 +24,9 @@ every readable message is delivered and the problems are listed in
 from __future__ import annotations
 
 import heapq
-import io
 import sqlite3
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Literal, NamedTuple, Sequence
@@ -418,6 +417,9 @@ class _SqliteFile(_StorageFile):
             self._salvage(str(exc))
 
     def _connect(self, path: Path) -> None:
+        previous = getattr(self, "_db", None)
+        if previous is not None:
+            previous.close()
         self._db = sqlite3.connect(f"file:{path}?mode=ro&immutable=1", uri=True)
         self._db.text_factory = bytes
 
