@@ -927,9 +927,10 @@ def occlusion_scene(seed: int = 0, hidden_frames: int = 20, full: bool = True,
                     frames: int = 140, speed: float = 2.0) -> SyntheticScene:
     """One person walks left -> right behind a static pillar (640x480, 25 fps).
 
-    ``full=True``: the pillar hides the whole body for about ``hidden_frames`` frames
+    ``full=True``: the pillar hides the whole body for ``hidden_frames`` (+-2) frames
     (visible_fraction 0 then); ``full=False``: a low wall hides only the lower body (legs,
-    ~45% of the silhouette) while the person walks along it.  The person (id 1, 150 px tall)
+    ~40% of the silhouette) for ``hidden_frames`` (+-2) frames, and part of it a little
+    longer while the person walks past its ends.  The person (id 1, 150 px tall)
     enters fully visible from the left and ends fully visible on the right.
     """
     if hidden_frames < 0:
@@ -937,13 +938,12 @@ def occlusion_scene(seed: int = 0, hidden_frames: int = 20, full: bool = True,
     h = 150.0
     w = h * PERSON_ASPECT
     foot_y = 330.0
-    # the occluder is wider than the person by speed * hidden_frames (full), or long (partial)
+    # the occluder is wider than the person's box by speed * hidden_frames
+    occ_w = w + speed * hidden_frames
     if full:
-        occ_w = w + speed * hidden_frames
         occ = OccluderSpec(box=(320.0 - occ_w / 2.0, foot_y - h - 20.0, occ_w, h + 40.0),
                            color=(70, 110, 150))
     else:
-        occ_w = max(speed * hidden_frames, 2.0 * w)
         occ = OccluderSpec(box=(320.0 - occ_w / 2.0, foot_y - 0.47 * h, occ_w, 0.47 * h + 20),
                            color=(70, 110, 150))
     travel = speed * (frames - 1)

@@ -126,7 +126,7 @@ def test_full_occluder_hides_the_person_for_about_hidden_frames():
     vis = np.array([scene.ground_truth(i)[0].visible_fraction for i in range(len(scene))])
     assert vis[0] == 1.0 and vis[-1] == 1.0
     hidden = np.nonzero(vis < 0.01)[0]
-    assert 20 <= len(hidden) <= 30
+    assert 20 <= len(hidden) <= 24
     assert np.all(np.diff(hidden) == 1)  # one contiguous stretch
     # the pixels agree: while hidden, none of the person's colours is in the image
     mid = int(hidden[len(hidden) // 2])
