@@ -9,7 +9,7 @@ Topics written (project conventions, frame id ``camera``, one message per frame 
   sequence has them (MOTChallenge ``det/det.txt``): empty id, score = the raw score.
 
 Every message of frame ``k`` has header stamp and bag time ``start + k / fps``.  Boxes are
-0-based (see :mod:`mk_tracker.datasets`).
+the files' own coordinates (see :mod:`mk_tracker.datasets`).
 """
 
 from __future__ import annotations

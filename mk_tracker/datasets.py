@@ -4,10 +4,13 @@ Both readers return a :class:`Sequence`: image paths (images are loaded lazily w
 ``cv2.imread`` by :meth:`Sequence.image`), the frame rate, per-frame ground truth
 (``{identity: box}``) and, for MOTChallenge, per-frame public detections.
 
-Coordinates: both formats count pixels from 1 (Matlab convention: the top-left pixel is
-``(1, 1)``).  mk_tracker counts from 0 (:mod:`mk_tracker.boxes`), so the readers subtract 1
-from ``x`` and ``y``; widths and heights are unchanged.  Frames are 0-based indices into
-``image_paths`` (file/line frame number minus 1).
+Coordinates are kept exactly as stored in the files.  Both formats were annotated in
+Matlab and nominally count pixels from 1, whereas :mod:`mk_tracker.boxes` counts from 0; the
+readers deliberately do *not* shift boxes by one pixel, so that ground truth, public
+detections, imported bags and :mod:`mk_tracker.evaluation` (which reads the same files
+verbatim) all agree.  The possible 1-pixel offset against the image grid is below the
+annotation accuracy.  Frames are 0-based indices into ``image_paths`` (file frame number
+minus 1; line ``k`` of an OTB file is frame ``k - 1``).
 
 MOTChallenge (``read_mot_sequence``)::
 
@@ -179,7 +182,7 @@ def _box(path: Path, line_no: int, x: float, y: float, w: float, h: float) -> Bo
     if not all(math.isfinite(v) for v in (x, y, w, h)) or w <= 0 or h <= 0:
         raise DatasetError(f"{path}:{line_no}: invalid box {(x, y, w, h)} "
                            "(needs finite values and positive size)")
-    return (x - 1.0, y - 1.0, w, h)
+    return (x, y, w, h)
 
 
 def _seqinfo(folder: Path) -> dict[str, str]:

@@ -52,14 +52,14 @@ def test_mot_reader(tmp_path):
     root = make_mot(tmp_path / "seq", det="2,-1,3.5,4.5,6,8,51.818\n2,-1,1,1,2,2,-3\n")
     seq = read_mot_sequence(root)
     assert len(seq) == 3 and seq.frame_rate == 25.0 and seq.layout == "mot"
-    # 1-based file coordinates become 0-based
-    assert seq.ground_truth[0] == {1: (10.0, 20.0, 5.0, 10.0), 2: (0.0, 0.0, 4.0, 4.0)}
+    # boxes exactly as in the file (no 1-pixel shift; see mk_tracker.datasets)
+    assert seq.ground_truth[0] == {1: (11.0, 21.0, 5.0, 10.0), 2: (1.0, 1.0, 4.0, 4.0)}
     assert seq.ground_truth[1] == {}
-    assert seq.track(1) == {0: (10.0, 20.0, 5.0, 10.0), 2: (12.0, 21.0, 5.0, 10.0)}
+    assert seq.track(1) == {0: (11.0, 21.0, 5.0, 10.0), 2: (13.0, 22.0, 5.0, 10.0)}
     assert seq.identities == [1, 2] and seq.ground_truth_count == 3
     assert [len(d) for d in seq.detections] == [0, 2, 0]
     first = seq.detections[1][0]
-    assert first.box == (2.5, 3.5, 6.0, 8.0) and first.score == 51.818 and first.id == ""
+    assert first.box == (3.5, 4.5, 6.0, 8.0) and first.score == 51.818 and first.id == ""
     np.testing.assert_array_equal(seq.image(2), picture(2))
     assert seq.timestamp_ns(2) == 80_000_000
 
@@ -119,9 +119,9 @@ def test_mot_missing_pieces(tmp_path):
 def test_otb_reader_accepts_both_separators(tmp_path, text):
     seq = read_otb_sequence(make_otb(tmp_path / "Walk", text))
     assert seq.name == "Walk" and seq.layout == "otb" and len(seq) == 3
-    assert [f[1] for f in seq.ground_truth] == [(10.0, 20.0, 5.0, 10.0),
-                                                (11.0, 21.0, 5.0, 10.0),
-                                                (12.0, 22.0, 5.0, 10.0)]
+    assert [f[1] for f in seq.ground_truth] == [(11.0, 21.0, 5.0, 10.0),
+                                                (12.0, 22.0, 5.0, 10.0),
+                                                (13.0, 23.0, 5.0, 10.0)]
     assert seq.detections is None
 
 
@@ -157,8 +157,8 @@ def test_import_command_writes_images_truth_and_detections(tmp_path, storage, ca
         assert msg.encoding == "bgr8" and msg.header.frame_id == "camera"
         assert stamp_to_nanoseconds(msg.header.stamp) == stamps[k]
         np.testing.assert_array_equal(image_to_numpy(msg), picture(k))
-    assert [(d.id, d.box, d.score) for d in truth[0]] == [("1", (10.0, 20.0, 5.0, 10.0), 1.0),
-                                                          ("2", (0.0, 0.0, 4.0, 4.0), 1.0)]
+    assert [(d.id, d.box, d.score) for d in truth[0]] == [("1", (11.0, 21.0, 5.0, 10.0), 1.0),
+                                                          ("2", (1.0, 1.0, 4.0, 4.0), 1.0)]
     assert truth[1] == []
     assert [(d.id, d.score) for d in dets[1]] == [("", 51.818)] and dets[0] == []
 
@@ -188,7 +188,7 @@ def test_tud_campus(shared_data):
     assert seq.layout == "mot" and len(seq) == 71
     assert len(seq.identities) == 8 and seq.ground_truth_count == 359
     assert sum(len(d) for d in seq.detections) == 344  # lines of det/det.txt
-    assert seq.ground_truth[0][1] == (398.0, 181.0, 121.0, 229.0)  # "1,1,399,182,121,229"
+    assert seq.ground_truth[0][1] == (399.0, 182.0, 121.0, 229.0)  # "1,1,399,182,121,229"
     assert seq.image(70).shape == (480, 640, 3)
 
 
@@ -198,7 +198,7 @@ def test_otb_crossing_import(shared_data, tmp_path):
         pytest.skip(f"{folder} absent")
     seq = read_sequence(folder)
     assert seq.layout == "otb" and len(seq) == 120 and seq.ground_truth_count == 120
-    assert seq.ground_truth[0][1] == (204.0, 150.0, 17.0, 50.0)  # "205 151 17 50"
+    assert seq.ground_truth[0][1] == (205.0, 151.0, 17.0, 50.0)  # "205 151 17 50"
     out = tmp_path / "crossing"
     assert cli.main(["import", str(folder), "--out", str(out), "--quiet"]) == 0
     with open_bag(out) as bag:
