@@ -167,6 +167,45 @@ def resolve_qos(offered: Sequence[tuple[str, str]], override: TopicQos | None = 
     return TopicQos(reliability, durability, default_depth)
 
 
+_RELIABILITY_NAMES = {1: RELIABLE, 2: BEST_EFFORT, "reliable": RELIABLE,
+                      "best_effort": BEST_EFFORT}
+_DURABILITY_NAMES = {1: TRANSIENT_LOCAL, 2: VOLATILE, "transient_local": TRANSIENT_LOCAL,
+                     "volatile": VOLATILE}
+
+
+def offered_qos_from_metadata(metadata: Mapping) -> dict[str, list[tuple[str, str]]]:
+    """``{topic: [(reliability, durability), ...]}`` from a parsed ``metadata.yaml``.
+
+    rosbag2 stores each topic's ``offered_qos_profiles`` as a YAML string (bag versions
+    4-8) or a list (newer), with policies as enum numbers (1 = reliable / transient local,
+    2 = best effort / volatile) or names.  Profiles whose policies are "system default" or
+    "unknown" say nothing and are left out; unreadable entries are ignored (the QoS then
+    falls back to the default of :func:`resolve_qos`).
+    """
+    import yaml
+
+    info = metadata.get("rosbag2_bagfile_information", metadata) if metadata else {}
+    result: dict[str, list[tuple[str, str]]] = {}
+    for entry in (info or {}).get("topics_with_message_count") or []:
+        try:
+            topic = entry["topic_metadata"]
+            profiles = topic.get("offered_qos_profiles") or []
+            if isinstance(profiles, str):
+                profiles = yaml.safe_load(profiles) or []
+            policies = []
+            for profile in profiles:
+                rel = profile.get("reliability")
+                dur = profile.get("durability")
+                rel = _RELIABILITY_NAMES.get(rel.lower() if isinstance(rel, str) else rel)
+                dur = _DURABILITY_NAMES.get(dur.lower() if isinstance(dur, str) else dur)
+                if rel is not None and dur is not None:
+                    policies.append((rel, dur))
+            result.setdefault(str(topic["name"]), []).extend(policies)
+        except (KeyError, TypeError, AttributeError, yaml.YAMLError):
+            continue
+    return result
+
+
 # ---------------------------------------------------------------------------------------
 # Timing
 
