@@ -1,0 +1,149 @@
+"""Splitting support pixels into objects, Schizas et al. Sec. 3.3, (3.12)-(3.13).
+
+The support of the sparse factors (the pixels with a nonzero entry) may hold several
+objects.  Their coordinates are clustered by K-means (3.12); while two cluster centroids are
+closer than the merge distance, ``||xi_j - xi_j'||^2 <= epsilon_d`` (3.13), the number of
+clusters is decreased by one and K-means re-run, starting from ``Z = M_up`` (the upper limit
+on the number of objects).  Each re-run starts from the previous centroids with the closest
+pair replaced by its pixel-weighted mean, so the reductions are cheap.
+
+K-means here is Lloyd's algorithm with deterministic k-means++ seeding (a fixed seed), so a
+frame always gives the same objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class ClusteringError(ValueError):
+    """Inputs the clustering cannot use."""
+
+
+def _sq_dists(points: np.ndarray, centroids: np.ndarray) -> np.ndarray:
+    """``(n, k)`` squared distances (expanded form, clipped at 0 against rounding)."""
+    d = (points * points).sum(axis=1)[:, None] - 2.0 * points @ centroids.T
+    d += (centroids * centroids).sum(axis=1)[None, :]
+    return np.maximum(d, 0.0)
+
+
+def kmeans_plus_plus(points: np.ndarray, k: int, seed: int = 0) -> np.ndarray:
+    """k-means++ initial centroids (deterministic for a given seed)."""
+    rng = np.random.default_rng(seed)
+    n = points.shape[0]
+    centroids = [points[rng.integers(n)]]
+    d2 = ((points - centroids[0]) ** 2).sum(axis=1)
+    for _ in range(1, k):
+        total = d2.sum()
+        if total <= 0:
+            break
+        idx = int(np.searchsorted(np.cumsum(d2), rng.random() * total))
+        idx = min(idx, n - 1)
+        centroids.append(points[idx])
+        d2 = np.minimum(d2, ((points - points[idx]) ** 2).sum(axis=1))
+    return np.array(centroids, dtype=np.float64)
+
+
+def kmeans(points: np.ndarray, k: int | None = None, *, init: np.ndarray | None = None,
+           max_iter: int = 50, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Lloyd's K-means minimising (3.12).  Returns ``(centroids (Z, d), labels (n,))``.
+
+    Either ``k`` (k-means++ seeding) or ``init`` centroids.  Empty clusters are dropped, so
+    fewer than ``k`` centroids may come back (never more than distinct points).
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[0] == 0:
+        raise ClusteringError(f"points must be a non-empty (n, d) array, got shape {pts.shape}")
+    if init is None:
+        if k is None or k < 1:
+            raise ClusteringError("give k >= 1 or initial centroids")
+        centroids = kmeans_plus_plus(pts, min(int(k), pts.shape[0]), seed)
+    else:
+        centroids = np.asarray(init, dtype=np.float64).copy()
+    labels = np.full(pts.shape[0], -1)
+    for _ in range(max_iter):
+        new_labels = np.argmin(_sq_dists(pts, centroids), axis=1)
+        counts = np.bincount(new_labels, minlength=centroids.shape[0])
+        keep = counts > 0
+        sums = np.stack([np.bincount(new_labels, weights=pts[:, a],
+                                     minlength=centroids.shape[0])
+                         for a in range(pts.shape[1])], axis=1)
+        if not keep.all():
+            remap = np.cumsum(keep) - 1
+            new_labels = remap[new_labels]
+            sums, counts = sums[keep], counts[keep]
+        new_centroids = sums / counts[:, None]
+        if np.array_equal(new_labels, labels) and new_centroids.shape == centroids.shape:
+            centroids = new_centroids
+            break
+        labels, centroids = new_labels, new_centroids
+    return centroids, labels
+
+
+def closest_pair(centroids: np.ndarray) -> tuple[int, int, float]:
+    """Indices and squared distance of the two closest centroids."""
+    d = _sq_dists(centroids, centroids)
+    np.fill_diagonal(d, np.inf)
+    flat = int(np.argmin(d))
+    i, j = divmod(flat, d.shape[1])
+    return i, j, float(d[i, j])
+
+
+def cluster_support_pixels(coords: np.ndarray, *, max_objects: int, merge_distance_sq: float,
+                           seed: int = 0, max_points: int = 4000
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """K-means of support pixel coordinates with the merge rule (3.13) and the limit M_up.
+
+    ``coords``: ``(n, 2)`` pixel coordinates.  Starts with ``Z = min(M_up, n)`` clusters and
+    decreases Z while the closest centroids satisfy ``||xi_j - xi_j'||^2 <= epsilon_d``.
+    Centroids are fitted on at most ``max_points`` pixels (a deterministic stride sample),
+    then every pixel takes its nearest centroid.  Returns ``(centroids, labels)``.
+    """
+    pts = np.asarray(coords, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ClusteringError(f"coords must be (n, 2), got shape {pts.shape}")
+    if max_objects < 1:
+        raise ClusteringError("max_objects (M_up) must be >= 1")
+    n = pts.shape[0]
+    if n == 0:
+        return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
+    step = max(1, -(-n // max_points))
+    sample = pts[::step]
+    centroids, labels = kmeans(sample, min(max_objects, sample.shape[0]), seed=seed)
+    while centroids.shape[0] > 1:
+        i, j, d2 = closest_pair(centroids)
+        if d2 > merge_distance_sq:
+            break
+        wi = np.count_nonzero(labels == i)
+        wj = np.count_nonzero(labels == j)
+        merged = (centroids[i] * wi + centroids[j] * wj) / max(wi + wj, 1)
+        init = np.vstack([np.delete(centroids, [i, j], axis=0), merged[None]])
+        centroids, labels = kmeans(sample, init=init)
+    labels = np.argmin(_sq_dists(pts, centroids), axis=1)
+    return centroids, labels
+
+
+@dataclass(frozen=True)
+class PixelObject:
+    """One object's support pixels: centroid ``(cx, cy)``, box ``(x, y, w, h)`` (the paper's
+    ``w_s^0 x h_s^0`` rectangle), and pixel count.  Pixel ``(c, r)`` covers
+    ``[c, c+1) x [r, r+1)`` so its centre is ``(c + 0.5, r + 0.5)``."""
+
+    centroid: tuple[float, float]
+    box: tuple[float, float, float, float]
+    pixel_count: int
+
+
+def describe_pixels(cols: np.ndarray, rows: np.ndarray) -> PixelObject:
+    """Centroid, bounding box and count of a non-empty set of pixels."""
+    cols = np.asarray(cols)
+    rows = np.asarray(rows)
+    if cols.size == 0:
+        raise ClusteringError("an object needs at least one pixel")
+    x0, x1 = int(cols.min()), int(cols.max()) + 1
+    y0, y1 = int(rows.min()), int(rows.max()) + 1
+    return PixelObject(centroid=(float(cols.mean()) + 0.5, float(rows.mean()) + 0.5),
+                       box=(float(x0), float(y0), float(x1 - x0), float(y1 - y0)),
+                       pixel_count=int(cols.size))
