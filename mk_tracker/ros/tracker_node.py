@@ -54,6 +54,7 @@ from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
 from mk_tracker.ros.parameter_bridge import ParameterBridge
+from mk_tracker.ros.throttled_log import ThrottledLog
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
 
 RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
@@ -139,6 +140,9 @@ class TrackerNode(Node):
         self._types = ros_message_types()
         self._buffer_lock = threading.Lock()   # detection buffer and start requests
         self._tracker_lock = threading.Lock()  # the tracker (worker thread vs parameters)
+        self._warn = ThrottledLog(self.get_logger().warning, period=1.0)
+        self._error = ThrottledLog(self.get_logger().error, period=1.0)
+        self._event = ThrottledLog(self.get_logger().info, period=1.0)
         self._bridge = ParameterBridge(self)
         self.node_config: TrackerNodeConfig = self._bridge.add_config(
             "", TrackerNodeConfig(), extra_check=check_node_config,
@@ -194,14 +198,13 @@ class TrackerNode(Node):
             stamp = stamp_to_seconds(msg.header.stamp)
         except (DetectionMessageError, ValueError, AttributeError) as exc:
             self._counters.bad_detection_messages += 1
-            self.get_logger().warning(f"skipping a detections message: {exc}",
-                                      throttle_duration_sec=1.0)
+            self._warn(f"skipping a detections message: {exc}")
             return
         if skipped:
             self._counters.bad_detections += skipped
-            self.get_logger().warning(
+            self._warn(
                 f"skipped {skipped} bad detection(s) (NaN or non-positive size, bad score) in "
-                f"a message from frame {msg.header.frame_id!r}", throttle_duration_sec=1.0)
+                f"a message from frame {msg.header.frame_id!r}")
         with self._buffer_lock:
             if len(self._detections) == self._detections.maxlen:
                 self._counters.overflowed_detection_messages += 1
@@ -218,8 +221,7 @@ class TrackerNode(Node):
 
     # -- frame processing (worker thread) ------------------------------------------------
     def _on_worker_error(self, exc: BaseException) -> None:
-        self.get_logger().error(f"frame processing failed ({type(exc).__name__}: {exc}); "
-                                "frame skipped", throttle_duration_sec=1.0)
+        self._error(f"frame processing failed ({type(exc).__name__}: {exc}); frame skipped")
 
     def _plane(self, frame_id: str, image_frame: str) -> str | None:
         if frame_id == image_frame:
@@ -239,7 +241,7 @@ class TrackerNode(Node):
             bgr = np.ascontiguousarray(to_bgr(pixels, msg.encoding))
         except ImageConversionError as exc:
             counters.bad_images += 1
-            self.get_logger().warning(f"skipping an image: {exc}", throttle_duration_sec=1.0)
+            self._warn(f"skipping an image: {exc}")
             return
         stamp = stamp_to_seconds(msg.header.stamp)
         frame = msg.header.frame_id
@@ -255,30 +257,28 @@ class TrackerNode(Node):
                 plane = self._plane(batch.frame_id, frame)
                 if plane is None:
                     counters.unknown_frame += 1
-                    self.get_logger().warning(
+                    self._warn(
                         f"skipping detections in unknown frame {batch.frame_id!r} (image frame "
-                        f"{frame!r}, thermal_frame_id {self.node_config.thermal_frame_id!r})",
-                        throttle_duration_sec=1.0)
+                        f"{frame!r}, thermal_frame_id {self.node_config.thermal_frame_id!r})")
                     continue
                 dets.extend(FrameDetection(box=d.box, score=d.score, stamp=batch.stamp,
                                            plane=plane) for d in batch.detections)
             if self._last_stamp is not None and stamp < self._last_stamp:
-                self.get_logger().warning(
+                self._warn(
                     f"image time went backwards by {self._last_stamp - stamp:.3f} s "
-                    "(bag restarted?); the tracker decides what to do", throttle_duration_sec=1.0)
+                    "(bag restarted?); the tracker decides what to do")
             self._last_stamp = stamp
             try:
                 self._start_tracks(tracker, bgr, stamp, frame, starts)
                 result = tracker.step(bgr, stamp, dets)
             except (TrackerInputError, ValueError) as exc:
                 counters.bad_images += 1
-                self.get_logger().warning(f"tracker rejected a frame: {exc}",
-                                          throttle_duration_sec=1.0)
+                self._warn(f"tracker rejected a frame: {exc}")
                 return
             kernels = self._kernel_drawings(tracker)
         counters.frames += 1
         for event in result.events:
-            self.get_logger().info(event, throttle_duration_sec=0.5)
+            self._event(event)
         reported = result.reported()
         class_id = self.node_config.class_id
         out = [Detection(box=t.box, score=min(max(t.score, 0.0), 1.0), class_id=class_id,
