@@ -4,7 +4,8 @@ import pytest
 
 from mk_tracker.playback import (BEST_EFFORT, RELIABLE, TRANSIENT_LOCAL, VOLATILE,
                                  PlaybackError, PlaybackOptions, PlaybackPlan, TopicQos,
-                                 output_topics, parse_qos_override, parse_remaps, resolve_qos)
+                                 offered_qos_from_metadata, output_topics, parse_qos_override,
+                                 parse_remaps, resolve_qos)
 
 S = 1_000_000_000
 START = 1_700_000_000 * S
@@ -113,3 +114,23 @@ def test_qos_override_wins_and_parses():
     for bad in ["/x", "/x=", "/x=fast", "/x=0"]:
         with pytest.raises(PlaybackError):
             parse_qos_override(bad)
+
+
+def test_offered_qos_from_metadata_reads_old_strings_and_new_lists():
+    old = ("- history: 3\n  depth: 0\n  reliability: 2\n  durability: 1\n"
+           "- history: 3\n  depth: 0\n  reliability: 0\n  durability: 0\n")
+    metadata = {"rosbag2_bagfile_information": {"topics_with_message_count": [
+        {"message_count": 3, "topic_metadata": {"name": "/old", "offered_qos_profiles": old}},
+        {"message_count": 1, "topic_metadata": {"name": "/new", "offered_qos_profiles": [
+            {"reliability": "reliable", "durability": "volatile", "history": "unknown"}]}},
+        {"message_count": 1, "topic_metadata": {"name": "/none", "offered_qos_profiles": ""}},
+        {"message_count": 1, "topic_metadata": {"name": "/bad", "offered_qos_profiles": "[:"}},
+    ]}}
+    offered = offered_qos_from_metadata(metadata)
+    # the system-default profile of /old says nothing and is left out
+    assert offered["/old"] == [(BEST_EFFORT, TRANSIENT_LOCAL)]
+    assert offered["/new"] == [(RELIABLE, VOLATILE)]
+    assert offered["/none"] == []
+    assert "/bad" not in offered
+    assert resolve_qos(offered["/old"]) == TopicQos(BEST_EFFORT, TRANSIENT_LOCAL, 10)
+    assert offered_qos_from_metadata({}) == {}
