@@ -97,3 +97,19 @@ def test_detection_validates_its_box_and_score():
     assert d.box == (1.0, 2.0, 3.0, 4.0) and d.class_id == "5" and d.id == "9"
     with pytest.raises(ValueError):
         read_detection_array(make_detection_array([], None, WORLDS["bag"]), on_error="x")
+
+
+def test_cdr_is_identical_between_rclpy_and_rosbags():
+    """Nodes publish rclpy messages, bags hold rosbags CDR: the bytes must interconvert."""
+    pytest.importorskip("vision_msgs.msg")
+    serialization = pytest.importorskip("rclpy.serialization")
+    ros, bag = WORLDS["ros"], WORLDS["bag"]
+    live = make_detection_array(DETECTIONS, make_header(ros, "camera", 3_000_000_004), ros)
+    stored = STORE.deserialize_cdr(serialization.serialize_message(live),
+                                   "vision_msgs/msg/Detection2DArray")
+    assert read_detection_array(stored) == DETECTIONS
+    assert (stored.header.stamp.sec, stored.header.stamp.nanosec) == (3, 4)
+    offline = make_detection_array(DETECTIONS, make_header(bag, "camera", 5), bag)
+    raw = bytes(STORE.serialize_cdr(offline, "vision_msgs/msg/Detection2DArray"))
+    played = serialization.deserialize_message(raw, type(live))
+    assert read_detection_array(played) == DETECTIONS

@@ -202,3 +202,19 @@ def test_padded_buffers_of_either_byte_order_read_back(encoding, h, w, pad, big,
     out = image_to_numpy(msg)
     assert out.dtype == dtype and out.shape == arr.shape
     np.testing.assert_array_equal(out, arr)
+
+
+def test_image_cdr_is_identical_between_rclpy_and_rosbags():
+    serialization = pytest.importorskip("rclpy.serialization")
+    if "ros" not in WORLDS:
+        pytest.skip("rclpy message packages not installed")
+    arr = sample("16UC1")
+    live = numpy_to_image(arr, "16UC1", make_header(WORLDS["ros"], "thermal_camera", 9),
+                          types=WORLDS["ros"])
+    stored = TYPESTORE.deserialize_cdr(serialization.serialize_message(live),
+                                       "sensor_msgs/msg/Image")
+    np.testing.assert_array_equal(image_to_numpy(stored), arr)
+    offline = numpy_to_image(arr, "16UC1", types=WORLDS["bag"])
+    played = serialization.deserialize_message(
+        bytes(TYPESTORE.serialize_cdr(offline, "sensor_msgs/msg/Image")), type(live))
+    np.testing.assert_array_equal(image_to_numpy(played), arr)
