@@ -1,0 +1,270 @@
+"""``detector_node``: people detection in thermal video, as a ROS 2 node.
+
+A thin adapter around :class:`mk_tracker.thermal_detector.ThermalDetector` (sparse kernel
+covariance factorization, Schizas, Maroulas & Ren 2018) and the threshold baseline
+:mod:`mk_tracker.threshold_detector`; the ``method`` parameter selects one.
+
+Topics (names are parameters):
+
+* subscribes ``thermal/image_raw`` (sensor_msgs/Image: mono8, mono16, 16UC1, 32FC1),
+  sensor-data QoS, depth 1; only the newest frame is processed, overwritten frames are
+  counted and reported (:class:`mk_tracker.ros.latest_frame.LatestFrameWorker`);
+* publishes ``thermal/detections`` (vision_msgs/Detection2DArray): header copied from the
+  image, ``id`` empty, one result with ``class_id`` and the detector's score
+  (conventions of :mod:`mk_tracker.detection_messages`);
+* publishes ``~/debug_image`` (bgr8, colour-mapped thermal with the boxes) when
+  ``publish_debug_image`` is true.
+
+Parameters: ``detector.*`` (ThermalDetectorConfig), ``threshold.*`` (the baseline's
+config) and the node's own (:class:`DetectorNodeConfig`); see
+:mod:`mk_tracker.ros.parameter_bridge` for the scheme.  Bad frames (unsupported encoding,
+short data, empty or all-NaN images) are logged (throttled) and skipped.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import Image
+
+from mk_tracker.debug_drawing import draw_detections, draw_text_lines, thermal_to_display
+from mk_tracker.detection_messages import Detection, DetectionMessageError, make_detection_array
+from mk_tracker.image_conversion import (ImageConversionError, image_to_numpy, numpy_to_image)
+from mk_tracker.message_types import ros_message_types, stamp_to_seconds
+from mk_tracker.parameters import ParameterError, parameter
+from mk_tracker.ros.latest_frame import LatestFrameWorker
+from mk_tracker.ros.parameter_bridge import ParameterBridge
+from mk_tracker.ros.throttled_log import ThrottledLog
+from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
+from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+
+THERMAL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1")
+METHODS = ("kernel_covariance", "threshold")
+#: ``last_mode`` values of a detector that mean "this frame was not used", with the reason.
+SKIPPED_MODES = {
+    "invalid_frame": "too few finite pixels (NaN-filled or empty frame)",
+    "out_of_order": "its stamp is not after the previous frame's (time went backwards?)",
+}
+
+
+@dataclass(frozen=True)
+class DetectorNodeConfig:
+    """The node's own parameters (flat names; QoS grouped as ``image_qos.*``)."""
+
+    image_topic: str = parameter("thermal/image_raw", "Thermal image topic (sensor_msgs/Image)",
+                                 read_only=True)
+    detections_topic: str = parameter(
+        "thermal/detections", "Output topic (vision_msgs/Detection2DArray)", read_only=True)
+    image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
+                                                 "QoS of the image subscription")
+    method: str = parameter(
+        "kernel_covariance", "Detection method: sparse kernel covariance factorization "
+        "(Schizas et al. 2018) or the threshold baseline", choices=METHODS)
+    publish_debug_image: bool = parameter(False, "Publish ~/debug_image (bgr8)")
+    class_id: str = parameter("person", "class_id written into every detection's result")
+    report_period: float = parameter(
+        5.0, "Seconds between the logs of dropped frames and skipped input", minimum=0.1,
+        maximum=3600.0)
+
+
+def default_configs() -> dict[str, Any]:
+    """Every config the node declares, by parameter prefix (for config/detector.yaml)."""
+    return {"": DetectorNodeConfig(), "detector": ThermalDetectorConfig(),
+            "threshold": ThresholdDetectorConfig()}
+
+
+def build_detector(method: str, kernel_config: ThermalDetectorConfig,
+                   threshold_config: ThresholdDetectorConfig) -> Any:
+    """The detector object of ``method`` (one of :data:`METHODS`)."""
+    if method == "kernel_covariance":
+        return ThermalDetector(kernel_config)
+    if method == "threshold":
+        return ThresholdDetector(threshold_config)
+    raise ParameterError(f"method: {method!r} is not one of {list(METHODS)}")
+
+
+def _check_with(factory: Any) -> Any:
+    """An extra_check that builds the library object, turning its errors into ParameterError."""
+    def check(config: Any) -> None:
+        try:
+            factory(config)
+        except ParameterError:
+            raise
+        except ValueError as exc:
+            raise ParameterError(str(exc)) from exc
+    return check
+
+
+@dataclass
+class _Counters:
+    frames: int = 0
+    detections: int = 0
+    bad_images: int = 0
+    rejected_frames: int = 0
+    last_report: float = field(default_factory=time.monotonic)
+    reported_drops: int = 0
+
+
+class DetectorNode(Node):
+    """The detector node; see the module docstring."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("detector_node", **kwargs)
+        self._types = ros_message_types()
+        self._lock = threading.Lock()     # the detector (worker thread vs parameters)
+        self._warn = ThrottledLog(self.get_logger().warning, period=1.0)
+        self._error = ThrottledLog(self.get_logger().error, period=1.0)
+        self._event = ThrottledLog(self.get_logger().info, period=1.0)
+        self._bridge = ParameterBridge(self)
+        self.node_config: DetectorNodeConfig = self._bridge.add_config(
+            "", DetectorNodeConfig(), on_change=self._on_node_config)
+        kernel_cfg = self._bridge.add_config("detector", ThermalDetectorConfig(),
+                                             extra_check=_check_with(ThermalDetector),
+                                             on_change=self._on_detector_config)
+        threshold_cfg = self._bridge.add_config("threshold", ThresholdDetectorConfig(),
+                                                extra_check=_check_with(ThresholdDetector),
+                                                on_change=self._on_detector_config)
+        self.detector = build_detector(self.node_config.method, kernel_cfg, threshold_cfg)
+        self._bridge.activate()
+        self._counters = _Counters()
+        self._last_stamp: float | None = None
+
+        from vision_msgs.msg import Detection2DArray
+        cfg = self.node_config
+        self._detections_pub = self.create_publisher(Detection2DArray, cfg.detections_topic,
+                                                     publisher_qos(10))
+        self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
+        self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
+                                         name="detector_node-frames").start()
+        self.create_subscription(Image, cfg.image_topic, self._worker.submit,
+                                 subscription_qos(cfg.image_qos))
+        self.get_logger().info(
+            f"detecting people ({cfg.method}) in {self.resolve_topic_name(cfg.image_topic)} -> "
+            f"{self.resolve_topic_name(cfg.detections_topic)}")
+
+    # -- parameters ----------------------------------------------------------------------
+    def _on_node_config(self, config: DetectorNodeConfig) -> None:
+        method_changed = config.method != self.node_config.method
+        self.node_config = config
+        if method_changed:
+            self._on_detector_config(None)
+
+    def _on_detector_config(self, _config: Any) -> None:
+        # a detector holds a sliding window of frames; a new config starts a new window
+        with self._lock:
+            self.detector = build_detector(self.node_config.method,
+                                           self._bridge.config("detector"),
+                                           self._bridge.config("threshold"))
+        self.get_logger().info(f"detector rebuilt ({self.node_config.method}) with the new "
+                               "parameters")
+
+    # -- frame processing (worker thread) ------------------------------------------------
+    def _on_worker_error(self, exc: BaseException) -> None:
+        self._error(f"frame processing failed ({type(exc).__name__}: {exc}); frame skipped")
+
+    def _process_image(self, msg: Image) -> None:
+        counters = self._counters
+        try:
+            if msg.encoding not in THERMAL_ENCODINGS:
+                raise ImageConversionError(
+                    f"encoding {msg.encoding!r} is not a thermal detector input "
+                    f"(supported: {', '.join(THERMAL_ENCODINGS)})")
+            frame = image_to_numpy(msg)
+        except ImageConversionError as exc:
+            counters.bad_images += 1
+            self._warn(f"skipping a thermal image: {exc}")
+            return
+        stamp = stamp_to_seconds(msg.header.stamp)
+        with self._lock:
+            detector = self.detector
+            if self._last_stamp is not None and stamp < self._last_stamp:
+                self._warn(
+                    f"thermal time went backwards by {self._last_stamp - stamp:.3f} s (bag "
+                    "restarted?)")
+            self._last_stamp = stamp
+            try:
+                found = detector.process(frame, stamp, encoding=msg.encoding)
+            except ValueError as exc:   # the libraries' own input errors
+                counters.rejected_frames += 1
+                self._warn(f"detector skipped a frame: {exc}")
+                return
+            mode = getattr(detector, "last_mode", "")
+            if mode in SKIPPED_MODES:
+                counters.rejected_frames += 1
+                self._warn(f"detector skipped the frame of stamp {stamp:.3f}: "
+                           f"{SKIPPED_MODES[mode]}")
+            if getattr(detector, "last_reset", False):
+                self._event("detector reset: the frame size or encoding changed")
+        out = []
+        for det in found:
+            try:
+                out.append(Detection(box=tuple(det.box), score=float(det.score),
+                                     class_id=self.node_config.class_id))
+            except DetectionMessageError as exc:
+                self._warn(f"dropping a bad detection: {exc}")
+        counters.frames += 1
+        counters.detections += len(out)
+        self._detections_pub.publish(make_detection_array(out, msg.header, self._types))
+        if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
+            canvas = draw_detections(thermal_to_display(frame, msg.encoding),
+                                     [d.box for d in out], [d.score for d in out])
+            canvas = draw_text_lines(canvas, [f"{self.node_config.method}: {len(out)} people"])
+            self._debug_pub.publish(numpy_to_image(canvas, "bgr8", msg.header,
+                                                   types=self._types))
+        self._report()
+
+    def _report(self) -> None:
+        c = self._counters
+        now = time.monotonic()
+        if now - c.last_report < self.node_config.report_period:
+            return
+        c.last_report = now
+        dropped = self._worker.dropped
+        if dropped > c.reported_drops or c.bad_images or c.rejected_frames:
+            self.get_logger().info(
+                f"{c.frames} frames, {c.detections} detections, {dropped} frames dropped "
+                f"(newer frame arrived first), {c.bad_images} bad images, "
+                f"{c.rejected_frames} frames rejected by the detector")
+        c.reported_drops = dropped
+
+    def statistics(self) -> dict[str, int]:
+        c = self._counters
+        return {"frames": c.frames, "detections": c.detections,
+                "dropped": self._worker.dropped, "bad_images": c.bad_images,
+                "rejected_frames": c.rejected_frames}
+
+    def destroy_node(self) -> None:
+        self._worker.stop()
+        self.get_logger().info(f"shutting down: {self.statistics()}")
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of the ``detector_node`` console script."""
+    rclpy.init(args=args)
+    try:
+        node = DetectorNode()
+    except (ParameterError, ImportError) as exc:
+        print(f"detector_node: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
