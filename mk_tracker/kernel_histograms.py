@@ -114,7 +114,7 @@ def profile_values(v: np.ndarray, profile: str) -> tuple[np.ndarray, np.ndarray]
     (a Gaussian with sigma = half the bandwidth, truncated at the ellipse).
     """
     if profile == "roof":
-        return 1.0 - v, np.ones_like(v)
+        return 1.0 - v, np.ones(v.shape)
     if profile == "gaussian":
         k = np.exp(-2.0 * v)
         return k, 2.0 * k
@@ -122,36 +122,41 @@ def profile_values(v: np.ndarray, profile: str) -> tuple[np.ndarray, np.ndarray]
 
 
 def sample_kernel(bin_roi: np.ndarray, roi_origin: tuple[int, int], centre: np.ndarray,
-                  half_axes: np.ndarray, profile: str = "roof") -> KernelSample:
+                  half_axes: np.ndarray, profile: str = "roof", stride: int = 1
+                  ) -> KernelSample:
     """Collect the ROI pixels whose centres fall strictly inside the kernel ellipse.
 
-    ``bin_roi`` holds bin indices of the ROI whose top-left pixel is ``roi_origin = (ox, oy)``
-    in the image.  Pixels of the ellipse outside the ROI are simply absent (the kernel sees
-    only what is inside its search region).
+    ``bin_roi`` holds bin indices of a region of interest sampled every ``stride`` pixels:
+    its element ``(r, c)`` is image pixel ``(ox + c * stride, oy + r * stride)`` with
+    ``roi_origin = (ox, oy)``.  Pixels of the ellipse outside the ROI are simply absent (the
+    kernel sees only its search region).  ``stride > 1`` subsamples large kernels on a grid
+    fixed in the image, so histograms at different positions stay comparable.
     """
     ox, oy = int(roi_origin[0]), int(roi_origin[1])
+    st = int(stride)
     rh, rw = bin_roi.shape
     cx, cy = float(centre[0]), float(centre[1])
     ax, ay = float(half_axes[0]), float(half_axes[1])
-    c0 = max(int(np.ceil(cx - ax - 0.5)) - ox, 0)
-    c1 = min(int(np.floor(cx + ax - 0.5)) - ox + 1, rw)
-    r0 = max(int(np.ceil(cy - ay - 0.5)) - oy, 0)
-    r1 = min(int(np.floor(cy + ay - 0.5)) - oy + 1, rh)
+    c0 = max(int(np.ceil((cx - ax - 0.5 - ox) / st)), 0)
+    c1 = min(int(np.floor((cx + ax - 0.5 - ox) / st)) + 1, rw)
+    r0 = max(int(np.ceil((cy - ay - 0.5 - oy) / st)), 0)
+    r1 = min(int(np.floor((cy + ay - 0.5 - oy) / st)) + 1, rh)
     if c1 <= c0 or r1 <= r0:
         empty_f = np.zeros(0)
         return KernelSample(np.zeros(0, dtype=np.int64), empty_f, empty_f, empty_f, empty_f,
                             empty_f)
-    xs = np.arange(c0 + ox, c1 + ox, dtype=np.float64) + 0.5
-    ys = np.arange(r0 + oy, r1 + oy, dtype=np.float64) + 0.5
+    xs = ox + st * np.arange(c0, c1, dtype=np.float64) + 0.5
+    ys = oy + st * np.arange(r0, r1, dtype=np.float64) + 0.5
     dx2 = ((xs - cx) / ax) ** 2
     dy2 = ((ys - cy) / ay) ** 2
     v = dy2[:, None] + dx2[None, :]
     inside = v < 1.0
-    rows, cols = np.nonzero(inside)
-    v_in = v[rows, cols]
+    v_in = v[inside]
     k, g = profile_values(v_in, profile)
-    return KernelSample(bins=bin_roi[r0:r1, c0:c1][rows, cols], k=k, g=g, xs=xs[cols],
-                        ys=ys[rows], v=v_in)
+    shape = inside.shape
+    return KernelSample(bins=bin_roi[r0:r1, c0:c1][inside], k=k, g=g,
+                        xs=np.broadcast_to(xs[None, :], shape)[inside],
+                        ys=np.broadcast_to(ys[:, None], shape)[inside], v=v_in)
 
 
 def kernel_histogram(sample: KernelSample, n_bins: int) -> np.ndarray:
@@ -204,8 +209,10 @@ def mean_shift_vector(sample: KernelSample, weights: np.ndarray, centre: np.ndar
     total = float(wg.sum())
     if not total > 0:
         return np.zeros(2)
-    return np.array([float(wg @ sample.xs) / total - float(centre[0]),
-                     float(wg @ sample.ys) / total - float(centre[1])])
+    # elementwise sums rather than BLAS dot products: ddot may spawn threads, which costs far
+    # more than it saves for a few thousand pixels on a loaded machine
+    return np.array([float(np.sum(wg * sample.xs)) / total - float(centre[0]),
+                     float(np.sum(wg * sample.ys)) / total - float(centre[1])])
 
 
 def scale_ratio(sample: KernelSample, weights: np.ndarray, half_axes: np.ndarray) -> float:
@@ -216,12 +223,12 @@ def scale_ratio(sample: KernelSample, weights: np.ndarray, half_axes: np.ndarray
     kernel.  Zero for an empty kernel.
     """
     sk = float(sample.k.sum())
-    wk = float(weights @ sample.k)
+    wk = float(np.sum(weights * sample.k))
     if not (sk > 0 and wk > 0):
         return 0.0
     gv = sample.g * sample.v
     h2 = float(half_axes[0]) ** 2 + float(half_axes[1]) ** 2
-    return 2.0 / h2 * (float(weights @ gv) / wk - float(gv.sum()) / sk)
+    return 2.0 / h2 * (float(np.sum(weights * gv)) / wk - float(gv.sum()) / sk)
 
 
 @dataclass
@@ -239,12 +246,12 @@ class KernelEvaluation:
 def evaluate_kernel(bin_roi: np.ndarray, roi_origin: tuple[int, int], centre: np.ndarray,
                     half_axes: np.ndarray, q: np.ndarray, *, profile: str = "roof",
                     epsilon: float = 0.01, weighting: str = "kl",
-                    with_scale: bool = False) -> KernelEvaluation:
+                    with_scale: bool = False, stride: int = 1) -> KernelEvaluation:
     """Candidate ``p(x)``, ``J_i``, ``sim_i``, mean shift ``m`` (and ``r(h)``) of one kernel.
 
     A kernel with no pixel in the ROI has cost ``inf``, similarity 0 and no mean shift.
     """
-    sample = sample_kernel(bin_roi, roi_origin, centre, half_axes, profile)
+    sample = sample_kernel(bin_roi, roi_origin, centre, half_axes, profile, stride)
     n_bins = q.size
     if sample.empty:
         return KernelEvaluation(np.zeros(n_bins), float("inf"), 0.0, np.zeros(2), 0.0, 0)

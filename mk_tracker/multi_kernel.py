@@ -139,6 +139,9 @@ class MultiKernelConfig:
     max_step_fraction: float = parameter(
         1.0, "Largest move of a kernel per iteration, as a fraction of its half-axes",
         minimum=0.01, maximum=10.0)
+    max_kernel_pixels: int = parameter(
+        1500, "Kernels covering more pixels are sampled on a regular grid of stride "
+        "ceil(sqrt(area / this)) (speed; not in the paper)", minimum=50, maximum=10**7)
     rank_tolerance: float = parameter(
         1e-6, "Singular values of the scaled C_x below this times the largest are dropped",
         minimum=1e-15, maximum=0.1)
@@ -395,19 +398,31 @@ class MultiKernelTracker:
         self.n_bins = number_of_bins(self.config.bins)
 
     # -- helpers ---------------------------------------------------------------------------
-    def _bins(self, image: np.ndarray, region: tuple[int, int, int, int]) -> np.ndarray | None:
-        x0, y0, x1, y1 = region
-        roi = image[y0:y1, x0:x1]
-        if roi_has_nan(roi):
-            return None
-        return quantize(roi, self.config.colour_space, self.config.bins)
+    def _stride(self, axes: np.ndarray) -> int:
+        """Sampling stride so that no kernel holds much more than ``max_kernel_pixels``."""
+        area = float(np.pi * np.max(axes[:, 0] * axes[:, 1]))
+        return max(1, int(np.ceil(np.sqrt(area / self.config.max_kernel_pixels))))
 
-    def _evaluate(self, bin_roi, origin, centres, axes, models, with_scale=False
+    def _bins(self, image: np.ndarray, region: tuple[int, int, int, int], stride: int
+              ) -> tuple[np.ndarray | None, tuple[int, int]]:
+        """Bin indices of the region sampled every ``stride`` px on a grid fixed in the image.
+
+        Returns ``(bins, origin)``; ``bins`` is None when the region holds NaN pixels.
+        """
+        x0, y0, x1, y1 = region
+        x0, y0 = (x0 // stride) * stride, (y0 // stride) * stride
+        roi = image[y0:y1:stride, x0:x1:stride]
+        if roi_has_nan(roi):
+            return None, (x0, y0)
+        return quantize(roi, self.config.colour_space, self.config.bins), (x0, y0)
+
+    def _evaluate(self, bin_roi, origin, centres, axes, models, stride, with_scale=False
                   ) -> list[KernelEvaluation]:
         cfg = self.config
         return [evaluate_kernel(bin_roi, origin, centres[i], axes[i], models[i],
                                 profile=cfg.profile, epsilon=cfg.histogram_epsilon,
-                                weighting=cfg.pixel_weighting, with_scale=with_scale)
+                                weighting=cfg.pixel_weighting, with_scale=with_scale,
+                                stride=stride)
                 for i in range(centres.shape[0])]
 
     # -- public API ------------------------------------------------------------------------
@@ -433,13 +448,13 @@ class MultiKernelTracker:
         region = _region(b, 0.0, width, height)
         if region is None:
             raise TrackingInputError(f"box {b} covers no whole pixel of the image")
-        bin_roi = self._bins(image, region)
+        stride = self._stride(axes)
+        bin_roi, origin = self._bins(image, region, stride)
         if bin_roi is None:
             raise TrackingInputError("the target region holds NaN or infinite pixels")
-        origin = (region[0], region[1])
         models = np.zeros((cfg.num_kernels, self.n_bins))
         for i in range(cfg.num_kernels):
-            sample = sample_kernel(bin_roi, origin, centres[i], axes[i], cfg.profile)
+            sample = sample_kernel(bin_roi, origin, centres[i], axes[i], cfg.profile, stride)
             if sample.empty:
                 raise TrackingInputError(
                     f"kernel {i} of box {b} has no pixel inside the image (box too small or "
@@ -483,10 +498,10 @@ class MultiKernelTracker:
         region = _region(start_box, cfg.search_margin, width, height)
         if region is None:
             return self._lost(state, x, axes, "outside_image")
-        bin_roi = self._bins(image, region)
+        stride = self._stride(axes)
+        bin_roi, origin = self._bins(image, region, stride)
         if bin_roi is None:
             return self._lost(state, x, axes, "nan_pixels")
-        origin = (region[0], region[1])
         lo = np.array([region[0], region[1]], dtype=np.float64)
         hi = np.array([region[2], region[3]], dtype=np.float64)
 
@@ -495,7 +510,7 @@ class MultiKernelTracker:
         eps_j = cfg.epsilon_j_factor * n_k
         max_step = cfg.max_step_fraction * axes
 
-        evals = self._evaluate(bin_roi, origin, x, axes, state.models)
+        evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride)
         iterations = 0
         history = []
         for _ in range(cfg.max_iterations):
@@ -524,7 +539,7 @@ class MultiKernelTracker:
             step = np.nan_to_num(step, nan=0.0, posinf=0.0, neginf=0.0)
             x = np.clip(x + step, lo, hi)
             iterations += 1
-            evals = self._evaluate(bin_roi, origin, x, axes, state.models)
+            evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride)
             if float(np.abs(step).max()) < cfg.min_step_px:
                 break
 
@@ -549,7 +564,7 @@ class MultiKernelTracker:
                     if e.similarity > cfg.similarity_gate and e.n_pixels > 0:
                         state.models[i] = (1.0 - rate) * state.models[i] + rate * e.p
             if cfg.scale_update and cfg.beta > 0:
-                self._update_scale(bin_roi, origin, state, w)
+                self._update_scale(bin_roi, origin, state, w, stride)
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
         return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
@@ -558,7 +573,8 @@ class MultiKernelTracker:
                                 iterations=iterations, lost=False, cost=total,
                                 scale=state.scale, cost_history=history)
 
-    def _update_scale(self, bin_roi, origin, state: TargetState, weights: np.ndarray) -> None:
+    def _update_scale(self, bin_roi, origin, state: TargetState, weights: np.ndarray,
+                      stride: int) -> None:
         """Eqs. (9)-(11): ``Delta s = beta r(h)``, ``s_t = s_{t-1}(1 + Delta s)``.
 
         ``r`` is the W-weighted mean of the kernels' ratios.  The kernels' offsets from the
@@ -566,7 +582,7 @@ class MultiKernelTracker:
         """
         cfg = self.config
         evals = self._evaluate(bin_roi, origin, state.centres, state.half_axes, state.models,
-                               with_scale=True)
+                               stride, with_scale=True)
         r = float(np.sum(weights * np.array([e.scale_ratio for e in evals]))) / len(evals)
         ds = float(np.clip(cfg.beta * r, -cfg.max_scale_change, cfg.max_scale_change))
         new_scale = float(np.clip(state.scale * (1.0 + ds), cfg.min_scale, cfg.max_scale))
@@ -608,14 +624,15 @@ class MultiKernelTracker:
         region = _region(b, 0.0, width, height)
         if region is None:
             return 0.0
-        bin_roi = self._bins(image, region)
+        centres, axes = kernel_layout(b, state.num_kernels)
+        stride = self._stride(axes)
+        bin_roi, origin = self._bins(image, region, stride)
         if bin_roi is None:
             return 0.0
-        centres, axes = kernel_layout(b, state.num_kernels)
         sims = []
         for i in range(state.num_kernels):
-            sample = sample_kernel(bin_roi, (region[0], region[1]), centres[i], axes[i],
-                                   self.config.profile)
+            sample = sample_kernel(bin_roi, origin, centres[i], axes[i], self.config.profile,
+                                   stride)
             if sample.empty:
                 sims.append(0.0)
                 continue
