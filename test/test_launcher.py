@@ -12,8 +12,10 @@ from pathlib import Path
 
 import pytest
 
+from test_bag_player import fresh_domain
+
 from mk_tracker.ros.launcher import (LaunchError, ProcessSpec, build_specs, configure_parser,
-                                     crashed, ros_args, run_processes)
+                                     crashed, remapped, ros_args, run_processes)
 
 
 def py(code: str) -> tuple[str, ...]:
@@ -108,10 +110,13 @@ def test_crash_classification():
 
 
 def test_ros_args_and_specs(tmp_path):
-    assert ros_args("p.yaml", ["/image:=/cam"]) == ["--ros-args", "--params-file", "p.yaml",
-                                                    "-r", "/image:=/cam"]
+    assert ros_args(["p.yaml"], ["/image:=/cam"]) == ["--ros-args", "--params-file", "p.yaml",
+                                                      "-r", "/image:=/cam"]
+    assert ros_args() == []
     with pytest.raises(LaunchError):
-        ros_args(None, ["/image"])
+        ros_args([], ["/image"])
+    assert remapped("image_raw", ["/image_raw:=/camera/rgb"]) == "/camera/rgb"
+    assert remapped("thermal/image_raw", ["image_raw:=/x"]) == "/thermal/image_raw"
     params = tmp_path / "p.yaml"
     params.write_text("{}\n")
     bag = tmp_path / "bag"
@@ -119,12 +124,17 @@ def test_ros_args_and_specs(tmp_path):
     parser = argparse.ArgumentParser()
     configure_parser(parser)
     args = parser.parse_args(["--bag", str(bag), "--params-file", str(params), "--record",
-                              str(tmp_path / "out"), "--record-topics", "/tracks"])
+                              str(tmp_path / "out"), "--record-topics", "/tracks",
+                              "--remap", "image_raw:=/cam"])
     specs = build_specs(args)
     assert [s.name for s in specs] == ["detector_node", "tracker_node", "bag_recorder",
                                        "bag_player"]
     assert [s.essential for s in specs] == [True, True, True, False]
-    assert all(str(params) in s.argv for s in specs[:2])
+    assert all(str(params) in s.argv and "image_raw:=/cam" in s.argv for s in specs[:2])
+    # the player waits for the nodes' (remapped) inputs only
+    player = list(specs[-1].argv)
+    waited = player[player.index("--wait-topics") + 1:player.index("--wait-topics") + 3]
+    assert sorted(waited) == ["/cam", "/thermal/image_raw"]
     with pytest.raises(LaunchError, match="does not exist"):
         build_specs(parser.parse_args(["--bag", str(tmp_path / "missing")]))
     with pytest.raises(LaunchError, match="record-topics"):
@@ -133,7 +143,7 @@ def test_ros_args_and_specs(tmp_path):
 
 def test_mk_launch_command_stops_children_on_sigint(tmp_path):
     """The real executable: SIGINT to mk_launch stops a node that then exits cleanly."""
-    env = dict(os.environ, ROS_DOMAIN_ID="151", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env = dict(os.environ, ROS_DOMAIN_ID=str(fresh_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     proc = subprocess.Popen([sys.executable, "-m", "mk_tracker.ros.launcher", "--no-detector",
                              "--no-tracker", "--record", str(tmp_path / "rec"),
                              "--record-topics", "/nothing", "--grace", "5"],
@@ -151,3 +161,35 @@ def test_mk_launch_command_stops_children_on_sigint(tmp_path):
     assert "all processes stopped" in output and "crashed" not in output, output
     assert proc.returncode == 0, output
     assert (tmp_path / "rec" / "metadata.yaml").is_file(), output
+
+
+def test_mk_launch_runs_player_nodes_and_recorder_end_to_end(tmp_path):
+    """A generated scene played through both real nodes; the recorded bag holds their
+    detections and tracks, and mk_launch ends by itself with status 0."""
+    try:
+        import vision_msgs.msg  # noqa: F401
+    except ImportError as exc:
+        pytest.skip(f"vision_msgs is not built into this environment yet ({exc})")
+    from mk_tracker import bag_io
+    from mk_tracker.scene_bag import build_preset, write_scene_bag
+
+    scene_bag = tmp_path / "scene"
+    write_scene_bag(build_preset("crowd", seed=1, people=2, frames=15, width=240, height=180),
+                    scene_bag)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(fresh_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    out_bag = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "mk_tracker.ros.launcher", "--bag",
+                           str(scene_bag), "--record", str(out_bag), "--record-topics",
+                           "/tracks", "/thermal/detections", "--linger", "2", "--timeout", "60",
+                           "--wait-for-subscribers", "20"],
+                          capture_output=True, text=True, env=env, timeout=90,
+                          cwd=Path(__file__).resolve().parents[1])
+    out = proc.stdout
+    assert proc.returncode == 0, out + proc.stderr
+    for name in ("detector_node", "tracker_node", "bag_recorder", "bag_player"):
+        assert f"[mk_launch] started {name}" in out
+    assert "[bag_player] played" in out and "[bag_recorder] recorded" in out
+    with bag_io.open_bag(out_bag) as reader:
+        topics = reader.topics
+    assert topics["/tracks"].count >= 1 and topics["/thermal/detections"].count >= 1, out
+    assert topics["/tracks"].msgtype == "vision_msgs/msg/Detection2DArray"

@@ -207,6 +207,9 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="wait up to S seconds until every topic has a subscriber")
     parser.add_argument("--min-subscribers", type=int, default=1, metavar="N",
                         help="subscribers per topic that --wait-for-subscribers waits for")
+    parser.add_argument("--wait-topics", nargs="+", default=None, metavar="TOPIC",
+                        help="output topics --wait-for-subscribers waits for (default: all "
+                             "played topics); played topics not named here are not awaited")
     parser.add_argument("--ack-timeout", type=float, default=5.0, metavar="S",
                         help="at the end, wait up to S s for reliable messages to be acked")
 
@@ -272,8 +275,14 @@ def run(args: argparse.Namespace) -> int:
         if args.delay > 0:
             stop.sleep(args.delay)
         if args.wait_for_subscribers > 0:
-            _wait_for_subscribers(list(played.values()), args.min_subscribers,
-                                  args.wait_for_subscribers, stop)
+            awaited = list(played.values())
+            if args.wait_topics is not None:
+                names = {"/" + t.lstrip("/") for t in args.wait_topics}
+                awaited = [t for t in awaited if t.topic in names]
+                if not awaited:
+                    _log(f"none of {sorted(names)} is played; not waiting for subscribers")
+            _wait_for_subscribers(awaited, args.min_subscribers, args.wait_for_subscribers,
+                                  stop)
         clock_period = round(NS_PER_S / args.clock) if args.clock > 0 else 0
         selected = sorted(played)
         while not stop.is_set():

@@ -49,11 +49,25 @@ def module_command(module: str, args: Sequence[str] = ()) -> tuple[str, ...]:
     return (sys.executable, "-c", code, *args)
 
 
-def ros_args(params_file: str | None, remaps: Sequence[str] = (), node_name: str | None = None
-             ) -> list[str]:
-    """``--ros-args`` tail with the params file and ``from:=to`` remappings."""
+# Inputs of the nodes as they declare them (relative names resolve to /image_raw ...).
+NODE_INPUTS = {"detector_node": ("thermal/image_raw",), "tracker_node": ("image_raw",)}
+
+
+def remapped(topic: str, remaps: Sequence[str]) -> str:
+    """Absolute name of node topic ``topic`` after ``from:=to`` remappings (root namespace)."""
+    absolute = "/" + topic.lstrip("/")
+    for remap in remaps:
+        source, _, target = remap.partition(":=")
+        if "/" + source.strip().lstrip("/") == absolute:
+            absolute = "/" + target.strip().lstrip("/")
+    return absolute
+
+
+def ros_args(params_files: Sequence[str] = (), remaps: Sequence[str] = (),
+             node_name: str | None = None) -> list[str]:
+    """``--ros-args`` tail with the params files and ``from:=to`` remappings."""
     tail: list[str] = []
-    if params_file:
+    for params_file in params_files:
         tail += ["--params-file", params_file]
     if node_name:
         tail += ["-r", f"__node:={node_name}"]
@@ -66,8 +80,9 @@ def ros_args(params_file: str | None, remaps: Sequence[str] = (), node_name: str
 
 def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     """The processes ``mk_launch`` starts for parsed command-line ``args``."""
-    if args.params_file and not os.path.isfile(args.params_file):
-        raise LaunchError(f"parameters file {args.params_file!r} does not exist")
+    for params_file in args.params_file:
+        if not os.path.isfile(params_file):
+            raise LaunchError(f"parameters file {params_file!r} does not exist")
     if args.bag and not os.path.exists(args.bag):
         raise LaunchError(f"bag {args.bag!r} does not exist")
     specs: list[ProcessSpec] = []
@@ -86,6 +101,10 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     if args.bag:
         play = [args.bag, "--rate", str(args.rate), "--wait-for-subscribers",
                 str(args.wait_for_subscribers)]
+        inputs = [remapped(topic, args.remap) for spec in specs
+                  for topic in NODE_INPUTS.get(spec.name, ())]
+        if inputs:  # start playing once the nodes listen (not for topics nobody reads)
+            play += ["--wait-topics", *inputs]
         if args.clock:
             play += ["--clock"]
         for remap in args.remap:
@@ -216,7 +235,9 @@ def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bag", help="rosbag2 bag to play (omit to only run the nodes)")
-    parser.add_argument("--params-file", help="ROS 2 parameters YAML for both nodes")
+    parser.add_argument("--params-file", action="append", default=[], metavar="YAML",
+                        help="ROS 2 parameters file given to both nodes (repeatable; a file "
+                             "is keyed by node name, e.g. config/tracker.yaml)")
     parser.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
                         help="topic remapping applied to the nodes and the player")
     parser.add_argument("--rate", type=float, default=1.0, help="playback rate factor")
