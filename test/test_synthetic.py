@@ -369,3 +369,30 @@ def test_bad_configs_and_indices_raise_scene_error():
     assert isinstance(SceneError("x"), ValueError)
     # iteration stops at the end
     assert sum(1 for _ in paper_scene()) == 60
+
+
+def test_texture_is_fixed_to_the_body_and_the_head_is_warmest():
+    scene = make_scene(dataclasses.replace(crossing_scene(seed=4).config,
+                                           thermal_encoding="32FC1"))
+
+    def torso(frame, obj_id=1):
+        x, y, w, h = (int(round(v)) for v in frame.object(obj_id).box_rgb)
+        return frame.rgb[y + int(0.25 * h):y + int(0.5 * h),
+                         x + int(0.3 * w):x + int(0.7 * w)].astype(float)
+
+    f0, f10 = scene.frame(0), scene.frame(10)
+    assert f10.object(1).box_rgb[0] - f0.object(1).box_rgb[0] == pytest.approx(30.0)
+    a, b = torso(f0), torso(f10)
+    assert a.shape == b.shape
+    assert a.std() > 12.0                       # a pattern, not a flat colour (noise is 4)
+    assert np.abs(a - b).mean() < 7.0           # the same pattern 30 px later
+    assert np.abs(a - np.roll(b, 5, axis=(0, 1))).mean() > 1.5 * np.abs(a - b).mean()
+    # thermal: head warmer than torso warmer than legs
+    x, y, w, h = (int(round(v)) for v in f0.object(1).box_thermal)
+    k = f0.thermal
+    head = k[y + int(0.03 * h):y + int(0.12 * h), x + int(0.4 * w):x + int(0.6 * w)].mean()
+    chest = k[y + int(0.25 * h):y + int(0.5 * h), x + int(0.3 * w):x + int(0.7 * w)].mean()
+    legs_row = k[y + int(0.8 * h):y + int(0.9 * h), x:x + w]
+    legs = legs_row[legs_row > 296.0].mean()
+    assert head > chest + 2.0 and chest > legs + 1.0 and legs > 296.0
+
