@@ -1,0 +1,223 @@
+"""Per-frame orchestration shared by the ROS nodes and the offline pipeline.
+
+"The offline pipeline and the nodes call the same code": everything the detector node and
+the tracker node decide for one frame, beyond converting messages, lives here, and
+:mod:`mk_tracker.pipeline` (``mk_tracker process``) calls the same functions, so both make
+identical decisions on the same input.
+
+* Detector side: which detector a ``method`` means (:func:`build_detector`), which image
+  encodings it takes (:func:`thermal_input`), the reason a detector skipped a frame
+  (:data:`SKIPPED_MODES`) and the conversion of its output into
+  :class:`~mk_tracker.detection_messages.Detection` (:func:`detector_outputs`).
+* Tracker side: which image plane a detection message is in, decided by its
+  ``header.frame_id`` (:func:`detection_plane`: the RGB image's frame, or the thermal
+  camera's frame whose boxes the tracker maps with its homography), the tracker's input
+  list built from the buffered messages (:func:`tracker_inputs`), hand-started boxes
+  (:func:`start_box`), and the tracks that are published (:func:`tracks_to_detections`).
+* Debug images: :func:`tracker_debug_image` and :func:`detector_debug_image` (what the
+  nodes publish on ``~/debug_image`` and the pipeline writes into its video).
+
+No rclpy here: messages are duck-typed (``rclpy`` and ``rosbags`` messages both work).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from mk_tracker.boxes import InvalidBoxError, as_box, transform_box
+from mk_tracker.debug_drawing import (KernelEllipse, TrackDrawing, draw_detections,
+                                      draw_text_lines, draw_tracks, thermal_to_display)
+from mk_tracker.detection_messages import Detection, DetectionMessageError
+from mk_tracker.image_conversion import ImageConversionError, image_to_numpy, to_bgr
+from mk_tracker.multi_object_tracker import FrameDetection
+from mk_tracker.parameters import ParameterError
+from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+
+RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
+THERMAL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1")
+METHODS = ("kernel_covariance", "threshold")
+#: ``last_mode`` values of a detector that mean "this frame was not used", with the reason.
+SKIPPED_MODES = {
+    "invalid_frame": "too few finite pixels (NaN-filled or empty frame)",
+    "out_of_order": "its stamp is not after the previous frame's (time went backwards?)",
+}
+
+
+# -- detector side --------------------------------------------------------------------------
+
+def build_detector(method: str, kernel_config: ThermalDetectorConfig,
+                   threshold_config: ThresholdDetectorConfig) -> Any:
+    """The detector object of ``method`` (one of :data:`METHODS`): the sparse kernel
+    covariance detector (Schizas et al. 2018, Algorithm 2) or the threshold baseline."""
+    if method == "kernel_covariance":
+        return ThermalDetector(kernel_config)
+    if method == "threshold":
+        return ThresholdDetector(threshold_config)
+    raise ParameterError(f"method: {method!r} is not one of {list(METHODS)}")
+
+
+def thermal_input(msg: Any) -> np.ndarray:
+    """The pixels of a thermal ``sensor_msgs/Image``; raises
+    :class:`~mk_tracker.image_conversion.ImageConversionError` for another encoding or
+    broken data."""
+    if msg.encoding not in THERMAL_ENCODINGS:
+        raise ImageConversionError(
+            f"encoding {msg.encoding!r} is not a thermal detector input "
+            f"(supported: {', '.join(THERMAL_ENCODINGS)})")
+    return image_to_numpy(msg)
+
+
+def detector_outputs(found: Iterable[Any], class_id: str) -> tuple[list[Detection], list[str]]:
+    """A detector's output as :class:`Detection` (empty id) plus one message per dropped
+    bad detection (non-finite or empty box, non-finite score)."""
+    out: list[Detection] = []
+    errors: list[str] = []
+    for det in found:
+        try:
+            out.append(Detection(box=tuple(det.box), score=float(det.score), class_id=class_id))
+        except (DetectionMessageError, TypeError, ValueError) as exc:
+            errors.append(f"dropping a bad detection: {exc}")
+    return out, errors
+
+
+def skipped_reason(detector: Any) -> str | None:
+    """Why the detector did not use its last frame (:data:`SKIPPED_MODES`), or None."""
+    return SKIPPED_MODES.get(getattr(detector, "last_mode", ""))
+
+
+# -- tracker side ---------------------------------------------------------------------------
+
+@dataclass
+class DetectionBatch:
+    """One received detection message: its header stamp (s), frame id and detections."""
+
+    stamp: float
+    frame_id: str
+    detections: list[Detection]
+
+
+def tracker_input(msg: Any) -> np.ndarray:
+    """The BGR pixels of an RGB ``sensor_msgs/Image`` (contiguous); raises
+    :class:`~mk_tracker.image_conversion.ImageConversionError` for a non-RGB encoding or
+    broken data."""
+    if msg.encoding not in RGB_ENCODINGS:
+        raise ImageConversionError(
+            f"encoding {msg.encoding!r} is not an RGB tracker input "
+            f"(supported: {', '.join(RGB_ENCODINGS)})")
+    return np.ascontiguousarray(to_bgr(image_to_numpy(msg), msg.encoding))
+
+
+def detection_plane(frame_id: str, image_frame_id: str, thermal_frame_id: str) -> str | None:
+    """``"rgb"`` when detections are in the image's own frame, ``"thermal"`` in the thermal
+    camera's frame (mapped by the tracker's homography), None for any other frame."""
+    if frame_id == image_frame_id:
+        return "rgb"
+    if frame_id == thermal_frame_id:
+        return "thermal"
+    return None
+
+
+def tracker_inputs(batches: Iterable[DetectionBatch], image_frame_id: str,
+                   thermal_frame_id: str) -> tuple[list[FrameDetection], list[str]]:
+    """The tracker's detections for one frame from the batches received since the last one.
+
+    Every detection keeps its own message's stamp (the tracker brings it to the frame time,
+    Schizas et al. 2018 (2.1)-(2.2)).  Returns ``(detections, unknown)``: ``unknown`` lists
+    the frame ids of batches left out because they are in neither plane.
+    """
+    dets: list[FrameDetection] = []
+    unknown: list[str] = []
+    for batch in batches:
+        plane = detection_plane(batch.frame_id, image_frame_id, thermal_frame_id)
+        if plane is None:
+            unknown.append(batch.frame_id)
+            continue
+        dets.extend(FrameDetection(box=d.box, score=d.score, stamp=batch.stamp, plane=plane)
+                    for d in batch.detections)
+    return dets, unknown
+
+
+def start_box(box: Sequence[float], plane: str | None, homography: np.ndarray
+              ) -> tuple[float, float, float, float]:
+    """A hand-given start box in the RGB plane (thermal boxes are mapped by ``homography``);
+    raises :class:`~mk_tracker.boxes.InvalidBoxError` when it is unusable."""
+    if plane is None:
+        raise InvalidBoxError("the box is in an unknown frame")
+    if plane == "thermal":
+        return transform_box(box, homography)
+    b = as_box(box)
+    return float(b[0]), float(b[1]), float(b[2]), float(b[3])
+
+
+def _finite(box: Sequence[float]) -> bool:
+    return all(math.isfinite(float(v)) for v in box) and box[2] > 0 and box[3] > 0
+
+
+def tracks_to_detections(reported: Iterable[Any], class_id: str) -> list[Detection]:
+    """Published tracks: one :class:`Detection` per reported track with a finite box,
+    ``id`` = the track id, score = the track score clipped to [0, 1]."""
+    return [Detection(box=tuple(t.box), score=min(max(float(t.score), 0.0), 1.0),
+                      class_id=class_id, id=str(t.id))
+            for t in reported if _finite(t.box)]
+
+
+# -- debug images ---------------------------------------------------------------------------
+
+def kernel_drawings(tracker: Any) -> dict[int, list[KernelEllipse]]:
+    """Kernel ellipses per track id, read from the tracks' multiple-kernel targets
+    (Chu et al. 2013, Sec. III: kernel centres and half-axes)."""
+    out: dict[int, list[KernelEllipse]] = {}
+    for track in getattr(tracker, "tracks", []):
+        target = getattr(track, "target", None)
+        if target is None:
+            continue
+        try:
+            centres = np.asarray(target.centres, dtype=float)
+            axes = np.asarray(target.half_axes, dtype=float)
+        except (AttributeError, TypeError, ValueError):
+            continue
+        out[track.id] = [KernelEllipse((c[0], c[1]), (a[0], a[1]))
+                         for c, a in zip(centres, axes)]
+    return out
+
+
+def detection_boxes_in_rgb(dets: Iterable[FrameDetection], homography: np.ndarray
+                           ) -> list[tuple[float, ...]]:
+    """The tracker's input boxes in the RGB plane (unmappable boxes left out)."""
+    out = []
+    for d in dets:
+        try:
+            out.append(tuple(transform_box(d.box, homography)) if d.plane == "thermal"
+                       else tuple(as_box(d.box)))
+        except InvalidBoxError:
+            continue
+    return out
+
+
+def tracker_debug_image(bgr: np.ndarray, reported: Iterable[Any],
+                        kernels: dict[int, list[KernelEllipse]],
+                        dets: Iterable[FrameDetection], homography: np.ndarray,
+                        status: Sequence[str] = (),
+                        ground_truth: Iterable[Sequence[float]] = ()) -> np.ndarray:
+    """The tracker's debug image: detections (yellow), optional ground truth (thin white),
+    tracks with id/state/score and their kernels, and ``status`` lines."""
+    canvas = draw_detections(bgr, detection_boxes_in_rgb(dets, homography))
+    truth = list(ground_truth)
+    if truth:
+        canvas = draw_detections(canvas, truth, color=(255, 255, 255))
+    canvas = draw_tracks(canvas, [TrackDrawing(t.box, t.id, t.state, t.score,
+                                               kernels.get(t.id, ())) for t in reported])
+    return draw_text_lines(canvas, list(status)) if status else canvas
+
+
+def detector_debug_image(frame: np.ndarray, encoding: str, detections: Sequence[Detection],
+                         method: str) -> np.ndarray:
+    """The detector's debug image: the colour-mapped thermal frame with the boxes."""
+    canvas = draw_detections(thermal_to_display(frame, encoding),
+                             [d.box for d in detections], [d.score for d in detections])
+    return draw_text_lines(canvas, [f"{method}: {len(detections)} people"])
