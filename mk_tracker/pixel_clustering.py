@@ -147,3 +147,45 @@ def describe_pixels(cols: np.ndarray, rows: np.ndarray) -> PixelObject:
     return PixelObject(centroid=(float(cols.mean()) + 0.5, float(rows.mean()) + 0.5),
                        box=(float(x0), float(y0), float(x1 - x0), float(y1 - y0)),
                        pixel_count=int(cols.size))
+
+
+def link_groups(support: np.ndarray, gap: int) -> np.ndarray:
+    """Connected-component id of every support pixel, pixels within ``gap`` px linked.
+
+    ``support``: ``(h, w)`` bool.  Returns an ``(h, w)`` int32 map (0 off the support).  Two
+    support pixels share an id when a chain of support pixels joins them with steps of at
+    most ``gap`` pixels (Chebyshev distance; ``gap = 1`` is 8-connectivity).
+    """
+    import cv2  # local: the rest of the module is pure numpy
+
+    mask = np.asarray(support, dtype=np.uint8)
+    size = max(int(gap), 1)        # a k x k dilation joins pixels up to k apart (Chebyshev)
+    dil = cv2.dilate(mask, np.ones((size, size), np.uint8)) if size > 1 else mask
+    _, labels = cv2.connectedComponents(dil, connectivity=8)
+    labels = labels.astype(np.int32)
+    labels[mask == 0] = 0
+    return labels
+
+
+def merge_linked(labels: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Merge clusters that share a link group: the final objects are the connected parts of
+    the graph joining pixels of one K-means cluster or of one group.  Returns labels
+    renumbered 0..n-1 (ordered by first pixel)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    labels = np.asarray(labels, dtype=np.int64)
+    groups = np.asarray(groups, dtype=np.int64)
+    if labels.size == 0:
+        return labels
+    _, lab = np.unique(labels, return_inverse=True)
+    _, grp = np.unique(groups, return_inverse=True)
+    n_lab, n_grp = lab.max() + 1, grp.max() + 1
+    graph = coo_matrix((np.ones(lab.size), (lab, n_lab + grp)),
+                       shape=(n_lab + n_grp, n_lab + n_grp))
+    _, comp = connected_components(graph, directed=False)
+    merged = comp[lab]
+    _, first = np.unique(merged, return_index=True)
+    order = np.argsort(np.argsort(first))
+    _, dense = np.unique(merged, return_inverse=True)
+    return order[dense]

@@ -61,7 +61,8 @@ from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
 from mk_tracker.kernel_covariance import (active_pixels, block_kernel_covariance,
                                           frame_blocks)
 from mk_tracker.parameters import parameter, validate_config
-from mk_tracker.pixel_clustering import cluster_support_pixels, describe_pixels
+from mk_tracker.pixel_clustering import (cluster_support_pixels, describe_pixels, link_groups,
+                                         merge_linked)
 from mk_tracker.sparse_factorization import sparse_factorize, zero_factor_threshold
 from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
                                       normalization_map, normalize, robust_range)
@@ -96,6 +97,9 @@ class ThermalDetectorConfig:
     merge_distance_sq: float = parameter(150.0, "[epsilon_d] K-means clusters whose centroids "
                                          "are closer than this (px^2) are merged (3.13)",
                                          minimum=0.0, maximum=1e8)
+    link_gap: int = parameter(4, "support pixels closer than this (px) always belong to one "
+                              "object (added to the merge rule (3.13); 0 = paper rule only)",
+                              minimum=0, maximum=1000)
     max_objects: int = parameter(20, "[M_up] upper limit on the number of objects",
                                  minimum=1, maximum=1000)
     min_object_pixels: int = parameter(6, "objects with fewer support pixels are dropped",
@@ -348,6 +352,8 @@ class ThermalDetector:
             _, labels = cluster_support_pixels(np.column_stack([cols, rows]),
                                                max_objects=c.max_objects,
                                                merge_distance_sq=c.merge_distance_sq)
+            if c.link_gap > 0:
+                labels = merge_linked(labels, link_groups(result.support, c.link_gap)[rows, cols])
             for k in range(int(labels.max()) + 1):
                 sel = labels == k
                 if np.count_nonzero(sel) < c.min_object_pixels:
