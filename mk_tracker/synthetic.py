@@ -755,6 +755,9 @@ class SyntheticScene:
                 placed.append((True, k, x, y, None, item))
                 continue
             x, y, w, h = _int_box(box_t)
+            if x >= tw or y >= th or x + w <= 0 or y + h <= 0:   # off-screen: not drawn
+                placed.append((False, k, x, y, None, None))
+                continue
             spr = self._sized(item, w, h)
             _paste(labels, np.full((h, w), k + 1, np.int32), spr.mask, x, y)
             placed.append((False, k, x, y, spr, None))
@@ -764,7 +767,8 @@ class SyntheticScene:
         c = self.config
         tw, th = self.thermal_size
         counts = np.bincount(np.clip(labels.ravel(), 0, None), minlength=len(c.people) + 1)
-        full = {k: int(spr.mask.sum()) for is_occ, k, _, _, spr, _ in placed if not is_occ}
+        full = {k: int(spr.mask.sum()) if spr is not None else 0
+                for is_occ, k, _, _, spr, _ in placed if not is_occ}
         by_k = {layer[2]: layer for layer in layers if not layer[1]}
         out = []
         for k, p in enumerate(c.people):
@@ -800,13 +804,13 @@ class SyntheticScene:
             if is_occ:
                 _, _, kel, mask = occ["thermal"]
                 _paste(kelvin, kel, mask, x, y)
-            elif c.people[k].kind == "person":
+            elif spr is not None and c.people[k].kind == "person":
                 _paste(kelvin, spr.kelvin, spr.mask, x, y)
         oy, ox = (int(v) for v in rng.integers(0, _NOISE_PAD, size=2))
         if c.thermal_noise_std > 0:
             kelvin += self._thermal_noise[oy:oy + th, ox:ox + tw]
         for is_occ, k, x, y, spr, _ in placed:
-            if is_occ or c.people[k].kind != "block":
+            if is_occ or spr is None or c.people[k].kind != "block":
                 continue
             h, w = spr.mask.shape
             x0, y0, x1, y1 = max(x, 0), max(y, 0), min(x + w, tw), min(y + h, th)
@@ -829,6 +833,8 @@ class SyntheticScene:
                 _paste(rgb, img, mask, x, y)
                 continue
             x, y, w, h = _int_box(box_r)
+            if x >= c.width or y >= c.height or x + w <= 0 or y + h <= 0:
+                continue
             spr = self._sized(item, w, h)
             _paste(rgb, spr.rgb, spr.mask, x, y)
         if c.rgb_noise_std > 0:
