@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
+import signal
 import subprocess
 import sys
 import time
@@ -35,6 +37,7 @@ def _qos(depth: int):
 def run_subscriber(args: argparse.Namespace) -> None:
     import rclpy
     from rclpy.node import Node
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Image
 
     rclpy.init()
@@ -42,13 +45,20 @@ def run_subscriber(args: argparse.Namespace) -> None:
     latencies: list[float] = []
     seqs: set[int] = set()
 
-    def on_image(msg: Image) -> None:
+    def on_message(msg) -> None:
         now = time.time()
         sent = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         latencies.append(now - sent)
-        seqs.add(int(msg.header.frame_id))
+        seqs.add(int(msg.header.stamp.nanosec))
 
-    node.create_subscription(Image, TOPIC, on_image, _qos(args.depth))
+    if args.node:
+        # count the tracker node's output: one tracks message per processed frame
+        from vision_msgs.msg import Detection2DArray
+        node.create_subscription(Detection2DArray, "tracks", on_message,
+                                 QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                                            reliability=ReliabilityPolicy.RELIABLE))
+    else:
+        node.create_subscription(Image, TOPIC, on_message, _qos(args.depth))
     print("ready", flush=True)
     deadline = time.time() + args.seconds + 8.0
     while time.time() < deadline:
@@ -73,7 +83,7 @@ def run_publisher(args: argparse.Namespace) -> None:
 
     rclpy.init()
     node = Node("bench_publisher")
-    pub = node.create_publisher(Image, TOPIC, _qos(args.depth))
+    pub = node.create_publisher(Image, "image_raw" if args.node else TOPIC, _qos(args.depth))
     deadline = time.time() + 10.0
     while pub.get_subscription_count() == 0 and time.time() < deadline:
         time.sleep(0.05)
@@ -81,6 +91,7 @@ def run_publisher(args: argparse.Namespace) -> None:
     rng = np.random.default_rng(0)
     frame = rng.integers(0, 255, size=(480, 640, 3), dtype=np.uint8)
     msg = Image(height=480, width=640, encoding="bgr8", is_bigendian=0, step=640 * 3)
+    msg.header.frame_id = "camera"
     msg.data = frame.tobytes()
     count = int(args.seconds * args.rate)
     period = 1.0 / args.rate
@@ -91,9 +102,10 @@ def run_publisher(args: argparse.Namespace) -> None:
         if delay > 0:
             time.sleep(delay)
         now = time.time()
+        # the frame number travels in the nanoseconds (unique per frame, and the tracker
+        # node copies the header into its output): stamp = int(now) s + i ns + ms part
         msg.header.stamp.sec = int(now)
-        msg.header.stamp.nanosec = int((now - int(now)) * 1e9)
-        msg.header.frame_id = str(i)
+        msg.header.stamp.nanosec = (int((now - int(now)) * 1e3) * 1_000_000) + i
         pub.publish(msg)
     print("RESULT " + json.dumps({"sent": count}), flush=True)
     Path(args.done_file).touch()
@@ -123,6 +135,18 @@ def measure(use_profile: bool, domain: int, args: argparse.Namespace) -> dict:
     done.unlink(missing_ok=True)
     common = [sys.executable, __file__, "--seconds", str(args.seconds), "--rate",
               str(args.rate), "--depth", str(args.depth), "--done-file", str(done)]
+    if args.node:
+        common.append("--node")
+    node_proc = None
+    node_log = Path(f"/tmp/mk_tracker_fastdds_bench_{os.getpid()}_{domain}.log")
+    if args.node:
+        env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")])
+        node_proc = subprocess.Popen(
+            [sys.executable, "-m", "mk_tracker.ros.tracker_node"], env=env,
+            stdout=node_log.open("w"), stderr=subprocess.STDOUT, start_new_session=True)
+        deadline = time.time() + 30
+        while "tracking" not in node_log.read_text() and time.time() < deadline:
+            time.sleep(0.1)
     sub = subprocess.Popen(common + ["--role", "sub"], env=env, stdout=subprocess.PIPE,
                            text=True)
     try:
@@ -136,8 +160,20 @@ def measure(use_profile: bool, domain: int, args: argparse.Namespace) -> dict:
             sub.kill()
             sub.wait()
         done.unlink(missing_ok=True)
+        if node_proc is not None:
+            os.killpg(node_proc.pid, signal.SIGINT)
+            try:
+                node_proc.wait(10)
+            except subprocess.TimeoutExpired:
+                os.killpg(node_proc.pid, signal.SIGKILL)
+                node_proc.wait()
     result = _result(pub.stdout)
     result.update(_result(out))
+    if node_proc is not None:
+        log = node_log.read_text()
+        node_log.unlink(missing_ok=True)
+        match = re.search(r"'dropped': (\d+)", log)
+        result["node_dropped"] = int(match.group(1)) if match else None
     result["profile"] = "config/fastdds_shm.xml" if use_profile else "Fast DDS defaults"
     return result
 
@@ -150,8 +186,16 @@ def main() -> int:
     parser.add_argument("--depth", type=int, default=1)
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--done-file", default="")
-    parser.add_argument("--output", default=str(REPO / "docs" / "fastdds_transport.md"))
+    parser.add_argument("--node", action="store_true",
+                        help="send the images to a tracker_node process (default QoS) and "
+                        "count its tracks messages, i.e. frames the node processed")
+    parser.add_argument("--output", default=None,
+                        help="markdown report (default docs/fastdds_transport.md, or "
+                        "docs/fastdds_tracker_node.md with --node)")
     args = parser.parse_args()
+    if args.output is None:
+        args.output = str(REPO / "docs" / ("fastdds_tracker_node.md" if args.node
+                                           else "fastdds_transport.md"))
     if args.role == "sub":
         run_subscriber(args)
         return 0
@@ -168,21 +212,36 @@ def main() -> int:
             rows.append(r)
             print(f"{r['profile']:<24} run {r['repeat']}: received {r['received']}/{r['sent']}"
                   f" ({100.0 * r['received'] / r['sent']:.1f} %), median latency "
-                  f"{r['median_latency_ms']:.1f} ms, p95 {r['p95_latency_ms']:.1f} ms",
+                  f"{r['median_latency_ms']:.1f} ms, p95 {r['p95_latency_ms']:.1f} ms"
+                  + (f", node dropped {r.get('node_dropped')}" if args.node else ""),
                   flush=True)
     command = "    .venv/bin/python benchmarks/fastdds_transport.py " + " ".join(
         a for a in sys.argv[1:] if not a.startswith("--output"))
-    lines = ["# Fast DDS transport: 640x480 bgr8 between two processes", "",
-             "Produced by:", "", command.rstrip(), "",
-             f"{args.rate:g} Hz for {args.seconds:g} s per run, best-effort publisher and "
-             f"subscriber (keep last {args.depth}), rclpy in both processes, "
-             "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, 2-core machine. Latency = receive "
-             "time - header stamp (same clock).", "",
-             "| profile | run | received / sent | % | median latency ms | p95 latency ms |",
-             "|---|---|---|---|---|---|"]
+    if args.node:
+        title = "# Fast DDS transport: 640x480 bgr8 into tracker_node"
+        setup = (f"{args.rate:g} Hz for {args.seconds:g} s per run from a best-effort publisher "
+                 "process into a tracker_node process with its default image QoS (sensor "
+                 "data, best effort, depth 1, newest frame only); a third process counts the "
+                 "node's `tracks` messages (one per processed frame). 'node dropped' = frames "
+                 "the node received but replaced by a newer one before processing (its own "
+                 "count). Latency = tracks receive time - image stamp (transport + tracking "
+                 "+ transport).")
+        header = ["| profile | run | processed / sent | % | node dropped | median latency ms "
+                  "| p95 latency ms |", "|---|---|---|---|---|---|---|"]
+    else:
+        title = "# Fast DDS transport: 640x480 bgr8 between two processes"
+        setup = (f"{args.rate:g} Hz for {args.seconds:g} s per run, best-effort publisher and "
+                 f"subscriber (keep last {args.depth}), rclpy in both processes. Latency = "
+                 "receive time - header stamp (same clock), over the received frames only.")
+        header = ["| profile | run | received / sent | % | median latency ms | p95 latency ms |",
+                  "|---|---|---|---|---|---|"]
+    lines = [title, "", "Produced by:", "", command.rstrip(), "",
+             setup + " ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, own ROS_DOMAIN_ID per run, "
+             "2-core machine shared with other work.", ""] + header
     for r in rows:
+        dropped = f" {r.get('node_dropped')} |" if args.node else ""
         lines.append(f"| {r['profile']} | {r['repeat']} | {r['received']} / {r['sent']} | "
-                     f"{100.0 * r['received'] / r['sent']:.1f} | "
+                     f"{100.0 * r['received'] / r['sent']:.1f} |{dropped} "
                      f"{r['median_latency_ms']:.1f} | {r['p95_latency_ms']:.1f} |")
     Path(args.output).write_text("\n".join(lines) + "\n")
     print(f"wrote {args.output}")
