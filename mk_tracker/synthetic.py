@@ -853,6 +853,16 @@ class SyntheticScene:
         for i in range(len(self)):
             yield self.frame(i)
 
+    def replaced(self, **changes) -> "SyntheticScene":
+        """A new scene with ``dataclasses.replace(self.config, **changes)``, e.g.
+        ``paper_scene().replaced(missing_pixel_fraction=0.05)``; raises :class:`SceneError`
+        for an unknown field or an invalid value."""
+        try:
+            config = dataclasses.replace(self.config, **changes)
+        except TypeError as exc:
+            raise SceneError(f"cannot change the scene config: {exc}") from exc
+        return make_scene(config)
+
     def foot_points(self, index: int) -> np.ndarray:
         """``(P, 2)`` foot points (bottom centres) in the thermal plane at frame ``index``."""
         return self._paths[self._check_index(index)].copy()
@@ -1080,20 +1090,38 @@ CROSS_MODAL_HOMOGRAPHY = (1.92, 0.06, 18.0,
                           2.0e-5, 1.0e-5, 1.0)
 
 
-def cross_modal_scene(seed: int = 0, frames: int = 100,
-                      thermal_encoding: str = "mono16") -> SyntheticScene:
-    """Thermal 320x240 and RGB 640x480 linked by a non-identity homography.
+def cross_modal_scene(seed: int = 0, frames: int = 100, thermal_encoding: str = "mono16",
+                      thermal_size: tuple[int, int] = (320, 240)) -> SyntheticScene:
+    """Thermal ``thermal_size`` (320x240, or e.g. 640x512) and RGB 640x480 linked by a
+    non-identity homography.
 
-    ``H`` (:data:`CROSS_MODAL_HOMOGRAPHY`, thermal px -> RGB px) is roughly a x1.93 zoom with
-    a small rotation, an offset and a mild perspective term.  Two people walk in the
-    thermal plane; their RGB boxes are their thermal boxes mapped through ``H``.
+    For 320x240, ``H`` is :data:`CROSS_MODAL_HOMOGRAPHY` (thermal px -> RGB px): roughly a
+    x1.93 zoom with a small rotation, an offset and a mild perspective term; for another
+    thermal size it is that matrix times ``diag(320 / tw, 240 / th, 1)``, and the people's
+    paths and heights are scaled the same way, so the RGB boxes stay about the same (the
+    person's aspect ratio is fixed in the thermal plane).  Two people
+    walk in the thermal plane; their RGB boxes are their thermal boxes mapped through ``H``.
     """
-    p1 = PersonSpec(waypoints=((40.0, 200.0), (160.0, 180.0), (280.0, 210.0)), speed=1.5,
-                    height=80.0, upper_color=(30, 30, 200), lower_color=(120, 80, 20))
-    p2 = PersonSpec(waypoints=((260.0, 150.0), (80.0, 160.0)), speed=1.2, height=60.0,
-                    upper_color=(40, 180, 40), lower_color=(40, 40, 40))
-    cfg = SceneConfig(seed=seed, frames=frames, width=640, height=480, thermal_width=320,
-                      thermal_height=240, homography=CROSS_MODAL_HOMOGRAPHY,
+    try:
+        tw, th = (int(v) for v in thermal_size)
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"thermal_size must be (width, height), got {thermal_size!r}") from exc
+    if tw < 8 or th < 8:
+        raise SceneError(f"thermal_size must be at least 8x8, got {thermal_size!r}")
+    sx, sy = tw / 320.0, th / 240.0
+
+    def scaled(points):
+        return tuple((x * sx, y * sy) for x, y in points)
+
+    p1 = PersonSpec(waypoints=scaled(((40.0, 200.0), (160.0, 180.0), (280.0, 210.0))),
+                    speed=1.5 * sx, height=80.0 * sy, upper_color=(30, 30, 200),
+                    lower_color=(120, 80, 20))
+    p2 = PersonSpec(waypoints=scaled(((260.0, 150.0), (80.0, 160.0))), speed=1.2 * sx,
+                    height=60.0 * sy, upper_color=(40, 180, 40), lower_color=(40, 40, 40))
+    H = np.asarray(CROSS_MODAL_HOMOGRAPHY, dtype=np.float64).reshape(3, 3) @ np.diag(
+        [1.0 / sx, 1.0 / sy, 1.0])
+    cfg = SceneConfig(seed=seed, frames=frames, width=640, height=480, thermal_width=tw,
+                      thermal_height=th, homography=tuple(H.ravel().tolist()),
                       thermal_encoding=thermal_encoding, people=(p1, p2))
     return make_scene(cfg)
 

@@ -272,6 +272,34 @@ def test_cross_modal_boxes_are_related_by_the_homography():
     assert np.median(f.thermal) == pytest.approx(29_300, abs=150)
 
 
+def test_cross_modal_scene_with_a_640x512_thermal_camera():
+    scene = cross_modal_scene(seed=0, frames=60, thermal_size=(640, 512))
+    small = cross_modal_scene(seed=0, frames=60)
+    assert scene.thermal_size == (640, 512)
+    f, g = scene.frame(30), small.frame(30)
+    assert f.thermal.shape == (512, 640)
+    for obj, ref in zip(f.objects, g.objects):
+        assert np.allclose(obj.box_rgb, transform_box(obj.box_thermal, scene.homography))
+        assert obj.box_thermal[3] == pytest.approx(ref.box_thermal[3] * 512 / 240)
+        cx, cy = obj.box_rgb[0] + obj.box_rgb[2] / 2, obj.box_rgb[1] + obj.box_rgb[3]
+        rx, ry = ref.box_rgb[0] + ref.box_rgb[2] / 2, ref.box_rgb[1] + ref.box_rgb[3]
+        assert abs(cx - rx) < 3.0 and abs(cy - ry) < 3.0  # same place in the RGB image
+    with pytest.raises(SceneError):
+        cross_modal_scene(thermal_size=(0, 10))
+
+
+def test_replaced_builds_a_variant_and_rejects_unknown_fields():
+    base = paper_scene(seed=1)
+    lossy = base.replaced(missing_pixel_fraction=0.05)
+    assert lossy.config.missing_pixel_fraction == 0.05
+    assert (lossy.frame(3).thermal == 0).mean() == pytest.approx(0.05, abs=0.01)
+    assert (base.frame(3).thermal == 0).mean() == 0.0
+    with pytest.raises(SceneError):
+        base.replaced(no_such_field=1)
+    with pytest.raises(SceneError):
+        base.replaced(missing_pixel_fraction=1.5)
+
+
 def test_default_homography_scales_between_plane_sizes():
     cfg = SceneConfig(width=640, height=480, thermal_width=320, thermal_height=240,
                       frames=2, people=(PersonSpec(waypoints=((100.0, 200.0),)),))
