@@ -391,8 +391,8 @@ def _person_sprites(rng: np.random.Generator, upper: tuple, lower: tuple,
         kel[parts == 4] = torso_k - 2.5
         kel[parts == 5] = torso_k - 5.0
         kel += thermal_tex * (parts > 0)
-        sprites.append(_Sprite(mask=(parts > 0).astype(np.uint8), rgb=np.clip(rgb, 0, 255).astype(np.uint8),
-                               kelvin=kel))
+        sprites.append(_Sprite(mask=(parts > 0).astype(np.uint8),
+                               rgb=np.clip(rgb, 0, 255).astype(np.uint8), kelvin=kel))
     return sprites
 
 
@@ -596,7 +596,8 @@ class SyntheticScene:
             xt, yt, wt, ht = _int_box(box_t)
             self._occluders.append({
                 "bottom": box_t[1] + box_t[3], "label": -(k + 1),
-                "rgb": (xr, yr, _occluder_rgb(static, o.color, wr, hr), np.ones((hr, wr), np.uint8)),
+                "rgb": (xr, yr, _occluder_rgb(static, o.color, wr, hr),
+                        np.ones((hr, wr), np.uint8)),
                 "thermal": (xt, yt, np.full((ht, wt), o.temperature, np.float32),
                             np.ones((ht, wt), np.uint8))})
         self._bg_kelvin = self._thermal_background(static)
