@@ -1,0 +1,226 @@
+"""The thermal detector (Algorithm 2) on the paper's synthetic scenes, and on bad input."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mk_tracker.parameters import parameter_specs
+from mk_tracker.synthetic import make_scene, paper_scene, static_warm_objects_scene
+from mk_tracker.thermal_detector import (ThermalDetection, ThermalDetector,
+                                         ThermalDetectorConfig, ThermalInputError)
+from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+
+
+def centre(box):
+    x, y, w, h = box
+    return np.array([x + w / 2.0, y + h / 2.0])
+
+
+def run_paper(scene, config=None, encoding=None):
+    det = ThermalDetector(config or ThermalDetectorConfig())
+    counts, errors, modes = [], {1: [], 2: [], 3: []}, []
+    for i in range(len(scene)):
+        fr = scene.frame(i)
+        dets = det.process(fr.thermal, fr.stamp, encoding)
+        modes.append(det.last_mode)
+        if det.last_mode == "warming_up":
+            assert dets == []
+            continue
+        counts.append(len(dets))
+        for obj in fr.objects:
+            c = centre(obj.box_thermal)
+            errors[obj.id].append(min(np.linalg.norm(np.array(d.centroid) - c) for d in dets))
+    rmse = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errors.items()}
+    return det, counts, rmse, modes
+
+
+@pytest.fixture(scope="module")
+def paper_run():
+    return run_paper(paper_scene(0))
+
+
+def test_paper_scene_three_objects_in_every_frame_after_start_up(paper_run):
+    det, counts, _, modes = paper_run
+    cfg = det.config
+    assert modes[:cfg.startup_frames - 1] == ["warming_up"] * (cfg.startup_frames - 1)
+    assert modes[cfg.startup_frames - 1] == "startup"
+    assert "tracking" in modes and "reconfiguration" in modes
+    assert len(counts) == 60 - cfg.startup_frames + 1
+    assert counts == [3] * len(counts)
+
+
+def test_paper_scene_centroid_rmse_at_most_one_pixel(paper_run):
+    _, _, rmse, _ = paper_run
+    for obj_id, value in rmse.items():
+        assert value <= 1.0, (obj_id, rmse)
+
+
+def test_paper_scene_detections_are_well_formed_and_filtered(paper_run):
+    det, *_ = paper_run
+    scene = paper_scene(0)
+    fr = scene.frame(59)
+    # the detector has seen all frames; its tracks move at the objects' speed (38 px/s)
+    speeds = sorted(np.hypot(s[2], s[3]) for _, s in det.tracks)
+    assert len(speeds) == 3
+    assert all(abs(v - 90.0 / 59.0 * 25.0) < 8.0 for v in speeds), speeds
+    det2 = ThermalDetector()
+    out = []
+    for i in range(12):
+        f = scene.frame(i)
+        out = det2.process(f.thermal, f.stamp)
+    assert len(out) == 3
+    for d in out:
+        assert isinstance(d, ThermalDetection)
+        assert 0.0 <= d.score <= 1.0
+        assert d.pixel_count >= 50
+        x, y, w, h = d.box
+        assert 8 <= w <= 12 and 8 <= h <= 12
+        assert x <= d.centroid[0] <= x + w and y <= d.centroid[1] <= y + h
+        assert d.filtered_centroid is not None and d.velocity is not None
+        assert d.object_id >= 1
+    assert fr.index == 59
+
+
+def test_paper_scene_with_five_percent_missing_pixels():
+    base = paper_scene(1)
+    scene = make_scene(dataclasses.replace(base.config, missing_pixel_fraction=0.05))
+    frame = scene.frame(10).thermal
+    assert 0.03 < np.mean(frame == 0) < 0.07          # the scene really drops pixels to 0
+    _, counts, rmse, _ = run_paper(scene)
+    assert counts == [3] * len(counts)
+    for obj_id, value in rmse.items():
+        assert value <= 2.0, (obj_id, rmse)
+
+
+@pytest.mark.parametrize("encoding", ["mono16", "32FC1"])
+def test_paper_scene_in_other_encodings(encoding):
+    base = paper_scene(2)
+    scene = make_scene(dataclasses.replace(base.config, thermal_encoding=encoding,
+                                           frames=30))
+    assert scene.frame(0).thermal.dtype == (np.uint16 if encoding == "mono16" else np.float32)
+    _, counts, rmse, _ = run_paper(scene, encoding=encoding)
+    assert counts == [3] * len(counts)
+    assert max(rmse.values()) <= 1.0
+
+
+def test_static_warm_objects_threshold_miscounts_kernel_counts_right():
+    """Table 1: static warm objects plus one cooler moving person."""
+    scene = static_warm_objects_scene(0, frames=30)
+    kernel = ThermalDetector()
+    low = ThresholdDetector(ThresholdDetectorConfig(threshold=0.3))
+    high = ThresholdDetector(ThresholdDetectorConfig(threshold=0.5))
+    kernel_counts, low_counts, high_counts = [], [], []
+    for i in range(len(scene)):
+        fr = scene.frame(i)
+        dets = kernel.process(fr.thermal, fr.stamp)
+        if kernel.last_mode == "warming_up":
+            continue
+        kernel_counts.append(len(dets))
+        low_counts.append(len(low.process(fr.thermal, fr.stamp)))
+        high_counts.append(len(high.process(fr.thermal, fr.stamp)))
+        person = fr.object(1)
+        for d in dets:
+            x, y, w, h = person.box_thermal
+            assert x <= d.centroid[0] <= x + w and y <= d.centroid[1] <= y + h
+    assert kernel_counts == [1] * len(kernel_counts)
+    assert all(c != 1 for c in low_counts), low_counts      # person + warm objects
+    assert all(c != 1 for c in high_counts), high_counts    # warm objects, person missed
+
+
+def moving_square_frames(n, shape=(40, 48), dtype=np.uint8):
+    frames = []
+    for i in range(n):
+        f = np.full(shape, 20, dtype)
+        x = 5 + 2 * i % (shape[1] - 15)
+        f[10:20, x:x + 8] = 230
+        frames.append(f)
+    return frames
+
+
+def test_frame_size_change_resets_and_says_so():
+    det = ThermalDetector()
+    for i, f in enumerate(moving_square_frames(10)):
+        det.process(f, i * 0.04)
+    assert det.last_mode == "tracking" and det.resets == 0
+    out = det.process(np.full((30, 30), 20, np.uint8), 0.5)
+    assert out == [] and det.resets == 1 and det.last_reset
+    assert det.last_mode == "warming_up"
+    det.process(np.full((30, 30), 20, np.uint8), 0.54)
+    assert not det.last_reset
+    # a change of encoding at the same size is a reset too
+    det.process(np.full((30, 30), 2000, np.uint16), 0.58)
+    assert det.resets == 2
+
+
+def test_constant_and_all_nan_frames_give_no_detections():
+    det = ThermalDetector()
+    for i in range(12):
+        assert det.process(np.full((32, 32), 77, np.uint8), i * 0.04) == []
+    assert det.last_mode == "tracking" or det.last_mode == "reconfiguration"
+    det = ThermalDetector()
+    for i in range(12):
+        assert det.process(np.full((32, 32), np.nan, np.float32), i * 0.04) == []
+    assert det.last_mode == "invalid_frame" and det.skipped_frames == 12
+    det = ThermalDetector()
+    for i in range(12):
+        assert det.process(np.full((32, 32), 301.5, np.float32), i * 0.04, "32FC1") == []
+
+
+def test_fewer_than_startup_frames_returns_nothing_yet():
+    cfg = ThermalDetectorConfig(startup_frames=6)
+    det = ThermalDetector(cfg)
+    frames = moving_square_frames(6)
+    for i, f in enumerate(frames[:5]):
+        assert det.process(f, i * 0.04) == []
+        assert det.last_mode == "warming_up"
+    assert len(det.process(frames[5], 0.2)) == 1
+    assert det.last_mode == "startup"
+
+
+def test_bad_input_raises_our_error_or_is_skipped():
+    det = ThermalDetector()
+    with pytest.raises(ThermalInputError):
+        det.process(np.zeros((4, 4, 3), np.uint8), 0.0)
+    with pytest.raises(ThermalInputError):
+        det.process(np.zeros((4, 4), np.int64), 0.0)
+    with pytest.raises(ThermalInputError):
+        det.process(np.zeros((4, 4), np.uint8), float("nan"))
+    with pytest.raises(ThermalInputError):
+        det.process(np.zeros((4, 4), np.uint8), 0.0, encoding="mono16")
+    det.process(np.zeros((4, 4), np.uint8), 1.0)
+    assert det.process(np.zeros((4, 4), np.uint8), 1.0) == []      # same stamp again
+    assert det.last_mode == "out_of_order"
+    with pytest.raises(ValueError):
+        ThermalDetector(ThermalDetectorConfig(block_size=1))
+
+
+def test_memory_stays_bounded_over_a_long_stream():
+    cfg = ThermalDetectorConfig(reconfigure_period=7)
+    det = ThermalDetector(cfg)
+    frames = moving_square_frames(16)
+    for i in range(300):
+        det.process(frames[i % 16], i * 0.04)
+        assert len(det._buffer) <= max(cfg.window_frames, cfg.startup_frames)
+        assert len(det.tracks) <= cfg.max_objects
+    assert det.full_passes >= 300 // 7 - 1
+
+
+def test_reset_forgets_everything():
+    det = ThermalDetector()
+    for i, f in enumerate(moving_square_frames(10)):
+        det.process(f, i * 0.04)
+    assert det.tracks
+    det.reset()
+    assert det.tracks == [] and det.last_mode == "warming_up"
+    assert det.process(moving_square_frames(1)[0], 0.0) == []   # earlier stamps are fine now
+
+
+def test_every_constant_is_a_declared_parameter_with_paper_defaults():
+    specs = {s.name: s for s in parameter_specs(ThermalDetectorConfig)}
+    assert specs["sigma2"].default == 0.01
+    for name in ("lam", "max_cycles", "tol", "block_size", "window_frames", "startup_frames",
+                 "reconfigure_period", "merge_distance_sq", "max_objects", "kalman.sigma_u",
+                 "kalman.sigma_w"):
+        assert name in specs
+    assert specs["kalman.sigma_w"].default < 3.0           # Sec. 4: "less than 3 pixels"
