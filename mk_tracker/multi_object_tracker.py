@@ -35,6 +35,7 @@ refiner, inside each target's search region.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Protocol, Sequence
@@ -94,14 +95,35 @@ class MultiObjectTrackerConfig:
         13.8, "Chi-square gate (2 dof) for a detection to re-acquire a lost track",
         minimum=0.1, maximum=1e4)
     reacquire_similarity: float = parameter(
-        0.5, "Appearance similarity a detection needs to re-acquire a lost track",
+        0.4, "Appearance similarity a detection needs to re-acquire a lost track",
         minimum=0.0, maximum=1.0)
+    reacquire_hold_time: float = parameter(
+        0.6, "A new track on a detection inside a lost track's gate stays tentative for up "
+        "to this many seconds, so the lost person can take its id back once its appearance "
+        "matches (it may come back part-occluded)", minimum=0.0, maximum=1e4)
     reacquire_max_size_ratio: float = parameter(
         1.6, "Largest height ratio between a lost track and a re-acquiring detection",
         minimum=1.0, maximum=100.0)
+    refinement_similarity_range: tuple = parameter(
+        (0.5, 0.95), "Multiple-kernel similarities (low, high) mapped linearly to match "
+        "quality 0..1; the quality sets the refinement's measurement noise")
+    refine_when_detected: bool = parameter(
+        False, "Also run the multiple-kernel refinement for tracks with an assigned detection "
+        "(slower; fused with the detection at fused_quality_factor)")
+    fused_quality_factor: float = parameter(
+        0.25, "Factor on a refinement's quality when it is fused with an assigned detection "
+        "(the detection sees the whole person; the kernels may see only its visible part)",
+        minimum=0.0, maximum=1.0)
+    undetected_quality_factor: float = parameter(
+        0.5, "Factor on a refinement's quality in frames where no detection confirms the "
+        "track (a part-occluded target still matches its visible kernels well)",
+        minimum=0.0, maximum=1.0)
     appearance_update_interval: float = parameter(
         1.0, "Seconds between refreshes of a track's appearance model from an isolated "
         "detection (0 = every frame)", minimum=0.0, maximum=1e4)
+    appearance_update_similarity: float = parameter(
+        0.8, "Multiple-kernel similarity a track needs for its appearance model to be "
+        "refreshed from its detection", minimum=0.0, maximum=1.0)
     isolation_iou: float = parameter(
         0.05, "A detection overlapping another track by more than this IoU is not used to "
         "refresh an appearance model", minimum=0.0, maximum=1.0)
@@ -222,6 +244,8 @@ class MultiObjectTracker:
         track = self._new_track(b, stamp, 1.0, TrackState.CONFIRMED)
         track.hits = self.config.lifecycle.min_hits
         track.target, track.target_stamp = target, stamp
+        if target is not None:
+            track.references.append(self.refiner.start(image_bgr, tuple(float(v) for v in b)))
         if self.frame_size is None:
             self.frame_size = image_bgr.shape[:2]
         return track.id
@@ -256,29 +280,6 @@ class MultiObjectTracker:
         for t in live:
             t.predict(stamp)
 
-        # 4. multiple-kernel refinement from the Kalman prediction (Chu et al. Sec. IV-D)
-        refined: dict[int, tuple[np.ndarray, float]] = {}
-        for t in live:
-            t.refined_box = None
-            if (self.refiner is not None and t.target is not None
-                    and t.state in (TrackState.CONFIRMED, TrackState.OCCLUDED)
-                    and self._in_image(t, width, height)):
-                try:
-                    res = self.refiner.refine(image_bgr, t.target,
-                                              predicted_center=tuple(t.center))
-                except ValueError as exc:       # the refiner's own input errors
-                    result.events.append(f"track {t.id}: refinement failed: {exc}")
-                    continue
-                sim = float(getattr(res, "similarity", 0.0))
-                box = getattr(res, "box", None)
-                if (not getattr(res, "lost", False) and box is not None and math.isfinite(sim)
-                        and all(math.isfinite(float(v)) for v in box)):
-                    refined[t.id] = (np.asarray(box, dtype=np.float64), sim)
-                    t.refined_box = refined[t.id][0]
-                new_state = getattr(res, "state", None)
-                if new_state is not None:
-                    t.target = new_state
-
         # 5a. detections vs tentative / confirmed / occluded tracks
         active = [t for t in live if t.state is not TrackState.LOST]
         matched_track: dict[int, int] = {}          # detection index -> track id
@@ -287,12 +288,30 @@ class MultiObjectTracker:
             for r, k in a.matches:
                 matched_track[k] = active[r].id
         # 5b. remaining detections vs lost tracks (re-acquisition)
+        # A person reappearing part-occluded may first be seen by a new tentative track (its
+        # appearance does not match yet); its detections stay candidates until it is
+        # confirmed, and when one re-acquires a lost track the tentative track is dropped.
         lost = [t for t in live if t.state is TrackState.LOST]
-        remaining = [k for k in range(len(dets)) if k not in matched_track]
+        tentative = {t.id: t for t in live if t.state is TrackState.TENTATIVE}
+        remaining = [k for k in range(len(dets))
+                     if k not in matched_track or matched_track[k] in tentative]
+        held: set[int] = set()             # tentative tracks not confirmed this frame
         if lost and remaining:
-            for r, k in self._reacquire(lost, [dets[k] for k in remaining], image_bgr):
+            matches, contested = self._reacquire(lost, [dets[k] for k in remaining], image_bgr)
+            for k in contested:
+                tid = matched_track.get(remaining[k])
+                if tid in tentative and stamp - tentative[tid].created < \
+                        self.config.reacquire_hold_time:
+                    held.add(tid)
+            for r, k in matches:
+                previous = matched_track.get(remaining[k])
+                if previous is not None:
+                    tentative[previous].state = TrackState.DELETED
+                    result.events.append(f"tentative track {previous} is lost track "
+                                         f"{lost[r].id} coming back")
                 matched_track[remaining[k]] = lost[r].id
                 result.events.append(f"track {lost[r].id} re-acquired")
+        live = [t for t in live if t.state is not TrackState.DELETED]
 
         # 6. updates and lifecycle
         by_id = {t.id: t for t in live}
@@ -300,10 +319,35 @@ class MultiObjectTracker:
                                           for k, tid in matched_track.items()}
         det_boxes_now = {tid: self._at_frame_time(by_id[tid], d)
                          for tid, d in detected.items()}
+        # 5c. multiple-kernel refinement from the Kalman prediction (Chu et al. Sec. IV-D)
+        # for the tracks no detection was assigned to this frame (missed, part- or fully
+        # occluded), or for all with refine_when_detected.  Keeps the per-frame cost to the
+        # hard cases.
+        refined: dict[int, tuple[np.ndarray, float]] = {}
+        for t in live:
+            t.refined_box = None
+            if (self.refiner is None or t.target is None
+                    or t.state not in (TrackState.CONFIRMED, TrackState.OCCLUDED)
+                    or not self._in_image(t, width, height)):
+                continue
+            if t.id in det_boxes_now and not self.config.refine_when_detected:
+                continue
+            try:
+                res = self.refiner.refine(image_bgr, t.target, predicted_center=tuple(t.center))
+            except ValueError as exc:       # the refiner's own input errors
+                result.events.append(f"track {t.id}: refinement failed: {exc}")
+                continue
+            sim = float(getattr(res, "similarity", 0.0))
+            box = getattr(res, "box", None)
+            if (not getattr(res, "lost", False) and box is not None and math.isfinite(sim)
+                    and all(math.isfinite(float(v)) for v in box)):
+                refined[t.id] = (np.asarray(box, dtype=np.float64), sim)
+                t.refined_box = refined[t.id][0]
+
         for t in live:
             self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
                                detected.get(t.id), refined.get(t.id), width, height,
-                               det_boxes_now)
+                               det_boxes_now, hold=t.id in held)
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
                                and t.state is not TrackState.LOST]).reshape(-1, 4)
@@ -426,13 +470,20 @@ class MultiObjectTracker:
         cost = association_cost(track_boxes, boxes, maha, self.config.association)
         return assign(cost, self.config.association.max_cost)
 
-    def _reacquire(self, lost: list[Track], dets: list[_Prepared],
-                   image: np.ndarray) -> list[tuple[int, int]]:
-        """Matches ``(lost index, det index)`` by gated distance, size and appearance."""
+    def _reacquire(self, lost: list[Track], dets: list[_Prepared], image: np.ndarray
+                   ) -> tuple[list[tuple[int, int]], set[int]]:
+        """Matches ``(lost index, det index)`` by gated distance, size and appearance.
+
+        Also returns the detections inside some lost track's gate (whatever their
+        appearance): a tentative track on one of those is not confirmed yet, so the lost
+        person coming back part-occluded gets a few frames to match its appearance.
+        """
         boxes, centres = self._det_geometry(lost, dets)
         maha = mahalanobis_matrix(np.array([t.center for t in lost]),
                                   self._innovation_covs(lost), centres)
         cost = np.full(maha.shape, np.inf)
+        contested: set[int] = set()
+        best_reference: dict[tuple[int, int], int] = {}
         ratio_max = self.config.reacquire_max_size_ratio
         for i, t in enumerate(lost):
             for j, d in enumerate(dets):
@@ -441,17 +492,28 @@ class MultiObjectTracker:
                 ratio = d.box[3] / max(t.size[1], 1e-9)
                 if not (1.0 / ratio_max <= ratio <= ratio_max):
                     continue
+                contested.add(j)
                 sim = 1.0
-                if self.refiner is not None and t.target is not None:
+                if self.refiner is not None and t.references:
                     try:
-                        sim = float(self.refiner.appearance_similarity(image, t.target,
-                                                                       tuple(d.box)))
+                        sims = [float(self.refiner.appearance_similarity(image, ref,
+                                                                         tuple(d.box)))
+                                for ref in t.references]
                     except ValueError:
                         continue
+                    sim = max(sims)
+                    best_reference[(i, j)] = int(np.argmax(sims))
                     if not math.isfinite(sim) or sim < self.config.reacquire_similarity:
                         continue
                 cost[i, j] = (1.0 - sim) + 0.5 * maha[i, j] / self.config.reacquire_gate
-        return assign(cost, math.inf).matches
+        matches = assign(cost, math.inf).matches
+        for i, j in matches:
+            # the working target's models were blended while the person disappeared: restart
+            # it from the frozen model that matched
+            k = best_reference.get((i, j))
+            if k is not None:
+                lost[i].target = copy.deepcopy(lost[i].references[k])
+        return matches, contested
 
     @staticmethod
     def _at_frame_time(t: Track, d: _Prepared) -> np.ndarray:
@@ -468,20 +530,31 @@ class MultiObjectTracker:
         if due:
             try:
                 t.target = self.refiner.start(image, tuple(float(v) for v in box))
+                fresh = self.refiner.start(image, tuple(float(v) for v in box))
             except ValueError:
                 # e.g. a uniform-colour or mostly out-of-image box: keep the old model (if
                 # any) and try again on a later detection
                 return
             t.target_stamp = stamp
+            # frozen models for re-acquisition: the first one and the latest clean one (the
+            # working target's models are blended by the refiner frame after frame)
+            if not t.references:
+                t.references.append(fresh)
+            elif len(t.references) == 1:
+                t.references.append(fresh)
+            else:
+                t.references[1] = fresh
 
     def _update_track(self, t: Track, stamp: float, image: np.ndarray,
                       det_box: np.ndarray | None, det: _Prepared | None,
                       refined: tuple[np.ndarray, float] | None, width: int, height: int,
-                      all_det_boxes: dict[int, np.ndarray]) -> None:
+                      all_det_boxes: dict[int, np.ndarray], hold: bool = False) -> None:
         cfg = self.config.lifecycle
         was = t.state
         sim = refined[1] if refined is not None else None
         visible = sim is not None and sim >= cfg.occlusion_similarity
+        lo, hi = self.config.refinement_similarity_range
+        quality = 0.0 if sim is None else min(max((sim - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
         if det_box is not None:
             if was is TrackState.LOST:
                 # re-acquired: restart the filter's position at the detection, keep velocity
@@ -491,7 +564,8 @@ class MultiObjectTracker:
                 t.correct(det_box, _quality(det.score))
                 if refined is not None and iou(refined[0], det_box) >= \
                         self.config.refine_consistency_iou:
-                    t.correct(refined[0], sim)
+                    t.correct(refined[0], quality * self.config.fused_quality_factor,
+                              use_size=False)            # the detection gives the size
             t.hits += 1
             t.tentative_misses = 0
             t.last_detection = stamp
@@ -500,7 +574,8 @@ class MultiObjectTracker:
         else:
             t.tentative_misses += 1
             if visible:
-                t.correct(refined[0], sim)
+                t.correct(refined[0], quality * self.config.undetected_quality_factor,
+                          size_weight=cfg.refinement_size_weight)
                 t.last_seen = stamp
             t.score = sim if sim is not None else 0.0
         new = next_state(was, detected=det_box is not None, visible=visible,
@@ -509,6 +584,8 @@ class MultiObjectTracker:
                          unseen_time=stamp - t.last_seen,
                          lost_time=0.0 if t.lost_since is None else stamp - t.lost_since,
                          config=cfg)
+        if hold and new is TrackState.CONFIRMED and was is TrackState.TENTATIVE:
+            new = TrackState.TENTATIVE
         if new is TrackState.LOST and was is not TrackState.LOST:
             t.lost_since = stamp
         if new is not TrackState.LOST:
@@ -519,8 +596,11 @@ class MultiObjectTracker:
             others += [o.box for o in self.tracks
                        if o.id != t.id and o.state in OUTPUT_STATES]
             isolated = all(iou(det_box, b) <= self.config.isolation_iou for b in others)
-            if t.target is None or (isolated and (sim is None or sim >= cfg.occlusion_similarity
-                                                  or was is TrackState.LOST)):
+            # refresh only from a clean view: not next to another person, and (when the
+            # refiner ran) a good match, so an occluder's pixels never enter the model; a
+            # re-acquired track keeps the model that just proved to match
+            clean = sim is None or sim >= self.config.appearance_update_similarity
+            if t.target is None or (isolated and clean and was is not TrackState.LOST):
                 self._refresh_appearance(t, image, det_box, stamp,
                                          force=t.target is None)
         t.finish_frame()

@@ -75,6 +75,9 @@ class LifecycleConfig:
     velocity_smoothing: float = parameter(
         0.5, "Weight of the newest Kalman velocity in the reported (smoothed) velocity",
         minimum=0.0, maximum=1.0)
+    refinement_size_weight: float = parameter(
+        0.2, "Factor on the size-smoothing weight for sizes measured by the multiple-kernel "
+        "scale update alone (detections give better sizes)", minimum=0.0, maximum=1.0)
     measurement_noise: float = parameter(
         0.04, "Centroid measurement std (4.1) of a perfect match, as a fraction of the box "
         "height", minimum=1e-4, maximum=10.0)
@@ -171,7 +174,8 @@ class Track:
         self.tentative_misses = 0
         self.score = float(score)
         self.smoothed_velocity = np.zeros(2)
-        self.target: Any = None            # the refiner's appearance model (TargetState)
+        self.target: Any = None            # the refiner's working target (TargetState)
+        self.references: list[Any] = []    # frozen appearance models for re-acquisition
         self.target_stamp: float | None = None
         self.refined_box: np.ndarray | None = None
 
@@ -198,16 +202,20 @@ class Track:
         return self.kf.innovation_covariance(measurement_sigma(box_height, quality,
                                                                self.config))
 
-    def correct(self, box: np.ndarray, quality: float) -> None:
+    def correct(self, box: np.ndarray, quality: float, use_size: bool = True,
+                size_weight: float = 1.0) -> None:
         """Kalman update (4.4)-(4.5) with the centre of ``box``, and size smoothing.
 
-        The measurement std and the size-smoothing weight both follow ``quality``.
+        The measurement std and the size-smoothing weight both follow ``quality``;
+        ``use_size=False`` updates the centre only; ``size_weight`` scales the size update.
         """
         x, y, w, h = (float(v) for v in box)
         q = min(max(float(quality), 0.0), 1.0) if math.isfinite(quality) else 0.0
         self.kf.update((x + w / 2.0, y + h / 2.0),
                        sigma_w=measurement_sigma(h, q, self.config))
-        alpha = self.config.size_smoothing * max(q, self.config.quality_floor)
+        if not use_size:
+            return
+        alpha = size_weight * self.config.size_smoothing * max(q, self.config.quality_floor)
         self.size = (1.0 - alpha) * self.size + alpha * np.array([w, h])
 
     def finish_frame(self) -> None:
