@@ -16,6 +16,12 @@ are prepared once, and :meth:`SyntheticScene.frame` renders frame ``i`` on its o
 random generator seeded with ``(seed, i)``, so frame ``i`` is identical whether it is
 rendered alone or after frames ``0..i-1`` and a long soak test keeps no frames in memory.
 
+Sensor noise: per frame, Gaussian.  For speed, large planes take a window at a random
+offset (drawn from the frame's generator) of a fixed noise field of ``(h + 128) x (w + 128)``
+samples, so noise is independent between pixels of a frame and, for a given pixel, between
+frames except when two frames draw the same offset (1 in 16,384); thermal planes of at most
+40,000 pixels (the paper's 100x100 scene) get fresh i.i.d. noise every frame.
+
 Conventions: boxes are ``(x, y, w, h)`` floats (see :mod:`mk_tracker.boxes`); a person's
 position is its *foot point* (bottom centre of its box); people lower in the image (larger
 foot ``y``) are closer to the camera and drawn in front (so are occluders whose bottom edge is
@@ -56,6 +62,7 @@ __all__ = [
 THERMAL_ENCODINGS = ("mono8", "mono16", "32FC1")
 PERSON_ASPECT = 1.0 / 2.75  # width / height of a person's box (human ~1:2.5-3)
 _NOISE_PAD = 128            # margin of the noise buffers: 128^2 distinct per-frame offsets
+_FRESH_NOISE_PIXELS = 40_000  # thermal planes up to this size get fresh i.i.d. noise per frame
 _SPRITE_H = 176             # reference height of a person sprite; width = PERSON_ASPECT * it
 _SPRITE_W = 64
 _WALK_PHASES = 4            # leg poses cycled while walking
@@ -809,7 +816,11 @@ class SyntheticScene:
                 _paste(kelvin, spr.kelvin, spr.mask, x, y)
         oy, ox = (int(v) for v in rng.integers(0, _NOISE_PAD, size=2))
         if c.thermal_noise_std > 0:
-            kelvin += self._thermal_noise[oy:oy + th, ox:ox + tw]
+            if tw * th <= _FRESH_NOISE_PIXELS:   # small (the paper's 100x100): exact i.i.d.
+                kelvin += rng.standard_normal((th, tw), dtype=np.float32) * np.float32(
+                    c.thermal_noise_std)
+            else:   # large: a random window of a fixed noise field (fast, see module doc)
+                kelvin += self._thermal_noise[oy:oy + th, ox:ox + tw]
         for is_occ, k, x, y, spr, _ in placed:
             if is_occ or spr is None or c.people[k].kind != "block":
                 continue
