@@ -204,6 +204,13 @@ def test_paper_scene_matches_schizas_2018_section_6():
     # the objects never overlap
     for fr in frames:
         assert all(o.visible_fraction == 1.0 for o in fr.objects)
+    # the noise is independent over time too: a corner no object visits
+    corner = np.stack([fr.thermal[0:15, 0:40].astype(np.float64) for fr in frames])
+    assert corner.var(axis=0).mean() == pytest.approx(20.0, rel=0.08)
+    assert corner.mean() == pytest.approx(20.0, abs=0.2)
+    centred = corner - corner.mean(axis=0)
+    lag1 = (centred[1:] * centred[:-1]).mean() / centred.var()
+    assert abs(lag1) < 0.05
 
 
 # ---------------------------------------------------------------- geometry of other presets
