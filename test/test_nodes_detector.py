@@ -156,7 +156,14 @@ def test_method_switch_and_parameter_checks(peer, start_detector):
     assert set_one("threshold.range_max", 255.0).successful
     r = set_one("method", "threshold")
     assert r.successful, r.reason
+    assert set_one("publish_debug_image", True).successful
+    debug = peer.collect(Image, "/detector_node/debug_image", RELIABLE)
+    peer.spin_until(lambda: peer.node.count_publishers("/detector_node/debug_image") > 0, 5.0)
+    peer.spin_for(0.3)
     results = _play(player, scene, range(0, 20))
+    peer.spin_until(lambda: len(debug) > 0, 3.0)
+    assert debug and debug[-1].encoding == "bgr8"
+    assert (debug[-1].width, debug[-1].height) == (100, 100)
     ious, counts = _quality(results, warmup=0)       # stateless: no warm-up
     assert np.mean(ious) > 0.7, np.mean(ious)
     assert np.mean(counts == 3) > 0.9

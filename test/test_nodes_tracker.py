@@ -239,7 +239,7 @@ def test_bad_input_is_logged_and_skipped_and_tracking_continues(peer, start_trac
 def test_parameters_rejected_with_reason_and_accepted(peer, start_tracker):
     from rclpy.parameter_client import AsyncParameterClient
 
-    start_tracker()
+    start_tracker("--params-file", "config/tracker.yaml")     # the shipped file loads
     client = AsyncParameterClient(peer.node, "tracker_node")
     assert client.wait_for_services(10.0)
 
