@@ -913,6 +913,18 @@ def make_scene(config: SceneConfig) -> SyntheticScene:
 # Presets: the shared fixtures of the team's tests and benchmarks
 
 
+def _check_preset_args(seed, frames=None, **sizes) -> None:
+    """Reject a bad seed, frame count or size before a preset computes anything with it."""
+    values = {"seed": (seed, 0)}
+    if frames is not None:
+        values["frames"] = (frames, 1)
+    for name, value in sizes.items():
+        values[name] = (value, 8)
+    for name, (value, low) in values.items():
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise SceneError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
 def paper_scene(seed: int = 0, background_level: float = 20.0) -> SyntheticScene:
     """The synthetic test of Schizas, Maroulas & Ren (2018), Sec. 6.
 
@@ -932,6 +944,7 @@ def paper_scene(seed: int = 0, background_level: float = 20.0) -> SyntheticScene
     * the paper's frames 20/40/60 are our frames 19/39/59 (0-based); fps 25;
     * RGB is a grey copy of the same content (white blocks on a dark background).
     """
+    _check_preset_args(seed)
     v = 90.0 / 59.0
     people = []
     # waypoints are foot points (bottom centre) = centroid + (0, 5)
@@ -961,6 +974,7 @@ def occlusion_scene(seed: int = 0, hidden_frames: int = 20, full: bool = True,
     longer while the person walks past its ends.  The person (id 1, 150 px tall)
     enters fully visible from the left and ends fully visible on the right.
     """
+    _check_preset_args(seed, frames)
     if hidden_frames < 0:
         raise SceneError("hidden_frames must be >= 0")
     h = 150.0
@@ -992,6 +1006,7 @@ def crossing_scene(seed: int = 0, frames: int = 120, speed: float = 3.0) -> Synt
     silhouette then lies behind person 1's torso, so it is completely hidden
     (visible_fraction 0) for several frames around the crossing.
     """
+    _check_preset_args(seed, frames)
     meet = frames // 2
     p1 = PersonSpec(waypoints=((320.0 - speed * meet, 450.0), (320.0 + speed * meet, 450.0)),
                     speed=speed, height=200.0, upper_color=(30, 30, 210),
@@ -1009,8 +1024,9 @@ def approach_scene(seed: int = 0, frames: int = 120) -> SyntheticScene:
     With full perspective the box height grows with the foot row: from ~56 px at foot row
     150 to ~170 px at row 460 (x3 scale change), drifting slightly sideways.
     """
+    _check_preset_args(seed, frames)
     person = PersonSpec(waypoints=((300.0, 150.0), (360.0, 460.0)),
-                        speed=310.0 / (frames - 1) * 1.02, height=135.0,
+                        speed=310.0 / max(frames - 1, 1) * 1.02, height=135.0,
                         upper_color=(160, 40, 160), lower_color=(40, 120, 40))
     return make_scene(SceneConfig(seed=seed, frames=frames, perspective=1.0, people=(person,)))
 
@@ -1025,10 +1041,10 @@ def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int 
     behind the pillars; sizes follow a perspective (``perspective``).  Used for the 5/15/30
     people benchmarks.
     """
-    if not isinstance(n_people, (int, np.integer)) or n_people < 0:
-        raise SceneError(f"n_people must be a non-negative integer, got {n_people!r}")
-    if frames < 1:
-        raise SceneError("frames must be >= 1")
+    _check_preset_args(seed, frames, width=width, height=height)
+    for name, value in (("n_people", n_people), ("occluders", occluders)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            raise SceneError(f"{name} must be a non-negative integer, got {value!r}")
     rng = np.random.default_rng([seed, 0xC20D])
     x0, x1 = 0.06 * width, 0.94 * width
     y0, y1 = 0.38 * height, 0.98 * height
@@ -1072,6 +1088,7 @@ def static_warm_objects_scene(seed: int = 0, frames: int = 100) -> SyntheticScen
     lamp (322 K) are warmer than the person (torso 302 K, head 306 K), so any threshold low
     enough to catch the person also fires on them, while they never move.
     """
+    _check_preset_args(seed, frames)
     warm = (WarmObjectSpec(box=(40.0, 250.0, 90.0, 50.0), temperature=318.0),
             WarmObjectSpec(box=(520.0, 270.0, 80.0, 45.0), temperature=318.0),
             WarmObjectSpec(box=(300.0, 40.0, 36.0, 36.0), temperature=322.0, shape="ellipse",
@@ -1089,6 +1106,7 @@ def enter_leave_scene(seed: int = 0, frames: int = 150) -> SyntheticScene:
     Person 1 starts fully outside (in_frame False), walks in and stays; person 2 starts inside
     and walks out, ending fully outside (in_frame False, visible_fraction 0).
     """
+    _check_preset_args(seed, frames)
     p1 = PersonSpec(waypoints=((-60.0, 400.0), (260.0, 400.0)), speed=3.0, height=140.0,
                     upper_color=(200, 160, 30), lower_color=(40, 40, 40))
     p2 = PersonSpec(waypoints=((420.0, 300.0), (760.0, 300.0)), speed=3.0, height=120.0,
@@ -1114,6 +1132,7 @@ def cross_modal_scene(seed: int = 0, frames: int = 100, thermal_encoding: str = 
     person's aspect ratio is fixed in the thermal plane).  Two people
     walk in the thermal plane; their RGB boxes are their thermal boxes mapped through ``H``.
     """
+    _check_preset_args(seed, frames)
     try:
         tw, th = (int(v) for v in thermal_size)
     except (TypeError, ValueError) as exc:

@@ -4,12 +4,13 @@ occlusion, the paper's synthetic test, homography, encodings and bad input."""
 from __future__ import annotations
 
 import dataclasses
+import inspect
 
 import numpy as np
 import pytest
 
 from mk_tracker.boxes import transform_box
-from mk_tracker.synthetic import (CROSS_MODAL_HOMOGRAPHY, OccluderSpec, PersonSpec,
+from mk_tracker.synthetic import (CROSS_MODAL_HOMOGRAPHY, PRESETS, OccluderSpec, PersonSpec,
                                   SceneConfig, SceneError, SceneIndexError, approach_scene,
                                   crossing_scene, cross_modal_scene, crowd_scene,
                                   enter_leave_scene, make_scene, occlusion_scene, paper_scene,
@@ -431,3 +432,23 @@ def test_texture_is_fixed_to_the_body_and_the_head_is_warmest():
     legs = legs_row[legs_row > 296.0].mean()
     assert head > chest + 2.0 and chest > legs + 1.0 and legs > 296.0
 
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_every_preset_rejects_bad_arguments_and_accepts_one_frame(name):
+    factory = PRESETS[name]
+    with pytest.raises(SceneError):
+        factory(seed=-1)
+    with pytest.raises(SceneError):
+        factory(seed=1.5)
+    if "frames" in inspect.signature(factory).parameters:
+        with pytest.raises(SceneError):
+            factory(seed=0, frames=0)
+        scene = factory(seed=0, frames=1)
+        assert len(scene) == 1
+        frame = scene.frame(0)
+        assert frame.rgb.shape == (scene.rgb_size[1], scene.rgb_size[0], 3)
+    if name == "crowd":
+        for bad in ({"n_people": -1}, {"occluders": -2}, {"width": 0}, {"height": 4}):
+            with pytest.raises(SceneError):
+                factory(seed=0, frames=2, **bad)
