@@ -941,6 +941,8 @@ def paper_scene(seed: int = 0, background_level: float = 20.0) -> SyntheticScene
     * the objects cross the whole frame in 60 frames at a constant 1.525 px/frame: object 1
       along row 25 (centroid x 5 -> 95), object 2 along column 50 (y 5 -> 95), object 3 along
       row 75 (x 95 -> 5), chosen so that the objects never overlap;
+    * ground-truth boxes move continuously, while the blocks are drawn at the rounded pixel
+      position (at most 0.5 px from the ground truth in x or y);
     * the paper's frames 20/40/60 are our frames 19/39/59 (0-based); fps 25;
     * RGB is a grey copy of the same content (white blocks on a dark background).
     """
