@@ -199,10 +199,14 @@ def test_generated_yaml_loads_as_a_params_file(tmp_path):
     ("tracker_node", "mk_tracker.ros.tracker_node", "config/tracker.yaml"),
     ("detector_node", "mk_tracker.ros.detector_node", "config/detector.yaml"),
 ])
-def test_shipped_params_files_declare_every_parameter_at_its_default(node_name, module_name,
-                                                                     path):
+def test_shipped_params_files_set_every_parameter_to_a_valid_value(node_name, module_name,
+                                                                   path):
+    """The shipped files name exactly the declared parameters, each with a value the node
+    accepts (values may be tuned away from the defaults)."""
     import importlib
     from pathlib import Path
+
+    from mk_tracker.parameters import validate_value
 
     try:
         module = importlib.import_module(module_name)
@@ -219,12 +223,15 @@ def test_shipped_params_files_declare_every_parameter_at_its_default(node_name, 
                 yield f"{prefix}{key}", value
 
     found = dict(flat(params))
-    expected = {}
+    specs = {}
     for prefix, config in module.default_configs().items():
         for spec in parameter_specs(config):
-            name = f"{prefix}.{spec.name}" if prefix else spec.name
-            default = spec.default
-            expected[name] = list(default) if isinstance(default, tuple) else default
-    assert found == expected, (
-        f"{path} is out of date: regenerate it with "
-        f"`.venv/bin/python -m mk_tracker.ros.parameter_bridge {node_name} > {path}`")
+            specs[f"{prefix}.{spec.name}" if prefix else spec.name] = spec
+    hint = (f"{path} is out of date: regenerate it with "
+            f"`.venv/bin/python -m mk_tracker.ros.parameter_bridge {node_name} > {path}`")
+    assert set(found) == set(specs), (hint, set(found) ^ set(specs))
+    for name, value in found.items():
+        spec = specs[name]
+        if spec.type is float and isinstance(value, int):
+            pytest.fail(f"{path}: {name}: {value} must be written as a double ({hint})")
+        validate_value(spec, tuple(value) if isinstance(value, list) else value)
