@@ -182,3 +182,74 @@ def frame_blocks(window: np.ndarray, rho: int) -> tuple[np.ndarray, tuple[int, i
                .transpose(1, 3, 0, 2, 4)
                .reshape(nby * nbx, n_frames, rho * rho))
     return blocks, (nby, nbx)
+
+
+def kernel_table(max_level: int, scale: float, sigma2: float) -> np.ndarray:
+    """``table[d] = k(0, d * scale)`` of (3.6) for integer level differences ``d``.
+
+    For integer-valued frames (mono8 levels with ``scale = 1/255``) the kernel of two pixels
+    depends only on ``|level_i - level_j|``, so a table evaluates (3.6) exactly.
+    """
+    d = np.arange(int(max_level) + 1, dtype=np.float64) * float(scale)
+    return np.exp(-(d * d) / (2.0 * _check_sigma2(sigma2)))
+
+
+def _levels_covariance_loops(levels, table, out):
+    n_blocks, n_frames, p = levels.shape
+    inv_f = 1.0 / n_frames
+    inv_f2 = inv_f * inv_f
+    same = np.zeros((p, p))
+    cross = np.zeros((p, p))
+    for b in range(n_blocks):
+        x = levels[b]
+        same[:, :] = 0.0
+        cross[:, :] = 0.0
+        for a in range(n_frames):
+            for i in range(p):
+                xi = x[a, i]
+                for j in range(i + 1, p):
+                    same[i, j] += table[abs(xi - x[a, j])]
+            for c in range(a + 1, n_frames):
+                for i in range(p):
+                    xi = x[a, i]
+                    for j in range(p):
+                        cross[i, j] += table[abs(xi - x[c, j])]
+        o = out[b]
+        for i in range(p):
+            # diagonal: same-frame kernel is 1 for each of the F frames
+            o[i, i] = (n_frames * (inv_f - inv_f2)) - (cross[i, i] + cross[i, i]) * inv_f2
+            for j in range(i + 1, p):
+                v = same[i, j] * (inv_f - inv_f2) - (cross[i, j] + cross[j, i]) * inv_f2
+                o[i, j] = v
+                o[j, i] = v
+    return out
+
+
+_LEVELS_KERNEL: list = []
+
+
+def block_kernel_covariance_levels(levels: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """(3.5) for blocks of integer levels ``(B, F, p)`` with a :func:`kernel_table`; float64.
+
+    Same result as :func:`block_kernel_covariance` on ``levels * scale`` (to rounding), with
+    table look-ups instead of exponentials; compiled with numba when it is installed.
+    """
+    lv = np.ascontiguousarray(levels, dtype=np.int32)
+    if lv.ndim != 3 or lv.shape[1] < 1:
+        raise KernelCovarianceError(f"levels must be (B, F, p), got shape {lv.shape}")
+    tab = np.ascontiguousarray(table, dtype=np.float64)
+    if lv.size and int(lv.max()) - int(lv.min()) >= tab.size:
+        raise KernelCovarianceError("level differences exceed the kernel table")
+    if not _LEVELS_KERNEL:
+        try:
+            import numba
+            _LEVELS_KERNEL.append(numba.njit(cache=True)(_levels_covariance_loops))
+        except ImportError:
+            _LEVELS_KERNEL.append(None)
+    out = np.empty((lv.shape[0], lv.shape[2], lv.shape[2]))
+    kernel = _LEVELS_KERNEL[0]
+    if kernel is None:      # numpy fallback: the generic path on the scaled values
+        scale = float(np.sqrt(-2.0 * np.log(tab[1]))) if tab.size > 1 and tab[1] < 1 else 1.0
+        # table[1] = exp(-s^2 / 2 sigma^2) -> rebuild values in units where sigma^2 = 1
+        return block_kernel_covariance(lv * scale, 1.0, dtype=np.float64)
+    return kernel(lv, tab, out)

@@ -81,23 +81,26 @@ def coordinate_minimizer(c1: np.ndarray, c2: np.ndarray, lam: float) -> np.ndarr
     """Exact minimiser of (3.9) ``h^4 + c1 h^2 + c2 h + lambda |h|`` for arrays c1, c2.
 
     Candidates (Appendix A): 0, the positive real roots of (3.10) and the negative real roots
-    of (3.11).  With ``h = -y`` the negative side is the positive side with ``c2 -> -c2``, and
-    on ``y > 0`` only the *largest* real root of ``y^3 + (c1/2) y + (c2 +- lambda)/4`` can be
-    a minimum: the roots of a depressed cubic sum to zero, so the smallest is <= 0, and the
-    middle one is a maximum.  So each side has one candidate, compared with ``J(0) = 0``
-    (ties go to 0, then to the positive side).
+    of (3.11).  Two facts cut them to one root:
+
+    * ``J(h) - J(-h) = 2 c2 h``, so a minimiser has the sign of ``-c2`` (for ``c2 = 0`` both
+      signs tie and the positive one is kept, as Sec. 11 prescribes).  With ``a = |c2|`` the
+      problem is ``min_{y >= 0} y^4 + c1 y^2 - a y + lambda y`` and ``h = -sign(c2) y``;
+    * on ``y > 0`` only the *largest* real root of ``y^3 + (c1/2) y + (lambda - a)/4`` can be
+      a minimum: the roots of a depressed cubic sum to zero, so the smallest is <= 0, and the
+      middle one is a maximum.
+
+    The root is kept if it beats ``J(0) = 0`` (ties go to 0).
     """
     c1 = np.asarray(c1, dtype=np.float64)
     c2 = np.asarray(c2, dtype=np.float64)
-    p = 0.5 * c1
-    yp = largest_real_root(p, 0.25 * (c2 + lam))
-    yn = largest_real_root(p, 0.25 * (lam - c2))
-    hp = np.where(yp > 0, yp, 0.0)
-    hn = np.where(yn > 0, -yn, 0.0)
-    jp = coordinate_cost(hp, c1, c2, lam)
-    jn = coordinate_cost(hn, c1, c2, lam)
-    tiny = -1e-15 * (1.0 + np.abs(c1) + np.abs(c2))
-    return np.where((jn < jp) & (jn < tiny), hn, np.where(jp < tiny, hp, 0.0))
+    a = np.abs(c2)
+    y = largest_real_root(0.5 * c1, 0.25 * (lam - a))
+    y = np.where(y > 0, y, 0.0)
+    y2 = y * y
+    cost = y2 * y2 + c1 * y2 - a * y + lam * y
+    tiny = -1e-15 * (1.0 + np.abs(c1) + a)
+    return np.where(cost < tiny, np.where(c2 > 0, -y, y), 0.0)
 
 
 def factorization_cost(sigma: np.ndarray, m: np.ndarray, lam: float) -> np.ndarray:
@@ -275,19 +278,16 @@ def _root_scalar(p, q):
     return y
 
 def _minimizer_scalar(c1, c2, lam):
-    p = 0.5 * c1
-    yp = _root_scalar(p, 0.25 * (c2 + lam))
-    yn = _root_scalar(p, 0.25 * (lam - c2))
-    hp = yp if yp > 0 else 0.0
-    hn = -yn if yn > 0 else 0.0
-    jp = hp ** 4 + c1 * hp * hp + c2 * hp + lam * abs(hp)
-    jn = hn ** 4 + c1 * hn * hn + c2 * hn + lam * abs(hn)
-    tiny = -1e-15 * (1.0 + abs(c1) + abs(c2))
-    if jn < jp and jn < tiny:
-        return hn
-    if jp < tiny:
-        return hp
+    a = abs(c2)
+    y = _root_scalar(0.5 * c1, 0.25 * (lam - a))
+    if y <= 0:
+        return 0.0
+    y2 = y * y
+    cost = y2 * y2 + c1 * y2 - a * y + lam * y
+    if cost < -1e-15 * (1.0 + abs(c1) + a):
+        return -y if c2 > 0 else y
     return 0.0
+
 
 def _factorize_loops(s, lam, n_cols, max_cycles, tol):
     n_blocks, p, _ = s.shape

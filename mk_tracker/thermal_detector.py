@@ -59,13 +59,14 @@ from mk_tracker.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
 from mk_tracker.kernel_covariance import (active_pixels, block_kernel_covariance,
-                                          frame_blocks)
+                                          block_kernel_covariance_levels, frame_blocks,
+                                          kernel_table)
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.pixel_clustering import (cluster_support_pixels, describe_pixels, link_groups,
                                          merge_linked)
 from mk_tracker.sparse_factorization import sparse_factorize, zero_factor_threshold
 from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
-                                      normalization_map, normalize, robust_range)
+                                      normalization_map, robust_range)
 
 __all__ = ["ThermalDetectorConfig", "ThermalDetection", "ThermalDetector", "ThermalInputError",
            "SupportResult", "support_in_window"]
@@ -160,16 +161,29 @@ def _pad_to(window: np.ndarray, rho: int) -> np.ndarray:
     return np.pad(window, ((0, 0), (0, ph), (0, pw)))
 
 
+#: Largest level difference served by a kernel table (integer encodings); wider windows
+#: use the exponential path.
+TABLE_LEVELS = 4096
+
+
 def support_in_windows(windows: list[np.ndarray], config: ThermalDetectorConfig,
+                       scale: float = 1.0, integer_levels: bool = False,
                        chunk: int = 512) -> list[SupportResult]:
-    """Sparse-factor supports of several normalised ``(F, h, w)`` windows in one batch."""
+    """Sparse-factor supports of several ``(F, h, w)`` windows in one batch.
+
+    Windows hold ``(raw - offset)`` values; ``scale`` maps them to the kernel's unit scale,
+    so the kernel variance in window units is ``sigma^2 / scale^2``.  With
+    ``integer_levels`` (mono8/mono16 frames and an integer offset) the kernel covariance is
+    computed with a table of (3.6) over level differences (same values, no exponentials).
+    """
     rho = config.block_size
+    sigma2 = config.sigma2 / (scale * scale)
     threshold = zero_factor_threshold(config.lam)
     block_lists, metas = [], []
     for win in windows:
         h, w = win.shape[1:]
         padded = _pad_to(win, rho)
-        act = active_pixels(padded, config.sigma2, threshold)
+        act = active_pixels(padded, sigma2, threshold)
         blocks, (nby, nbx) = frame_blocks(padded, rho)
         block_active = act.reshape(nby, rho, nbx, rho).any(axis=(1, 3)).reshape(-1)
         idx = np.flatnonzero(block_active)
@@ -177,10 +191,17 @@ def support_in_windows(windows: list[np.ndarray], config: ThermalDetectorConfig,
         metas.append((h, w, nby, nbx, idx))
     all_blocks = np.concatenate(block_lists) if block_lists else np.zeros((0, 1, rho * rho))
     n_total = all_blocks.shape[0]
+    use_table = integer_levels and n_total > 0 and \
+        float(all_blocks.max()) - float(all_blocks.min()) < TABLE_LEVELS
+    table = _kernel_table(sigma2) if use_table else None
     supports = np.zeros((n_total, rho * rho), dtype=bool)
     variances = np.zeros((n_total, rho * rho), dtype=np.float32)
     for start in range(0, n_total, chunk):
-        sigma = block_kernel_covariance(all_blocks[start:start + chunk], config.sigma2)
+        part = all_blocks[start:start + chunk]
+        if table is not None:
+            sigma = block_kernel_covariance_levels(part.astype(np.int32), table)
+        else:
+            sigma = block_kernel_covariance(part, sigma2)
         res = sparse_factorize(sigma, config.lam, columns=config.columns,
                                max_cycles=config.max_cycles, tol=config.tol)
         supports[start:start + chunk] = res.support()
@@ -201,9 +222,24 @@ def support_in_windows(windows: list[np.ndarray], config: ThermalDetectorConfig,
     return out
 
 
-def support_in_window(window: np.ndarray, config: ThermalDetectorConfig) -> SupportResult:
-    """Support of the stacked sparse factors (5.1) of one normalised ``(F, h, w)`` window."""
-    return support_in_windows([window], config)[0]
+_TABLES: dict[float, np.ndarray] = {}
+
+
+def _kernel_table(sigma2: float) -> np.ndarray:
+    """Cached :func:`kernel_table` over ``TABLE_LEVELS`` unit steps (bounded cache)."""
+    table = _TABLES.get(sigma2)
+    if table is None:
+        if len(_TABLES) > 16:
+            _TABLES.clear()
+        table = kernel_table(TABLE_LEVELS - 1, 1.0, sigma2)
+        _TABLES[sigma2] = table
+    return table
+
+
+def support_in_window(window: np.ndarray, config: ThermalDetectorConfig,
+                      scale: float = 1.0, integer_levels: bool = False) -> SupportResult:
+    """Support of the stacked sparse factors (5.1) of one ``(F, h, w)`` window."""
+    return support_in_windows([window], config, scale, integer_levels)[0]
 
 
 @dataclass
@@ -266,6 +302,7 @@ class ThermalDetector:
         self._next_id = 1
         self._since_full: int | None = None
         self._map: tuple[float, float] | None = None
+        self._integer = False
 
     def reset(self) -> None:
         """Forget every frame and object (counters are kept)."""
@@ -322,20 +359,29 @@ class ThermalDetector:
 
     # -- normalisation ---------------------------------------------------------------------
     def _update_map(self, frames: list[np.ndarray]) -> None:
+        """Choose ``(offset, scale)`` for the next windows; integer offsets for integer
+        encodings so that their windows hold integer levels (table path)."""
         c = self.config
         if c.normalization == "fixed":
-            self._map = normalization_map(self._encoding, (c.range_min, c.range_max))
+            offset, scale = normalization_map(self._encoding, (c.range_min, c.range_max))
         elif self._encoding == "mono8":
-            self._map = normalization_map("mono8", None)
+            offset, scale = normalization_map("mono8", None)
         else:
             rng = robust_range(np.stack(frames))
-            self._map = normalization_map(self._encoding, rng if rng else (0.0, 1.0))
+            offset, scale = normalization_map(self._encoding, rng if rng else (0.0, 1.0))
+        integer = self._encoding in ("mono8", "mono16")
+        if integer:
+            offset = float(math.floor(offset))
+        self._map = (offset, scale)
+        self._integer = integer and float(offset).is_integer()
 
     def _window(self, n_frames: int, y0: int = 0, y1: int | None = None, x0: int = 0,
                 x1: int | None = None) -> np.ndarray:
+        """``(raw - offset)`` of the last ``n_frames`` frames over a region, float32."""
         frames = [f for f, _ in list(self._buffer)[-n_frames:]]
         stack = np.stack([f[y0:y1, x0:x1] for f in frames])
-        return normalize(stack, *self._map)
+        stack -= np.float32(self._map[0])
+        return stack
 
     # -- passes ----------------------------------------------------------------------------
     def _full_pass(self) -> list[ThermalDetection]:
@@ -345,7 +391,7 @@ class ThermalDetector:
         frames = [f for f, _ in list(self._buffer)[-c.startup_frames:]]
         self._update_map(frames)
         window = self._window(c.startup_frames)
-        result = support_in_window(window, c)
+        result = support_in_window(window, c, self._map[1], self._integer)
         rows, cols = np.nonzero(result.support)
         candidates: list[_Candidate] = []
         if rows.size:
@@ -379,7 +425,8 @@ class ThermalDetector:
         r0, r1 = int(rows.min()), int(rows.max()) + 1
         c0, c1 = int(cols.min()), int(cols.max()) + 1
         patch = newest[r0:r1, c0:c1]
-        fg = np.abs(patch - np.float32(level)) > np.float32(_similarity_radius(c.sigma2))
+        radius = _similarity_radius(c.sigma2) / self._map[1]     # in window units
+        fg = np.abs(patch - np.float32(level)) > np.float32(radius)
         fr, fc = np.nonzero(fg)
         if fr.size < c.min_object_pixels:
             return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
@@ -457,7 +504,7 @@ class ThermalDetector:
             y0 = min(max(y0, 0), h - hs)
             regions.append((y0, x0, hs, ws))
             windows.append(self._window(c.window_frames, y0, y0 + hs, x0, x0 + ws))
-        results = support_in_windows(windows, c)
+        results = support_in_windows(windows, c, self._map[1], self._integer)
         detections: list[ThermalDetection] = []
         kept: list[_Track] = []
         for tr, state, (y0, x0, hs, ws), win, res in zip(self._tracks, preds, regions, windows,
