@@ -279,10 +279,11 @@ def choose_detection_source(option: str, topics: Mapping[str, Any], single_targe
     if option == "auto":
         if single_target:
             return "none"
-        if thermal_topic in topics:
+        if thermal_topic in topics and topics[thermal_topic].count > 0:
             return "thermal"
         for name in DETECTION_TOPIC_CANDIDATES:
-            if name in topics and topics[name].msgtype == DETECTION_TYPE:
+            if (name in topics and topics[name].msgtype == DETECTION_TYPE
+                    and topics[name].count > 0):
                 return f"topic:{name}"
         return "none"
     if option == "thermal":
@@ -546,7 +547,8 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
         r.detection_source = source
         if source == "thermal":
             run.detector = build_detector(config.method, config.detector, config.threshold)
-        has_truth = options.ground_truth_topic in topics
+        has_truth = (options.ground_truth_topic in topics
+                     and topics[options.ground_truth_topic].count > 0)
         if options.init_from_gt and not has_truth:
             raise PipelineError(f"--init-from-gt: the bag has no {options.ground_truth_topic}")
         if options.write_bag:
@@ -629,7 +631,7 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
 
 
 def _finish(run: _Run, has_truth: bool) -> None:
-    from mk_tracker.error_plots import (mot_frame_errors, plot_mot_errors,
+    from mk_tracker.error_plots import (ErrorPlotError, mot_frame_errors, plot_mot_errors,
                                         plot_single_target_errors)
 
     r, out, opts = run.result, run.out, run.options
@@ -664,9 +666,12 @@ def _finish(run: _Run, has_truth: bool) -> None:
             r.metrics = mot_metrics(r.gt_rows, r.mot_rows)
             if opts.write_plots:
                 acc = mot_accumulator(r.gt_rows, r.mot_rows, frames=frames)
-                plot_mot_errors(mot_frame_errors(acc), out / "errors.png",
-                                title=f"{run.bag.name}: per-frame errors")
-                r.files["plot"] = str(out / "errors.png")
+                try:
+                    plot_mot_errors(mot_frame_errors(acc), out / "errors.png",
+                                    title=f"{run.bag.name}: per-frame errors")
+                    r.files["plot"] = str(out / "errors.png")
+                except ErrorPlotError as exc:
+                    r.problem(f"no error plot: {exc}")
     summary = {
         "bag": str(run.bag), "detection_source": r.detection_source,
         "frames": r.frames, "tracked_frames": r.tracked_frames, "bad_frames": r.bad_frames,
