@@ -9,7 +9,9 @@ A scene is a pair of image planes:
   ``H`` of :class:`SceneConfig`.  **H maps thermal pixel coordinates to RGB pixel
   coordinates**: ``[u, v, 1]^T ~ H [x, y, 1]^T``.  ``box_rgb`` of every object is
   :func:`mk_tracker.boxes.transform_box` of its ``box_thermal`` through ``H``, and the RGB
-  image draws the object filling exactly that box.
+  image draws the object filling that box (rounded to whole pixels).  Without an explicit
+  ``H``, it is the identity for planes of equal size, else the plain scaling
+  ``diag(width / thermal_width, height / thermal_height, 1)``.
 
 ``make_scene(config)`` is lazy: trajectories, sprites, static backgrounds and noise buffers
 are prepared once, and :meth:`SyntheticScene.frame` renders frame ``i`` on its own from a
