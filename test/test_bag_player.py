@@ -188,8 +188,8 @@ def same_cdr(received: list[bytes], expected: list[bytes]) -> bool:
 
 def play_argv(bag: Path, *extra: str) -> list[str]:
     # --ack-timeout: the final wait for acknowledgements can last up to a Fast DDS heartbeat
-    # period (~2 s here) after the data has been delivered; the tests check delivery
-    # themselves, so they do not spend that time
+    # period (~2 s here) after small, spread-out messages have long been delivered; these
+    # tests check delivery themselves, so they do not spend that time (bursts need it)
     return module_argv("mk_tracker.ros.bag_player", str(bag), "--wait-for-subscribers", "10",
                        "--ack-timeout", "0.3", *extra)
 
@@ -355,8 +355,10 @@ def test_real_rosbag2_bags_play_every_message(name, processes, listeners):
         domain = fresh_domain()
         classes = {"/" + n.lstrip("/"): message_class(t.msgtype) for n, t in topics.items()}
         listener = listeners(domain, classes, depth=1000)
+        # a burst of thousands of messages is still in flight when the last one is
+        # published: the player must wait for the acknowledgements before it exits
         proc = processes.start(play_argv(path, "--rate", "20", "--qos-depth", "1000",
-                                         "--topics", *topics), domain)
+                                         "--ack-timeout", "20", "--topics", *topics), domain)
         runs.append((proc, listener, expected))
     for proc, listener, expected in runs:
         out, err = proc.communicate(timeout=60)

@@ -130,11 +130,15 @@ def plan_topics(topics: Sequence[Any], offered: dict[str, list[tuple[str, str]]]
     return played, unplayable
 
 
-def _wait_for_subscribers(topics: Sequence[PlayedTopic], minimum: int, timeout_s: float,
+def _wait_for_subscribers(publishers: dict[str, Any], minimum: int, timeout_s: float,
                           stop: StopFlag) -> None:
+    """Wait until each publisher (output topic -> publisher) has ``minimum`` matched
+    subscriptions, or ``timeout_s``; a message published before its subscriber has matched
+    would be lost (volatile) or arrive late."""
     deadline = time.monotonic() + timeout_s
     while not stop.is_set():
-        missing = [t.topic for t in topics if t.publisher.get_subscription_count() < minimum]
+        missing = [name for name, pub in publishers.items()
+                   if pub.get_subscription_count() < minimum]
         if not missing:
             return
         if time.monotonic() >= deadline:
@@ -204,7 +208,8 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--delay", type=float, default=0.0, metavar="S",
                         help="sleep S seconds after creating the publishers")
     parser.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
-                        help="wait up to S seconds until every topic has a subscriber")
+                        help="wait up to S seconds until every published topic (/clock too) "
+                             "has a subscriber")
     parser.add_argument("--min-subscribers", type=int, default=1, metavar="N",
                         help="subscribers per topic that --wait-for-subscribers waits for")
     parser.add_argument("--wait-topics", nargs="+", default=None, metavar="TOPIC",
@@ -275,12 +280,14 @@ def run(args: argparse.Namespace) -> int:
         if args.delay > 0:
             stop.sleep(args.delay)
         if args.wait_for_subscribers > 0:
-            awaited = list(played.values())
+            awaited = {t.topic: t.publisher for t in played.values()}
+            if clock_pub is not None:
+                awaited["/clock"] = clock_pub
             if args.wait_topics is not None:
                 names = {"/" + t.lstrip("/") for t in args.wait_topics}
-                awaited = [t for t in awaited if t.topic in names]
+                awaited = {n: p for n, p in awaited.items() if n in names}
                 if not awaited:
-                    _log(f"none of {sorted(names)} is played; not waiting for subscribers")
+                    _log(f"none of {sorted(names)} is published; not waiting for subscribers")
             _wait_for_subscribers(awaited, args.min_subscribers, args.wait_for_subscribers,
                                   stop)
         clock_period = round(NS_PER_S / args.clock) if args.clock > 0 else 0
