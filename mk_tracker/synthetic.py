@@ -169,6 +169,9 @@ class SceneConfig:
                                            "bottom, K")
     background_texture: float = parameter(0.4, "amplitude of the static smooth background "
                                           "temperature variation, K", minimum=0.0)
+    thermal_blur_sigma: float = parameter(0.0, "Gaussian blur of the thermal optics, px "
+                                          "(applied before the sensor noise; 0 = sharp)",
+                                          minimum=0.0, maximum=20.0)
     thermal_noise_std: float = parameter(0.3, "per-frame thermal sensor noise std, K",
                                          minimum=0.0)
     rgb_noise_std: float = parameter(4.0, "per-frame RGB sensor noise std, grey levels",
@@ -816,6 +819,9 @@ class SyntheticScene:
                 _paste(kelvin, kel, mask, x, y)
             elif spr is not None and c.people[k].kind == "person":
                 _paste(kelvin, spr.kelvin, spr.mask, x, y)
+        if c.thermal_blur_sigma > 0:
+            cv2.GaussianBlur(kelvin, (0, 0), c.thermal_blur_sigma, dst=kelvin,
+                             borderType=cv2.BORDER_REPLICATE)
         oy, ox = (int(v) for v in rng.integers(0, _NOISE_PAD, size=2))
         if c.thermal_noise_std > 0:
             if tw * th <= _FRESH_NOISE_PIXELS:   # small (the paper's 100x100): exact i.i.d.

@@ -363,6 +363,18 @@ def crop_mask(shape, box):
     return m
 
 
+def test_thermal_blur_softens_edges_but_keeps_the_mean():
+    sharp = make_scene(dataclasses.replace(crossing_scene(seed=3, frames=2).config,
+                                           thermal_encoding="32FC1", thermal_noise_std=0.0))
+    soft = sharp.replaced(thermal_blur_sigma=2.0)
+    a, b = sharp.frame(1).thermal, soft.frame(1).thermal
+    grad_a = np.abs(np.diff(a, axis=1)).max()
+    grad_b = np.abs(np.diff(b, axis=1)).max()
+    assert grad_a > 5.0 and grad_b < 0.5 * grad_a
+    assert b.mean() == pytest.approx(a.mean(), abs=0.01)
+    assert sharp.frame(1).objects == soft.frame(1).objects
+
+
 def test_mono8_and_mono16_encode_the_same_temperatures():
     cfg = crowd_scene(3, seed=2, frames=2).config
     k = make_scene(dataclasses.replace(cfg, thermal_encoding="32FC1")).frame(1).thermal
