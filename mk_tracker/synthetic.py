@@ -103,7 +103,7 @@ class PersonSpec:
     waypoints: tuple = parameter(((0.0, 0.0),), "foot points (x, y) in thermal px, start first")
     speed: float = parameter(2.0, "walking speed, thermal px per frame", minimum=0.0)
     height: float = parameter(100.0, "box height in thermal px at the reference depth",
-                              minimum=1.0)
+                              minimum=1.0, maximum=4096.0)
     start_frame: int = parameter(0, "frame at which the target starts walking", minimum=0)
     after_last: str = parameter("stop", "behaviour after the last waypoint",
                                 choices=("stop", "continue"))
