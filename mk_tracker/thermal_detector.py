@@ -58,9 +58,9 @@ import numpy as np
 from mk_tracker.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
-from mk_tracker.kernel_covariance import (active_pixels, block_kernel_covariance,
-                                          block_kernel_covariance_levels, frame_blocks,
-                                          kernel_table)
+from mk_tracker.kernel_covariance import (block_kernel_covariance,
+                                          block_kernel_covariance_levels, kernel_table,
+                                          pixel_kernel_variance, range_for_variance)
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.pixel_clustering import (cluster_support_pixels, describe_pixels, link_groups,
                                          merge_linked)
@@ -69,7 +69,7 @@ from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, fill_
                                       normalization_map, robust_range)
 
 __all__ = ["ThermalDetectorConfig", "ThermalDetection", "ThermalDetector", "ThermalInputError",
-           "SupportResult", "support_in_window"]
+           "SupportResult", "support_in_frame"]
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,7 @@ class ThermalDetectorConfig:
                            minimum=0.0, maximum=10.0)
     max_cycles: int = parameter(10, "[kappa] maximum coordinate-descent cycles (Alg. 1)",
                                 minimum=1, maximum=1000)
-    tol: float = parameter(1e-3, "[epsilon] stop when ||M^k - M^(k-1)|| <= epsilon (Alg. 1)",
+    tol: float = parameter(1e-2, "[epsilon] stop when ||M^k - M^(k-1)|| <= epsilon (Alg. 1)",
                            minimum=0.0, maximum=1.0)
     columns: int = parameter(1, "number of columns of M per block (Sec. 3.3)", minimum=1,
                              maximum=8)
@@ -166,60 +166,63 @@ def _pad_to(window: np.ndarray, rho: int) -> np.ndarray:
 TABLE_LEVELS = 4096
 
 
-def support_in_windows(windows: list[np.ndarray], config: ThermalDetectorConfig,
-                       scale: float = 1.0, integer_levels: bool = False,
-                       chunk: int = 512) -> list[SupportResult]:
-    """Sparse-factor supports of several ``(F, h, w)`` windows in one batch.
+def support_in_frame(window: np.ndarray, config: ThermalDetectorConfig, scale: float = 1.0,
+                     integer_levels: bool = False, block_mask: np.ndarray | None = None,
+                     chunk: int = 512) -> SupportResult:
+    """Support of the stacked sparse factors (5.1) of a ``(F, h, w)`` window.
 
-    Windows hold ``(raw - offset)`` values; ``scale`` maps them to the kernel's unit scale,
-    so the kernel variance in window units is ``sigma^2 / scale^2``.  With
-    ``integer_levels`` (mono8/mono16 frames and an integer offset) the kernel covariance is
-    computed with a table of (3.6) over level differences (same values, no exponentials).
+    The window is padded to multiples of ``rho`` (with zeros, which never enter a support)
+    and cut into ``rho x rho`` blocks; only the blocks of ``block_mask`` (``(nby, nbx)``
+    bool, default all) are considered, and of those only the ones whose factor is not
+    provably zero (see :mod:`mk_tracker.kernel_covariance`) are factored.
+
+    Window values are ``(raw - offset)``; ``scale`` maps them to the kernel's unit scale, so
+    the kernel variance in window units is ``sigma^2 / scale^2``.  With ``integer_levels``
+    (mono8/mono16 frames, integer offset) (3.5) is evaluated with a table of (3.6) over
+    level differences instead of exponentials (same values).
     """
     rho = config.block_size
     sigma2 = config.sigma2 / (scale * scale)
     threshold = zero_factor_threshold(config.lam)
-    block_lists, metas = [], []
-    for win in windows:
-        h, w = win.shape[1:]
-        padded = _pad_to(win, rho)
-        act = active_pixels(padded, sigma2, threshold)
-        blocks, (nby, nbx) = frame_blocks(padded, rho)
-        block_active = act.reshape(nby, rho, nbx, rho).any(axis=(1, 3)).reshape(-1)
-        idx = np.flatnonzero(block_active)
-        block_lists.append(blocks[idx])
-        metas.append((h, w, nby, nbx, idx))
-    all_blocks = np.concatenate(block_lists) if block_lists else np.zeros((0, 1, rho * rho))
-    n_total = all_blocks.shape[0]
-    use_table = integer_levels and n_total > 0 and \
-        float(all_blocks.max()) - float(all_blocks.min()) < TABLE_LEVELS
+    n_frames, h, w = window.shape
+    padded = _pad_to(window, rho)
+    nby, nbx = padded.shape[1] // rho, padded.shape[2] // rho
+    if block_mask is None:
+        by, bx = np.divmod(np.arange(nby * nbx), nbx)
+    else:
+        by, bx = np.nonzero(block_mask)
+    p = rho * rho
+    blocks = (padded.reshape(n_frames, nby, rho, nbx, rho)[:, by, :, bx, :]
+              .reshape(by.size, n_frames, p))
+    # exact activity test: Sigma(j, j) > T(lambda) for some pixel (range bound first)
+    spread = blocks.max(axis=1) - blocks.min(axis=1)
+    candidates = spread > np.float32(range_for_variance(threshold, sigma2))
+    variance = np.zeros((by.size, p), dtype=np.float32)
+    if candidates.any():
+        variance = pixel_kernel_variance(blocks.transpose(1, 0, 2), sigma2, mask=candidates)
+    active = np.flatnonzero((variance > np.float32(threshold)).any(axis=1))
+    supports = np.zeros((by.size, p), dtype=bool)
+    work = blocks[active]
+    use_table = integer_levels and active.size > 0 and \
+        float(work.max()) - float(work.min()) < TABLE_LEVELS
     table = _kernel_table(sigma2) if use_table else None
-    supports = np.zeros((n_total, rho * rho), dtype=bool)
-    variances = np.zeros((n_total, rho * rho), dtype=np.float32)
-    for start in range(0, n_total, chunk):
-        part = all_blocks[start:start + chunk]
+    for start in range(0, active.size, chunk):
+        part = work[start:start + chunk]
         if table is not None:
             sigma = block_kernel_covariance_levels(part.astype(np.int32), table)
         else:
             sigma = block_kernel_covariance(part, sigma2)
         res = sparse_factorize(sigma, config.lam, columns=config.columns,
                                max_cycles=config.max_cycles, tol=config.tol)
-        supports[start:start + chunk] = res.support()
-        variances[start:start + chunk] = np.diagonal(sigma, axis1=1, axis2=2)
-    out, offset = [], 0
-    for h, w, nby, nbx, idx in metas:
-        n = idx.size
-        sup = np.zeros((nby * nbx, rho * rho), dtype=bool)
-        var = np.zeros((nby * nbx, rho * rho), dtype=np.float32)
-        sup[idx] = supports[offset:offset + n]
-        var[idx] = variances[offset:offset + n]
-        offset += n
-        sup_img = sup.reshape(nby, nbx, rho, rho).transpose(0, 2, 1, 3).reshape(nby * rho,
-                                                                               nbx * rho)
-        var_img = var.reshape(nby, nbx, rho, rho).transpose(0, 2, 1, 3).reshape(nby * rho,
-                                                                               nbx * rho)
-        out.append(SupportResult(sup_img[:h, :w], var_img[:h, :w], nby * nbx, n))
-    return out
+        supports[active[start:start + chunk]] = res.support()
+    sup = np.zeros((nby * nbx, p), dtype=bool)
+    var = np.zeros((nby * nbx, p), dtype=np.float32)
+    flat = by * nbx + bx
+    sup[flat] = supports
+    var[flat] = variance
+    sup_img = sup.reshape(nby, nbx, rho, rho).transpose(0, 2, 1, 3).reshape(nby * rho, nbx * rho)
+    var_img = var.reshape(nby, nbx, rho, rho).transpose(0, 2, 1, 3).reshape(nby * rho, nbx * rho)
+    return SupportResult(sup_img[:h, :w], var_img[:h, :w], by.size, int(active.size))
 
 
 _TABLES: dict[float, np.ndarray] = {}
@@ -234,12 +237,6 @@ def _kernel_table(sigma2: float) -> np.ndarray:
         table = kernel_table(TABLE_LEVELS - 1, 1.0, sigma2)
         _TABLES[sigma2] = table
     return table
-
-
-def support_in_window(window: np.ndarray, config: ThermalDetectorConfig,
-                      scale: float = 1.0, integer_levels: bool = False) -> SupportResult:
-    """Support of the stacked sparse factors (5.1) of one ``(F, h, w)`` window."""
-    return support_in_windows([window], config, scale, integer_levels)[0]
 
 
 @dataclass
@@ -391,7 +388,7 @@ class ThermalDetector:
         frames = [f for f, _ in list(self._buffer)[-c.startup_frames:]]
         self._update_map(frames)
         window = self._window(c.startup_frames)
-        result = support_in_window(window, c, self._map[1], self._integer)
+        result = support_in_frame(window, c, self._map[1], self._integer)
         rows, cols = np.nonzero(result.support)
         candidates: list[_Candidate] = []
         if rows.size:
@@ -480,6 +477,11 @@ class ThermalDetector:
                                 velocity=(float(s[2]), float(s[3])))
 
     def _tracking_pass(self) -> list[ThermalDetection]:
+        """Algorithm 2, lines 3-6: each object searched in its (5.2) window, F frames.
+
+        The windows are snapped to the global ``rho`` grid so that overlapping windows share
+        blocks, and the union of their blocks is factored once.
+        """
         c = self.config
         if not self._tracks:
             return []
@@ -488,52 +490,56 @@ class ThermalDetector:
         stamp = self._last_stamp
         stamps = [s for _, s in list(self._buffer)[-c.window_frames:]]
         span = stamps[-1] - stamps[0]
-        windows, regions, preds = [], [], []
+        nby, nbx = -(-h // rho), -(-w // rho)
+        mask = np.zeros((nby, nbx), dtype=bool)
+        regions, preds = [], []
         for tr in self._tracks:
-            dt = stamp - tr.stamp
-            state, _ = tr.kf.predicted(dt)
+            state, _ = tr.kf.predicted(stamp - tr.stamp)
             preds.append(state)
-            speed = math.hypot(state[2], state[3]) * span
-            # (5.2): w_s >= w_s^0 with mod(w_s, rho) = 0, centred on the prediction
-            ws = int(math.ceil((tr.box[2] + 2 * (c.window_margin + speed)) / rho)) * rho
-            hs = int(math.ceil((tr.box[3] + 2 * (c.window_margin + speed)) / rho)) * rho
-            ws, hs = min(ws, w), min(hs, h)
-            x0 = int(round(state[0] - ws / 2.0))
-            y0 = int(round(state[1] - hs / 2.0))
-            x0 = min(max(x0, 0), w - ws)
-            y0 = min(max(y0, 0), h - hs)
-            regions.append((y0, x0, hs, ws))
-            windows.append(self._window(c.window_frames, y0, y0 + hs, x0, x0 + ws))
-        results = support_in_windows(windows, c, self._map[1], self._integer)
+            reach = c.window_margin + math.hypot(state[2], state[3]) * span
+            # (5.2): a w_s x h_s window around the prediction, w_s >= w_s^0, mod(w_s, rho) = 0
+            bx0 = max(int(math.floor((state[0] - tr.box[2] / 2.0 - reach) / rho)), 0)
+            bx1 = min(int(math.ceil((state[0] + tr.box[2] / 2.0 + reach) / rho)), nbx)
+            by0 = max(int(math.floor((state[1] - tr.box[3] / 2.0 - reach) / rho)), 0)
+            by1 = min(int(math.ceil((state[1] + tr.box[3] / 2.0 + reach) / rho)), nby)
+            if bx1 <= bx0 or by1 <= by0:        # predicted outside the frame
+                regions.append(None)
+                continue
+            mask[by0:by1, bx0:bx1] = True
+            regions.append((by0 * rho, min(by1 * rho, h), bx0 * rho, min(bx1 * rho, w)))
+        window = self._window(c.window_frames)
+        result = support_in_frame(window, c, self._map[1], self._integer, block_mask=mask)
         detections: list[ThermalDetection] = []
         kept: list[_Track] = []
-        for tr, state, (y0, x0, hs, ws), win, res in zip(self._tracks, preds, regions, windows,
-                                                         results):
+        for tr, state, region in zip(self._tracks, preds, regions):
             dt = stamp - tr.stamp
-            rows, cols = np.nonzero(res.support)
             cand = None
-            if rows.size >= c.min_object_pixels:
-                # support pixels belong to the object whose predicted centroid is nearest
-                px = cols + 0.5 + x0
-                py = rows + 0.5 + y0
-                own = (px - state[0]) ** 2 + (py - state[1]) ** 2
-                mine = np.ones(rows.size, dtype=bool)
-                for other in preds:
-                    if other is state:
-                        continue
-                    mine &= own <= (px - other[0]) ** 2 + (py - other[1]) ** 2
-                if np.count_nonzero(mine) >= c.min_object_pixels:
-                    cand = self._candidate(win, res, rows[mine], cols[mine], y0, x0)
+            if region is not None:
+                y0, y1, x0, x1 = region
+                sub = SupportResult(result.support[y0:y1, x0:x1], result.variance[y0:y1, x0:x1],
+                                    0, 0)
+                rows, cols = np.nonzero(sub.support)
+                if rows.size >= c.min_object_pixels:
+                    # support pixels belong to the object whose predicted centroid is nearest
+                    px = cols + 0.5 + x0
+                    py = rows + 0.5 + y0
+                    own = (px - state[0]) ** 2 + (py - state[1]) ** 2
+                    mine = np.ones(rows.size, dtype=bool)
+                    for other in preds:
+                        if other is not state:
+                            mine &= own <= (px - other[0]) ** 2 + (py - other[1]) ** 2
+                    if np.count_nonzero(mine) >= c.min_object_pixels:
+                        cand = self._candidate(window[:, y0:y1, x0:x1], sub, rows[mine],
+                                               cols[mine], y0, x0)
+            tr.kf.predict(dt)
+            tr.stamp = stamp
             if cand is None:
                 tr.missed += 1
                 if tr.missed <= c.max_missed:
-                    tr.kf.predict(dt)
-                    tr.stamp = stamp
                     kept.append(tr)
                 continue
-            tr.kf.predict(dt)
             tr.kf.update(cand.centroid)
-            tr.box, tr.stamp, tr.missed = cand.box, stamp, 0
+            tr.box, tr.missed = cand.box, 0
             kept.append(tr)
             detections.append(self._detection(tr, cand))
         self._tracks = kept
