@@ -34,9 +34,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
-from mk_tracker.debug_drawing import draw_detections, draw_text_lines, thermal_to_display
-from mk_tracker.detection_messages import Detection, DetectionMessageError, make_detection_array
-from mk_tracker.image_conversion import (ImageConversionError, image_to_numpy, numpy_to_image)
+from mk_tracker.detection_messages import make_detection_array
+from mk_tracker.frame_processing import (METHODS, SKIPPED_MODES, THERMAL_ENCODINGS,
+                                         build_detector, detector_debug_image,
+                                         detector_outputs, skipped_reason, thermal_input)
+from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
@@ -45,15 +47,6 @@ from mk_tracker.ros.throttled_log import ThrottledLog
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
 from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
-
-THERMAL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1")
-METHODS = ("kernel_covariance", "threshold")
-#: ``last_mode`` values of a detector that mean "this frame was not used", with the reason.
-SKIPPED_MODES = {
-    "invalid_frame": "too few finite pixels (NaN-filled or empty frame)",
-    "out_of_order": "its stamp is not after the previous frame's (time went backwards?)",
-}
-
 
 @dataclass(frozen=True)
 class DetectorNodeConfig:
@@ -79,16 +72,6 @@ def default_configs() -> dict[str, Any]:
     """Every config the node declares, by parameter prefix (for config/detector.yaml)."""
     return {"": DetectorNodeConfig(), "detector": ThermalDetectorConfig(),
             "threshold": ThresholdDetectorConfig()}
-
-
-def build_detector(method: str, kernel_config: ThermalDetectorConfig,
-                   threshold_config: ThresholdDetectorConfig) -> Any:
-    """The detector object of ``method`` (one of :data:`METHODS`)."""
-    if method == "kernel_covariance":
-        return ThermalDetector(kernel_config)
-    if method == "threshold":
-        return ThresholdDetector(threshold_config)
-    raise ParameterError(f"method: {method!r} is not one of {list(METHODS)}")
 
 
 def _check_with(factory: Any) -> Any:
@@ -173,11 +156,7 @@ class DetectorNode(Node):
     def _process_image(self, msg: Image) -> None:
         counters = self._counters
         try:
-            if msg.encoding not in THERMAL_ENCODINGS:
-                raise ImageConversionError(
-                    f"encoding {msg.encoding!r} is not a thermal detector input "
-                    f"(supported: {', '.join(THERMAL_ENCODINGS)})")
-            frame = image_to_numpy(msg)
+            frame = thermal_input(msg)
         except ImageConversionError as exc:
             counters.bad_images += 1
             self._warn(f"skipping a thermal image: {exc}")
@@ -196,27 +175,20 @@ class DetectorNode(Node):
                 counters.rejected_frames += 1
                 self._warn(f"detector skipped a frame: {exc}")
                 return
-            mode = getattr(detector, "last_mode", "")
-            if mode in SKIPPED_MODES:
+            reason = skipped_reason(detector)
+            if reason:
                 counters.rejected_frames += 1
-                self._warn(f"detector skipped the frame of stamp {stamp:.3f}: "
-                           f"{SKIPPED_MODES[mode]}")
+                self._warn(f"detector skipped the frame of stamp {stamp:.3f}: {reason}")
             if getattr(detector, "last_reset", False):
                 self._event("detector reset: the frame size or encoding changed")
-        out = []
-        for det in found:
-            try:
-                out.append(Detection(box=tuple(det.box), score=float(det.score),
-                                     class_id=self.node_config.class_id))
-            except DetectionMessageError as exc:
-                self._warn(f"dropping a bad detection: {exc}")
+        out, errors = detector_outputs(found, self.node_config.class_id)
+        for error in errors:
+            self._warn(error)
         counters.frames += 1
         counters.detections += len(out)
         self._detections_pub.publish(make_detection_array(out, msg.header, self._types))
         if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
-            canvas = draw_detections(thermal_to_display(frame, msg.encoding),
-                                     [d.box for d in out], [d.score for d in out])
-            canvas = draw_text_lines(canvas, [f"{self.node_config.method}: {len(out)} people"])
+            canvas = detector_debug_image(frame, msg.encoding, out, self.node_config.method)
             self._debug_pub.publish(numpy_to_image(canvas, "bgr8", msg.header,
                                                    types=self._types))
         self._report()

@@ -40,14 +40,15 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
-from mk_tracker.boxes import InvalidBoxError, as_box, transform_box
-from mk_tracker.debug_drawing import (KernelEllipse, TrackDrawing, draw_detections,
-                                      draw_text_lines, draw_tracks)
+from mk_tracker.boxes import InvalidBoxError, transform_box
+from mk_tracker.debug_drawing import KernelEllipse
 from mk_tracker.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection,
                                            read_detection_array)
-from mk_tracker.image_conversion import (ImageConversionError, image_to_numpy, numpy_to_image,
-                                         to_bgr)
+from mk_tracker.frame_processing import (RGB_ENCODINGS, detection_plane, kernel_drawings,
+                                         tracker_debug_image, tracker_input, tracker_inputs,
+                                         tracks_to_detections)
+from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
@@ -57,7 +58,6 @@ from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import ThrottledLog
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
 
-RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
 
 
@@ -224,21 +224,12 @@ class TrackerNode(Node):
         self._error(f"frame processing failed ({type(exc).__name__}: {exc}); frame skipped")
 
     def _plane(self, frame_id: str, image_frame: str) -> str | None:
-        if frame_id == image_frame:
-            return "rgb"
-        if frame_id == self.node_config.thermal_frame_id:
-            return "thermal"
-        return None
+        return detection_plane(frame_id, image_frame, self.node_config.thermal_frame_id)
 
     def _process_image(self, msg: Image) -> None:
         counters = self._counters
         try:
-            if msg.encoding not in RGB_ENCODINGS:
-                raise ImageConversionError(
-                    f"encoding {msg.encoding!r} is not an RGB tracker input "
-                    f"(supported: {', '.join(RGB_ENCODINGS)})")
-            pixels = image_to_numpy(msg)
-            bgr = np.ascontiguousarray(to_bgr(pixels, msg.encoding))
+            bgr = tracker_input(msg)
         except ImageConversionError as exc:
             counters.bad_images += 1
             self._warn(f"skipping an image: {exc}")
@@ -252,17 +243,12 @@ class TrackerNode(Node):
             self._start_requests.clear()
         with self._tracker_lock:
             tracker = self.tracker
-            dets: list[FrameDetection] = []
-            for batch in batches:
-                plane = self._plane(batch.frame_id, frame)
-                if plane is None:
-                    counters.unknown_frame += 1
-                    self._warn(
-                        f"skipping detections in unknown frame {batch.frame_id!r} (image frame "
-                        f"{frame!r}, thermal_frame_id {self.node_config.thermal_frame_id!r})")
-                    continue
-                dets.extend(FrameDetection(box=d.box, score=d.score, stamp=batch.stamp,
-                                           plane=plane) for d in batch.detections)
+            dets, unknown = tracker_inputs(batches, frame, self.node_config.thermal_frame_id)
+            for frame_id in unknown:
+                counters.unknown_frame += 1
+                self._warn(
+                    f"skipping detections in unknown frame {frame_id!r} (image frame "
+                    f"{frame!r}, thermal_frame_id {self.node_config.thermal_frame_id!r})")
             if self._last_stamp is not None and stamp < self._last_stamp:
                 self._warn(
                     f"image time went backwards by {self._last_stamp - stamp:.3f} s "
@@ -281,8 +267,7 @@ class TrackerNode(Node):
             self._event(event)
         reported = result.reported()
         class_id = self.node_config.class_id
-        out = [Detection(box=t.box, score=min(max(t.score, 0.0), 1.0), class_id=class_id,
-                         id=str(t.id)) for t in reported if _finite(t.box)]
+        out = tracks_to_detections(reported, class_id)
         self._tracks_pub.publish(make_detection_array(out, msg.header, self._types))
         if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
             self._publish_debug(bgr, msg.header, reported, kernels, dets, tracker)
@@ -318,35 +303,14 @@ class TrackerNode(Node):
     @staticmethod
     def _kernel_drawings(tracker: MultiObjectTracker) -> dict[int, list[KernelEllipse]]:
         """Kernel ellipses per track id, read from the tracks' multiple-kernel targets."""
-        out: dict[int, list[KernelEllipse]] = {}
-        for track in getattr(tracker, "tracks", []):
-            target = getattr(track, "target", None)
-            if target is None:
-                continue
-            try:
-                centres = np.asarray(target.centres, dtype=float)
-                axes = np.asarray(target.half_axes, dtype=float)
-            except (AttributeError, TypeError, ValueError):
-                continue
-            out[track.id] = [KernelEllipse((c[0], c[1]), (a[0], a[1]))
-                             for c, a in zip(centres, axes)]
-        return out
+        return kernel_drawings(tracker)
 
     def _publish_debug(self, bgr: np.ndarray, header: Any, reported: list, kernels: dict,
                        dets: list[FrameDetection], tracker: MultiObjectTracker) -> None:
-        det_boxes = []
-        for d in dets:
-            try:
-                det_boxes.append(transform_box(d.box, tracker.homography)
-                                 if d.plane == "thermal" else as_box(d.box))
-            except InvalidBoxError:
-                continue
-        canvas = draw_detections(bgr, det_boxes)
-        canvas = draw_tracks(canvas, [TrackDrawing(t.box, t.id, t.state, t.score,
-                                                   kernels.get(t.id, ())) for t in reported])
         w = self._worker
-        canvas = draw_text_lines(canvas, [f"tracks {len(reported)}  frames {w.processed + 1}"
-                                          f"  dropped {w.dropped}"])
+        canvas = tracker_debug_image(bgr, reported, kernels, dets, tracker.homography,
+                                     [f"tracks {len(reported)}  frames {w.processed + 1}"
+                                      f"  dropped {w.dropped}"])
         self._debug_pub.publish(numpy_to_image(canvas, "bgr8", header, types=self._types))
 
     def _report(self) -> None:
@@ -378,10 +342,6 @@ class TrackerNode(Node):
         self._worker.stop()
         self.get_logger().info(f"shutting down: {self.statistics()}")
         super().destroy_node()
-
-
-def _finite(box: tuple) -> bool:
-    return all(np.isfinite(v) for v in box) and box[2] > 0 and box[3] > 0
 
 
 def main(args: list[str] | None = None) -> int:
