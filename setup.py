@@ -44,6 +44,6 @@ setup(
     maintainer_email="mk_tracker@example.com",
     description="Thermal detection and multiple-kernel tracking of people through occlusion",
     license="Apache-2.0",
-    tests_require=["pytest"],
+    extras_require={"test": ["pytest"]},
     entry_points={"console_scripts": CONSOLE_SCRIPTS},
 )
