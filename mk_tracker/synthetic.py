@@ -442,7 +442,10 @@ def _simulate_paths(people: Sequence[PersonSpec], frames: int,
                     turn_rate: float) -> np.ndarray:
     """Foot points ``(frames, P, 2)`` of every target: constant velocity between waypoints,
     heading turning by at most ``turn_rate`` rad per frame; a target heads for the next
-    waypoint once the current one is within its turning radius (smooth corners)."""
+    waypoint once the current one is within its turning radius (smooth corners).
+
+    Between turns this is the noise-free constant-velocity model (2.1)-(2.2) of Schizas et
+    al. (2018), "kept constant for a certain number of frames and then changed" (Sec. 2)."""
     out = np.zeros((frames, len(people), 2))
     for k, person in enumerate(people):
         out[:, k] = _simulate_path(person, frames, turn_rate)
@@ -950,7 +953,10 @@ def paper_scene(seed: int = 0, background_level: float = 20.0) -> SyntheticScene
       along row 25 (centroid x 5 -> 95), object 2 along column 50 (y 5 -> 95), object 3 along
       row 75 (x 95 -> 5), chosen so that the objects never overlap;
     * ground-truth boxes move continuously, while the blocks are drawn at the rounded pixel
-      position (at most 0.5 px from the ground truth in x or y);
+      position (at most 0.5 px from the ground truth in x or y).  The paper's "centroid
+      pixel" (Sec. 2, floor of the mean pixel index) of a block drawn at columns
+      ``x0 .. x0 + 9`` is ``x0 + 4``, while the box centre in the :mod:`mk_tracker.boxes`
+      convention is ``x0 + 5``: compare like with like;
     * the paper's frames 20/40/60 are our frames 19/39/59 (0-based); fps 25;
     * RGB is a grey copy of the same content (white blocks on a dark background).
     """
