@@ -1,0 +1,22 @@
+# Entry points of the project; each target first brings .venv up to date
+# (scripts/setup_env.sh is a no-op taking about a second when nothing changed).
+.PHONY: env test demo bench
+
+PYTHON := .venv/bin/python
+
+env:
+	bash scripts/setup_env.sh
+
+# pytest's exit code is passed through (5, "no tests collected", counts as failure).
+test: env
+	$(PYTHON) -m pytest -q test
+
+demo: env
+	.venv/bin/mk_tracker demo
+
+# Runs every benchmark script in turn; each prints its figures and writes its report
+# into docs/.
+bench: env
+	@set -e; for script in benchmarks/*.py; do \
+		echo "== $$script"; $(PYTHON) "$$script"; \
+	done
