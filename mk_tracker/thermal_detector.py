@@ -28,8 +28,10 @@ Where the paper is silent, and what we add (each switchable):
   is *now*, the detection is the set of pixels inside the swept area whose newest value is
   dissimilar to the local background in the kernel's own sense,
   ``k(x_t(i), background) < 1/2`` with (3.6), the background being the median of the
-  window's non-support pixels in the newest frame.  If that set is empty the support is
-  used.
+  non-support pixels around it in the newest frame; the connected components of those
+  pixels that touch the support are the object.  Clusters whose footprints share pixels
+  are merged (a large object's support can fall apart into bands), and a cluster with no
+  footprint is the trail an object has left and is dropped.
 * The (5.2) window is the object's box plus ``window_margin`` pixels plus the distance the
   Kalman velocity covers in ``F`` frames on each side.
 * Objects with fewer than ``min_object_pixels`` support pixels are dropped as noise; an
@@ -53,6 +55,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 
 from mk_tracker.association import assign
@@ -382,6 +385,7 @@ class ThermalDetector:
 
     # -- passes ----------------------------------------------------------------------------
     def _full_pass(self) -> list[ThermalDetection]:
+        """Algorithm 2, line 1: start-up / reconfiguration over the whole frame, F_s frames."""
         c = self.config
         self.full_passes += 1
         self._since_full = 0
@@ -397,37 +401,99 @@ class ThermalDetector:
                                                merge_distance_sq=c.merge_distance_sq)
             if c.link_gap > 0:
                 labels = merge_linked(labels, link_groups(result.support, c.link_gap)[rows, cols])
-            for k in range(int(labels.max()) + 1):
-                sel = labels == k
-                if np.count_nonzero(sel) < c.min_object_pixels:
-                    continue
-                cand = self._candidate(window, result, rows[sel], cols[sel], 0, 0)
+            groups = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)]
+            groups = [g for g in groups if g.size >= c.min_object_pixels]
+            if c.current_frame_refinement and len(groups) > 1:
+                groups = self._merge_by_footprint(window, result, rows, cols, groups)
+            for g in groups:
+                cand = self._candidate(window, result, rows[g], cols[g], 0, 0)
                 if cand is not None:
                     candidates.append(cand)
         return self._reassociate(candidates)
 
+    def _merge_by_footprint(self, window: np.ndarray, result: SupportResult, rows: np.ndarray,
+                            cols: np.ndarray, groups: list[np.ndarray]) -> list[np.ndarray]:
+        """Clusters whose newest-frame footprints share pixels are one object (a large
+        object's swept support can fall apart into bands; its footprint does not)."""
+        owner = np.full(window.shape[1:], -1, dtype=np.int64)
+        parent = list(range(len(groups)))
+
+        def find(a: int) -> int:
+            while parent[a] != a:
+                parent[a] = parent[parent[a]]
+                a = parent[a]
+            return a
+
+        for k, g in enumerate(groups):
+            fp = self._footprint(window, result, rows[g], cols[g])
+            if fp is None:
+                continue
+            (y0, x0), mask = fp
+            region = owner[y0:y0 + mask.shape[0], x0:x0 + mask.shape[1]]
+            for other in np.unique(region[mask & (region >= 0)]):
+                parent[find(int(other))] = find(k)
+            region[mask] = k
+        merged: dict[int, list[np.ndarray]] = {}
+        for k, g in enumerate(groups):
+            merged.setdefault(find(k), []).append(g)
+        return [np.concatenate(v) for v in merged.values()]
+
+    def _footprint(self, window: np.ndarray, result: SupportResult, rows: np.ndarray,
+                   cols: np.ndarray, allowed: np.ndarray | None = None
+                   ) -> tuple[tuple[int, int], np.ndarray] | None:
+        """Newest-frame pixels of the object whose support is ``(rows, cols)``.
+
+        Inside the support's bounding box grown by ``window_margin`` plus half its larger
+        side (parts of the object that did not move have no support), the pixels dissimilar
+        to the local background (kernel (3.6) below 1/2; background = median of the
+        non-support pixels there) form connected components; those touching the support are
+        the object.  ``allowed`` (window-sized bool) restricts them.  Returns
+        ``((y0, x0), mask)`` or ``None`` when there is nothing.
+        """
+        c = self.config
+        newest = window[-1]
+        h, w = newest.shape
+        r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
+        m = c.window_margin + max(r1 - r0, c1 - c0) // 2       # room for parts that stood still
+        y0, y1 = max(r0 - m, 0), min(r1 + m, h)
+        x0, x1 = max(c0 - m, 0), min(c1 + m, w)
+        patch = newest[y0:y1, x0:x1]
+        background = patch[~result.support[y0:y1, x0:x1]]
+        if background.size == 0:
+            background = newest[~result.support]
+        if background.size == 0:
+            return None
+        level = np.float32(np.median(background))
+        radius = np.float32(_similarity_radius(c.sigma2) / self._map[1])   # window units
+        fg = (np.abs(patch - level) > radius).astype(np.uint8)
+        if allowed is not None:
+            fg &= allowed[y0:y1, x0:x1].astype(np.uint8)
+        n, labels = cv2.connectedComponents(fg, connectivity=8)
+        if n <= 1:
+            return None
+        hit = np.unique(labels[rows - y0, cols - x0])
+        hit = hit[hit > 0]
+        if hit.size == 0:
+            return None
+        return (y0, x0), np.isin(labels, hit)
+
     def _candidate(self, window: np.ndarray, result: SupportResult, rows: np.ndarray,
-                   cols: np.ndarray, oy: int, ox: int) -> _Candidate | None:
+                   cols: np.ndarray, oy: int, ox: int,
+                   allowed: np.ndarray | None = None) -> _Candidate | None:
         """Detection from support pixels ``(rows, cols)`` of a window at offset (oy, ox)."""
         c = self.config
         score = float(min(1.0, np.mean(result.variance[rows, cols]) / 0.5))
         swept = describe_pixels(cols + ox, rows + oy)
         if not c.current_frame_refinement:
             return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
-        newest = window[-1]
-        background = newest[~result.support]
-        if background.size == 0:
-            return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
-        level = float(np.median(background))
-        r0, r1 = int(rows.min()), int(rows.max()) + 1
-        c0, c1 = int(cols.min()), int(cols.max()) + 1
-        patch = newest[r0:r1, c0:c1]
-        radius = _similarity_radius(c.sigma2) / self._map[1]     # in window units
-        fg = np.abs(patch - np.float32(level)) > np.float32(radius)
-        fr, fc = np.nonzero(fg)
+        fp = self._footprint(window, result, rows, cols, allowed)
+        if fp is None:
+            return None          # support the object has left: a trailing "ghost", no object
+        (y0, x0), mask = fp
+        fr, fc = np.nonzero(mask)
         if fr.size < c.min_object_pixels:
-            return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
-        now = describe_pixels(fc + c0 + ox, fr + r0 + oy)
+            return None
+        now = describe_pixels(fc + x0 + ox, fr + y0 + oy)
         return _Candidate(now.centroid, now.box, score, now.pixel_count)
 
     def _reassociate(self, candidates: list[_Candidate]) -> list[ThermalDetection]:
@@ -529,8 +595,18 @@ class ThermalDetector:
                         if other is not state:
                             mine &= own <= (px - other[0]) ** 2 + (py - other[1]) ** 2
                     if np.count_nonzero(mine) >= c.min_object_pixels:
+                        allowed = None
+                        if len(preds) > 1:
+                            gy, gx = np.mgrid[y0:y1, x0:x1]
+                            gx = gx + 0.5
+                            gy = gy + 0.5
+                            d_own = (gx - state[0]) ** 2 + (gy - state[1]) ** 2
+                            allowed = np.ones(gx.shape, dtype=bool)
+                            for other in preds:
+                                if other is not state:
+                                    allowed &= d_own <= (gx - other[0]) ** 2 + (gy - other[1]) ** 2
                         cand = self._candidate(window[:, y0:y1, x0:x1], sub, rows[mine],
-                                               cols[mine], y0, x0)
+                                               cols[mine], y0, x0, allowed)
             tr.kf.predict(dt)
             tr.stamp = stamp
             if cand is None:
