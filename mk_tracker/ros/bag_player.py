@@ -147,8 +147,28 @@ def _wait_for_subscribers(publishers: dict[str, Any], minimum: int, timeout_s: f
         stop.sleep(0.02)
 
 
+@dataclass
+class Lateness:
+    """How late messages were published relative to their schedule (player-side only)."""
+
+    count: int = 0
+    total_ns: int = 0
+    max_ns: int = 0
+
+    def add(self, late_ns: int) -> None:
+        late_ns = max(late_ns, 0)
+        self.count += 1
+        self.total_ns += late_ns
+        self.max_ns = max(self.max_ns, late_ns)
+
+    def summary(self) -> str:
+        mean = self.total_ns / self.count / 1e6 if self.count else 0.0
+        return f"publish lateness mean {mean:.2f} ms, max {self.max_ns / 1e6:.2f} ms"
+
+
 def play_iteration(plan: PlaybackPlan, messages: Iterator, played: dict[str, PlayedTopic],
-                   clock_publisher: Any, clock_period_ns: int, stop: StopFlag) -> int:
+                   clock_publisher: Any, clock_period_ns: int, stop: StopFlag,
+                   lateness: Lateness | None = None) -> int:
     """Publish one pass over ``messages`` on schedule; return how many were published."""
     from rosgraph_msgs.msg import Clock
     start = time.monotonic_ns()
@@ -179,6 +199,8 @@ def play_iteration(plan: PlaybackPlan, messages: Iterator, played: dict[str, Pla
             stop.sleep(min(wait, 100_000_000) / NS_PER_S)
         if stop.is_set():
             break
+        if lateness is not None:
+            lateness.add(time.monotonic_ns() - start - item.due_ns)
         target.publisher.publish(item.data)
         target.count += 1
         published += 1
@@ -267,6 +289,7 @@ def run(args: argparse.Namespace) -> int:
     node = rclpy.create_node("bag_player")
     status = 0
     total = 0
+    lateness = Lateness()
     t0 = time.monotonic()
     try:
         for topic in played.values():
@@ -295,7 +318,7 @@ def run(args: argparse.Namespace) -> int:
         while not stop.is_set():
             try:
                 total += play_iteration(plan, reader.messages(topics=selected), played,
-                                        clock_pub, clock_period, stop)
+                                        clock_pub, clock_period, stop, lateness)
             except (bag_io.BagError, PlaybackError) as exc:
                 _log(f"error while reading the bag: {exc}")
                 status = 1
@@ -315,7 +338,8 @@ def run(args: argparse.Namespace) -> int:
         rclpy.try_shutdown()
         reader.close()
     counts = ", ".join(f"{t.topic}: {t.count}" for t in played.values())
-    print(f"played {total} messages in {time.monotonic() - t0:.3f} s ({counts})", flush=True)
+    print(f"played {total} messages in {time.monotonic() - t0:.3f} s ({counts}); "
+          f"{lateness.summary()}", flush=True)
     if reported and status == 0:
         status = 1  # problems found on opening: what was readable has been played
     return status
