@@ -134,6 +134,9 @@ class MultiKernelConfig:
         0.8, "The scale is updated only when the statistic above exceeds this (paper: the "
         "mean above 0.3, which let occluded kernels inflate or shrink the box)",
         minimum=0.0, maximum=1.0)
+    verify_scale_step: bool = parameter(
+        True, "Keep a scale step of (10)-(11) only if it does not raise the cost (7) (not in "
+        "the paper; rejects steps biased by occluded kernel rims)")
     max_scale_change: float = parameter(
         0.05, "Largest |Delta s| per frame (not in the paper; bounds a noisy (10))",
         minimum=0.0, maximum=1.0)
@@ -531,7 +534,8 @@ class MultiKernelTracker:
         eps_j = cfg.epsilon_j_factor * n_k
         max_step = cfg.max_step_fraction * axes
 
-        evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride)
+        evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride,
+                               with_scale=cfg.scale_update)
         iterations = 0
         history = []
         for _ in range(cfg.max_iterations):
@@ -560,7 +564,8 @@ class MultiKernelTracker:
             step = np.nan_to_num(step, nan=0.0, posinf=0.0, neginf=0.0)
             x = np.clip(x + step, lo, hi)
             iterations += 1
-            evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride)
+            evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride,
+                                   with_scale=cfg.scale_update)
             if float(np.abs(step).max()) < cfg.min_step_px:
                 break
 
@@ -586,7 +591,7 @@ class MultiKernelTracker:
                         state.models[i] = (1.0 - rate) * state.models[i] + rate * e.p
             scale_sim = mean_sim if cfg.scale_gate_statistic == "mean" else float(sims.min())
             if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
-                self._update_scale(bin_roi, origin, state, w, stride)
+                self._update_scale(bin_roi, origin, state, w, stride, evals)
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
         return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
@@ -596,15 +601,15 @@ class MultiKernelTracker:
                                 scale=state.scale, cost_history=history)
 
     def _update_scale(self, bin_roi, origin, state: TargetState, weights: np.ndarray,
-                      stride: int) -> None:
+                      stride: int, evals: list[KernelEvaluation]) -> None:
         """Eqs. (9)-(11): ``Delta s = beta r(h)``, ``s_t = s_{t-1}(1 + Delta s)``.
 
         ``r`` is the W-weighted mean of the kernels' ratios.  The kernels' offsets from the
         centroid (14) and the distances L are rescaled with the scale, so (12)-(13) still hold.
+        With ``verify_scale_step`` the new scale is kept only if the weighted cost (7) of the
+        rescaled kernels is not higher than at the old scale.
         """
         cfg = self.config
-        evals = self._evaluate(bin_roi, origin, state.centres, state.half_axes, state.models,
-                               stride, with_scale=True)
         r = float(np.sum(weights * np.array([e.scale_ratio for e in evals]))) / len(evals)
         ds = float(np.clip(cfg.beta * r, -cfg.max_scale_change, cfg.max_scale_change))
         new_scale = float(np.clip(state.scale * (1.0 + ds), cfg.min_scale, cfg.max_scale))
@@ -612,7 +617,15 @@ class MultiKernelTracker:
             return
         ratio = new_scale / state.scale
         centroid = state.center
-        state.centres = centroid + (state.centres - centroid) * ratio
+        centres = centroid + (state.centres - centroid) * ratio
+        if cfg.verify_scale_step:
+            trial = self._evaluate(bin_roi, origin, centres, state.base_half_axes * new_scale,
+                                   state.models, stride)
+            old_cost = float(np.sum(weights * [e.cost for e in evals]))
+            new_cost = float(np.sum(weights * [e.cost for e in trial]))
+            if not new_cost <= old_cost:
+                return
+        state.centres = centres
         state.scale = new_scale
 
     def _lost(self, state: TargetState, x: np.ndarray, axes: np.ndarray, reason: str,
