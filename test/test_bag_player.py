@@ -210,12 +210,16 @@ def test_bag(tmp_path):
     return bag, write_test_bag(bag)
 
 
-def _check_timing(received, written, rate, tolerance=0.06):
-    t_first = received[0][1]
-    for (topic, t_recv, _), (t_bag, _) in zip(received, written):
-        expected = (t_bag - written[0][0]) / S / rate
-        assert abs((t_recv - t_first) - expected) < tolerance, (topic, t_recv - t_first,
-                                                                expected)
+def _check_timing(received, written, rate, origin=None):
+    """Arrival times follow the bag times divided by ``rate``: the median error is small
+    (systematic errors such as a wrong rate are not) and no message is far off (a loaded
+    2-core machine delays single messages by tens of ms)."""
+    t_first = received[0][1] if origin is None else origin
+    t_bag0 = written[0][0] if origin is None else T0
+    errors = [abs((t_recv - t_first) - (t_bag - t_bag0) / S / rate)
+              for (_, t_recv, _), (t_bag, _) in zip(received, written)]
+    assert sorted(errors)[len(errors) // 2] < 0.03, errors
+    assert max(errors) < 0.15, errors
 
 
 def test_plays_every_message_in_order_with_original_timing(test_bag, processes, listeners):
@@ -231,13 +235,10 @@ def test_plays_every_message_in_order_with_original_timing(test_bag, processes, 
         got = listener.wait_for(len(written[topic]), 5, topic)
         assert same_cdr([m[2] for m in got], [data for _, data in written[topic]])
         _check_timing(got, written[topic], 1.0)
-    # across topics, arrival follows bag time: /image's first message (t=50 ms) comes
-    # 50 ms after /chatter's first, and the whole 1 s bag lasts 1 s
-    everything = listener.messages()
-    assert everything[0][0] == "/chatter"
-    first_image = listener.messages("/image")[0][1]
-    assert abs(first_image - everything[0][1] - 0.05) < 0.04
-    assert abs(everything[-1][1] - everything[0][1] - 1.0) < 0.08
+    # across topics, arrival follows bag time: images (t = 50, 300, 550, 800 ms) arrive at
+    # their bag times measured from /chatter's first message (t = 0)
+    origin = listener.messages("/chatter")[0][1]
+    _check_timing(listener.messages("/image"), written["/image"], 1.0, origin=origin)
 
 
 def test_rate_two_with_start_offset_and_clock(test_bag, processes, listeners):
@@ -267,8 +268,8 @@ def test_rate_two_with_start_offset_and_clock(test_bag, processes, listeners):
     assert values == sorted(values)
     assert T0 + S // 5 <= values[0] < T0 + S // 5 + S // 10
     assert values[-1] >= T0 + S - S // 10
-    (w0, c0), (w1, c1) = clocks[0], clocks[-1]
-    assert abs((c1 - c0) / S / (w1 - w0) - 2.0) < 0.25
+    slope = np.polyfit([w for w, _ in clocks], [(v - T0) / S for _, v in clocks], 1)[0]
+    assert abs(slope - 2.0) < 0.25  # bag seconds per wall second
     # the clock read at each message's arrival is close to that message's bag time
     chatter = listener.messages("/chatter")
     for (_, t_recv, _), (t_bag, _) in zip(chatter, [w for w in written["/chatter"]
@@ -292,7 +293,7 @@ def test_topic_selection_remap_and_loop(test_bag, processes, listeners):
     data = [d for _, d in written["/chatter"]]
     assert same_cdr([m[2] for m in got[:33]], data * 3)
     # each pass lasts 1 s / 4 and the next starts right after the previous one
-    assert abs(got[11][1] - got[0][1] - 0.25) < 0.08
+    assert abs(got[11][1] - got[0][1] - 0.25) < 0.1
     assert listener.messages("/image") == [] and listener.messages("/chatter") == []
 
 
