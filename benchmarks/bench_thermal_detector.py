@@ -116,21 +116,29 @@ def main(argv=None) -> int:
     header = ("| scene | detector | full-frame pass ms CPU / wall (n) | tracking frame ms CPU / "
               "wall (n) | precision | recall | centroid RMSE px |")
     warm_up()
-    cases = [("paper Sec. 6, 100x100, 3 blocks", lambda: paper_scene(args.seed), {})]
-    crowd_cfg = {}
+    # the crowd preset: the paper's merge rule (3.13) alone, with epsilon_d sized to people
+    # of ~0.3 x frame height (half a person tall ~ sqrt(epsilon_d) at 320x240)
+    crowd = {"merge_distance_sq": 1000.0, "link_gap": 0, "merge_by_footprint": False}
+    cases = [("paper Sec. 6, 100x100, 3 blocks", lambda: paper_scene(args.seed), [{}])]
     for (w, h) in ((320, 240), (640, 512)):
+        scale = (h / 240.0) ** 2
         for n in (1, 5, 15):
             cases.append((f"crowd {w}x{h}, {n} people",
                           lambda w=w, h=h, n=n: crowd_scene(n, seed=args.seed, width=w, height=h,
                                                             frames=args.frames),
-                          crowd_cfg))
+                          [{}, dict(crowd, merge_distance_sq=1000.0 * scale)]))
     cases.append(("static warm objects + cooler person, 640x480",
-                  lambda: static_warm_objects_scene(args.seed), {}))
-    for name, make, overrides in cases:
+                  lambda: static_warm_objects_scene(args.seed), [{}]))
+    for name, make, variants in cases:
         scene = make()
-        for det_name, det in (("kernel (Alg. 2)", ThermalDetector(dataclasses.replace(
-                ThermalDetectorConfig(), **overrides))),
-                              ("threshold", ThresholdDetector(ThresholdDetectorConfig()))):
+        detectors = []
+        for overrides in variants:
+            label = "kernel (Alg. 2)" if not overrides else \
+                "kernel, crowd preset eps_d={:.0f}".format(overrides["merge_distance_sq"])
+            detectors.append((label, ThermalDetector(dataclasses.replace(
+                ThermalDetectorConfig(), **overrides))))
+        detectors.append(("threshold 0.5", ThresholdDetector(ThresholdDetectorConfig())))
+        for det_name, det in detectors:
             times, walls, tp, fp, fn, errs = run(det, scene)
             full = times.get("startup", []) + times.get("reconfiguration", [])
             full_w = walls.get("startup", []) + walls.get("reconfiguration", [])

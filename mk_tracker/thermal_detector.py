@@ -119,6 +119,8 @@ class ThermalDetectorConfig:
                                    choices=("auto", "fixed"))
     range_min: float = parameter(0.0, "raw value mapped to 0 (normalization=fixed)")
     range_max: float = parameter(255.0, "raw value mapped to 1 (normalization=fixed)")
+    merge_by_footprint: bool = parameter(True, "merge clusters whose newest-frame footprints "
+                                         "touch (needs current_frame_refinement)")
     min_valid_fraction: float = parameter(0.5, "frames with fewer finite pixels are skipped",
                                           minimum=0.0, maximum=1.0)
     kalman: KalmanConfig = parameter(KalmanConfig(), "per-object Kalman filter (Sec. 4)")
@@ -403,7 +405,7 @@ class ThermalDetector:
                 labels = merge_linked(labels, link_groups(result.support, c.link_gap)[rows, cols])
             groups = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)]
             groups = [g for g in groups if g.size >= c.min_object_pixels]
-            if c.current_frame_refinement and len(groups) > 1:
+            if c.current_frame_refinement and c.merge_by_footprint and len(groups) > 1:
                 groups = self._merge_by_footprint(window, result, rows, cols, groups)
             for g in groups:
                 cand = self._candidate(window, result, rows[g], cols[g], 0, 0)
@@ -497,7 +499,8 @@ class ThermalDetector:
         return _Candidate(now.centroid, now.box, score, now.pixel_count)
 
     def _reassociate(self, candidates: list[_Candidate]) -> list[ThermalDetection]:
-        """Full pass: keep the filters of objects found again, start new ones, drop the rest."""
+        """Full pass: keep the filters of objects found again, start new ones, and let the
+        others go after ``max_missed`` frames."""
         stamp = self._last_stamp
         old = self._tracks
         predicted = []
@@ -532,6 +535,19 @@ class ThermalDetector:
                 self._next_id += 1
             new_tracks.append(tr)
             detections.append(self._detection(tr, cand))
+        # objects not found again: kept for max_missed frames (they may be merged with a
+        # neighbour in this pass; the tracking pass separates them again), then dropped
+        matched_old = {i for i, _ in matches}
+        for i, tr in enumerate(old):
+            if i in matched_old:
+                continue
+            tr.missed += 1
+            if tr.missed <= self.config.max_missed and len(new_tracks) < self.config.max_objects:
+                dt = stamp - tr.stamp
+                if dt > 0:
+                    tr.kf.predict(dt)
+                tr.stamp = stamp
+                new_tracks.append(tr)
         self._tracks = new_tracks
         return detections
 
