@@ -87,7 +87,7 @@ def read_detection(msg: Any) -> Detection:
     The class and score come from the first result (the highest-scoring one when a
     producer lists several: the maximum is taken); a detection without results gets
     class ``""`` and score 0.  Raises :class:`DetectionMessageError` for a NaN/inf centre
-    or size, a non-positive size, or a non-finite score.
+    or size, a non-positive size, or a non-finite score in any of the results.
     """
     try:
         bbox = msg.bbox
@@ -102,13 +102,18 @@ def read_detection(msg: Any) -> Detection:
         raise DetectionMessageError(f"detection {track_id!r}: box centre/size {values} is not finite")
     if w <= 0 or h <= 0:
         raise DetectionMessageError(f"detection {track_id!r}: non-positive size {w} x {h}")
+    try:
+        scores = [float(r.hypothesis.score) for r in results]
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise DetectionMessageError(f"detection {track_id!r}: bad result: {exc}") from exc
+    for score in scores:   # any NaN/inf: max() over NaN would depend on the results' order
+        if not math.isfinite(score):
+            raise DetectionMessageError(f"detection {track_id!r}: score {score} is not finite")
     if results:
-        best = max(results, key=lambda r: float(r.hypothesis.score))
-        class_id, score = str(best.hypothesis.class_id), float(best.hypothesis.score)
+        best = max(range(len(scores)), key=scores.__getitem__)   # first of the highest
+        class_id, score = str(results[best].hypothesis.class_id), scores[best]
     else:
         class_id, score = "", 0.0
-    if not math.isfinite(score):
-        raise DetectionMessageError(f"detection {track_id!r}: score {score} is not finite")
     return Detection(center_to_xywh(cx, cy, w, h), score, class_id, track_id)
 
 
