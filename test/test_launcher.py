@@ -193,3 +193,40 @@ def test_mk_launch_runs_player_nodes_and_recorder_end_to_end(tmp_path):
         topics = reader.topics
     assert topics["/tracks"].count >= 1 and topics["/thermal/detections"].count >= 1, out
     assert topics["/tracks"].msgtype == "vision_msgs/msg/Detection2DArray"
+
+
+def test_children_do_not_outlive_a_killed_mk_launch(tmp_path):
+    """SIGKILL of mk_launch itself (no chance to clean up): its children still end."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(fresh_domain()),
+               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    proc = subprocess.Popen([sys.executable, "-m", "mk_tracker.ros.launcher", "--no-detector",
+                             "--no-tracker", "--record", str(tmp_path / "rec"),
+                             "--record-topics", "/nothing"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=env, cwd=Path(__file__).resolve().parents[1])
+    child = None
+    try:
+        line = proc.stdout.readline()
+        assert "started bag_recorder (pid " in line, line
+        child = int(line.rsplit("pid ", 1)[1].rstrip(")\n"))
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+        deadline = time.monotonic() + 10
+        alive = True
+        while alive and time.monotonic() < deadline:
+            try:
+                os.kill(child, 0)
+                with open(f"/proc/{child}/stat") as f:
+                    alive = f.read().split()[2] != "Z"
+            except (ProcessLookupError, FileNotFoundError):
+                alive = False
+            time.sleep(0.1)
+        assert not alive, "bag_recorder survived its killed launcher"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        if child is not None:
+            try:
+                os.kill(child, signal.SIGKILL)
+            except ProcessLookupError:
+                pass

@@ -116,6 +116,17 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     return specs
 
 
+def _die_with_parent() -> None:
+    """In the child before exec: get SIGTERM when mk_launch dies, even by SIGKILL, so no
+    node outlives a killed launcher (Linux prctl PR_SET_PDEATHSIG; elsewhere a no-op)."""
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        pass
+
+
 class _Running:
     def __init__(self, spec: ProcessSpec, out: TextIO, lock: threading.Lock) -> None:
         env = dict(os.environ)
@@ -126,7 +137,9 @@ class _Running:
         self.proc = subprocess.Popen(spec.argv, stdout=subprocess.PIPE,
                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                      env=env, text=True, errors="replace", bufsize=1,
-                                     start_new_session=True)
+                                     start_new_session=True,
+                                     preexec_fn=_die_with_parent if sys.platform.startswith(
+                                         "linux") else None)
         self.pump = threading.Thread(target=self._copy, args=(out, lock), daemon=True)
         self.pump.start()
 
