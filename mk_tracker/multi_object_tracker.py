@@ -127,6 +127,10 @@ class MultiObjectTrackerConfig:
     isolation_iou: float = parameter(
         0.05, "A detection overlapping another track by more than this IoU is not used to "
         "refresh an appearance model", minimum=0.0, maximum=1.0)
+    max_reported_coast_time: float = parameter(
+        0.2, "FrameResult.reported() includes an occluded (coasting) track for at most this "
+        "many seconds after its last detection; it stays tracked (and in tracks) for longer",
+        minimum=0.0, maximum=1e4)
     max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
                                 "not started", minimum=1, maximum=100000)
 
@@ -169,10 +173,14 @@ class FrameResult:
     skipped_frame: bool = False
     events: list[str] = field(default_factory=list)
 
+    max_reported_coast_time: float = float("inf")
+
     def reported(self) -> list[TrackOutput]:
-        """Tracks in an output state (confirmed or occluded)."""
-        names = {s.value for s in OUTPUT_STATES}
-        return [t for t in self.tracks if t.state in names]
+        """Tracks to draw or score: confirmed ones, and occluded (coasting) ones for at most
+        ``max_reported_coast_time`` seconds since their last detection."""
+        return [t for t in self.tracks if t.state == TrackState.CONFIRMED.value
+                or (t.state == TrackState.OCCLUDED.value
+                    and t.time_since_detection <= self.max_reported_coast_time)]
 
 
 @dataclass
@@ -243,6 +251,7 @@ class MultiObjectTracker:
                 raise TrackerInputError(f"cannot start a target on {tuple(b)}: {exc}") from exc
         track = self._new_track(b, stamp, 1.0, TrackState.CONFIRMED)
         track.hits = self.config.lifecycle.min_hits
+        track.manual = True
         track.target, track.target_stamp = target, stamp
         if target is not None:
             track.references.append(self.refiner.start(image_bgr, tuple(float(v) for v in b)))
@@ -255,7 +264,8 @@ class MultiObjectTracker:
         """Process one RGB frame at ``stamp`` (seconds) with its detections."""
         self._check_image(image_bgr)
         stamp = self._check_stamp(stamp)
-        result = FrameResult(stamp=stamp)
+        result = FrameResult(stamp=stamp,
+                             max_reported_coast_time=self.config.max_reported_coast_time)
         self.totals["frames"] += 1
         size = tuple(image_bgr.shape[:2])
         if self.last_stamp is not None and stamp < self.last_stamp - self.config.backwards_tolerance:
@@ -583,7 +593,8 @@ class MultiObjectTracker:
                          tentative_misses=t.tentative_misses,
                          unseen_time=stamp - t.last_seen,
                          lost_time=0.0 if t.lost_since is None else stamp - t.lost_since,
-                         config=cfg)
+                         config=cfg,
+                         undetected_time=0.0 if t.manual else stamp - t.last_detection)
         if hold and new is TrackState.CONFIRMED and was is TrackState.TENTATIVE:
             new = TrackState.TENTATIVE
         if new is TrackState.LOST and was is not TrackState.LOST:
@@ -595,7 +606,8 @@ class MultiObjectTracker:
             others = [b for tid, b in all_det_boxes.items() if tid != t.id]
             others += [o.box for o in self.tracks
                        if o.id != t.id and o.state in OUTPUT_STATES]
-            isolated = all(iou(det_box, b) <= self.config.isolation_iou for b in others)
+            isolated = not others or float(iou_matrix(det_box[None], np.array(others)).max()) \
+                <= self.config.isolation_iou
             # refresh only from a clean view: not next to another person, and (when the
             # refiner ran) a good match, so an occluder's pixels never enter the model; a
             # re-acquired track keeps the model that just proved to match

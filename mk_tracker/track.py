@@ -58,7 +58,7 @@ class LifecycleConfig:
     min_hits: int = parameter(3, "Detections a tentative track needs to be confirmed",
                               minimum=1, maximum=1000)
     max_tentative_misses: int = parameter(
-        1, "Consecutive frames without a detection after which a tentative track is deleted",
+        0, "Consecutive frames without a detection after which a tentative track is deleted",
         minimum=0, maximum=1000)
     occlusion_similarity: float = parameter(
         0.6, "Multiple-kernel similarity below which an undetected track is occluded "
@@ -69,8 +69,12 @@ class LifecycleConfig:
     max_lost_time: float = parameter(
         4.0, "Seconds a lost track is kept for re-acquisition before it is deleted",
         minimum=0.0, maximum=1e5)
+    max_undetected_time: float = parameter(
+        0.5, "Seconds a track may go on by its multiple-kernel refinement alone, with no "
+        "detection, before it is lost (a refiner locked on background must not live on); "
+        "0 = no limit.  Tracks started by hand are exempt", minimum=0.0, maximum=1e5)
     size_smoothing: float = parameter(
-        0.3, "Weight of a new measured box size in the exponential size smoothing "
+        0.6, "Weight of a new measured box size in the exponential size smoothing "
         "(scaled by match quality; 1 = no smoothing)", minimum=0.0, maximum=1.0)
     velocity_smoothing: float = parameter(
         0.5, "Weight of the newest Kalman velocity in the reported (smoothed) velocity",
@@ -79,7 +83,7 @@ class LifecycleConfig:
         0.2, "Factor on the size-smoothing weight for sizes measured by the multiple-kernel "
         "scale update alone (detections give better sizes)", minimum=0.0, maximum=1.0)
     measurement_noise: float = parameter(
-        0.04, "Centroid measurement std (4.1) of a perfect match, as a fraction of the box "
+        0.02, "Centroid measurement std (4.1) of a perfect match, as a fraction of the box "
         "height", minimum=1e-4, maximum=10.0)
     min_noise_px: float = parameter(1.0, "Lower bound of the centroid measurement std, px",
                                     minimum=1e-3, maximum=1e4)
@@ -102,7 +106,7 @@ def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig
 
 def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bool,
                hits: int, tentative_misses: int, unseen_time: float, lost_time: float,
-               config: LifecycleConfig) -> TrackState:
+               config: LifecycleConfig, undetected_time: float = 0.0) -> TrackState:
     """The lifecycle transition of one track for one frame (pure function).
 
     ``detected``: a detection was assigned this frame.  ``visible``: the multiple-kernel
@@ -110,7 +114,8 @@ def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bo
     box overlaps the image.  ``hits``: detections so far (this one included).
     ``tentative_misses``: consecutive undetected frames (this one included).
     ``unseen_time``: seconds since the track was last detected or visible.  ``lost_time``:
-    seconds since it became lost.
+    seconds since it became lost.  ``undetected_time``: seconds since the last detection
+    (pass 0 for tracks exempt from ``max_undetected_time``).
     """
     if state is TrackState.DELETED:
         return state
@@ -125,6 +130,8 @@ def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bo
     if state is TrackState.LOST:
         return TrackState.DELETED if lost_time > config.max_lost_time else TrackState.LOST
     if not in_image:
+        return TrackState.LOST
+    if config.max_undetected_time > 0 and undetected_time > config.max_undetected_time:
         return TrackState.LOST
     if visible:
         return TrackState.CONFIRMED
@@ -178,6 +185,7 @@ class Track:
         self.references: list[Any] = []    # frozen appearance models for re-acquisition
         self.target_stamp: float | None = None
         self.refined_box: np.ndarray | None = None
+        self.manual = False                # started by hand: no detector needed
 
     # -- geometry -----------------------------------------------------------------------
     @property

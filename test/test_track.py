@@ -56,7 +56,8 @@ def test_measurement_sigma_follows_quality():
 
 def make_track():
     return Track(1, np.array([100.0, 100.0, 20.0, 50.0]), 0.0, score=1.0,
-                 kalman=KalmanConfig(), config=LifecycleConfig())
+                 kalman=KalmanConfig(), config=LifecycleConfig(size_smoothing=0.3,
+                                                               measurement_noise=0.04))
 
 
 def test_poor_match_moves_the_track_less():
@@ -86,3 +87,14 @@ def test_output_reports_age_and_time_since_detection():
     assert out.time_since_detection == pytest.approx(0.5)
     assert out.state == "tentative"
     assert out.box[2:] == (20.0, 50.0)
+
+
+def test_refinement_alone_keeps_a_track_only_for_max_undetected_time():
+    cfg = LifecycleConfig(max_undetected_time=1.5)
+    kw = dict(detected=False, visible=True, in_image=True, hits=5, tentative_misses=0,
+              unseen_time=0.0, lost_time=0.0, config=cfg)
+    assert next_state(TrackState.CONFIRMED, undetected_time=1.4, **kw) is TrackState.CONFIRMED
+    assert next_state(TrackState.CONFIRMED, undetected_time=1.6, **kw) is TrackState.LOST
+    unlimited = dict(kw, config=LifecycleConfig(max_undetected_time=0.0))
+    assert next_state(TrackState.CONFIRMED, undetected_time=99.0, **unlimited) is \
+        TrackState.CONFIRMED
