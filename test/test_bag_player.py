@@ -364,6 +364,11 @@ def test_real_rosbag2_bags_play_every_message(name, processes, listeners):
     for proc, listener, expected in runs:
         out, err = proc.communicate(timeout=60)
         assert proc.returncode == 0, err
+        if name == "talker":  # the offered QoS stored in metadata.yaml is reproduced
+            assert "/rosout -> /rosout [rcl_interfaces/msg/Log] reliable/transient_local" in err
+            assert "/topic -> /topic [std_msgs/msg/String] reliable/volatile" in err
+        else:  # wbag stores no QoS: the default
+            assert "AAA -> /AAA [std_msgs/msg/String] reliable/volatile/depth 1000" in err
         total = sum(len(v) for v in expected.values())
         assert total >= 20
         assert f"played {total} messages" in out
