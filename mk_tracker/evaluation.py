@@ -16,7 +16,8 @@ valid ground-truth box are left out.
 
 MOTChallenge text format, one line per box: ``frame,id,x,y,w,h,conf,x3d,y3d,z3d`` with 1-based
 frames and a top-left box in pixels.  Ground-truth files of MOT16 and later have
-``frame,id,x,y,w,h,consider,class,visibility``: rows with ``consider == 0`` are dropped.
+``frame,id,x,y,w,h,consider,class,visibility``: rows with ``consider == 0`` or a class other
+than 1 (pedestrian) are dropped, as :func:`mk_tracker.datasets.read_mot_sequence` does.
 """
 
 from __future__ import annotations
@@ -80,7 +81,9 @@ def parse_mot_lines(lines: Iterable[str], *, ground_truth: bool = False,
         if frame != int(frame) or ident != int(ident):
             raise EvaluationError(f"{source}:{n}: frame and id must be integers")
         if ground_truth and len(values) >= 9 and values[6] == 0:
-            continue
+            continue                    # MOT16+ "ignore" row
+        if ground_truth and len(values) == 9 and int(values[7]) != 1:
+            continue                    # MOT16+ class other than pedestrian
         score = values[6] if len(values) > 6 and math.isfinite(values[6]) else 1.0
         w, h = values[4], values[5]
         if w <= 0 or h <= 0:

@@ -101,10 +101,8 @@ def process_noise(dt: float, sigma_u: float) -> np.ndarray:
     """
     dt = _check_dt(dt)
     s2 = _check_std("sigma_u", sigma_u, allow_zero=True) ** 2
-    i2 = np.eye(2)
-    top = np.hstack([dt ** 3 / 3.0 * i2, dt ** 2 / 2.0 * i2])
-    bottom = np.hstack([dt ** 2 / 2.0 * i2, dt * i2])
-    return s2 * np.vstack([top, bottom])
+    a, b, c = s2 * dt ** 3 / 3.0, s2 * dt ** 2 / 2.0, s2 * dt
+    return np.array([[a, 0.0, b, 0.0], [0.0, a, 0.0, b], [b, 0.0, c, 0.0], [0.0, b, 0.0, c]])
 
 
 class ConstantVelocityKalman:

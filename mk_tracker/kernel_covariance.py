@@ -41,6 +41,8 @@ with one ``exp`` per unordered frame pair ``tau <= tau'`` and pixel pair, using 
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 
@@ -242,6 +244,8 @@ def block_kernel_covariance_levels(levels: np.ndarray, table: np.ndarray) -> np.
         raise KernelCovarianceError("level differences exceed the kernel table")
     if not _LEVELS_KERNEL:
         try:
+            if os.environ.get("MK_TRACKER_NO_NUMBA"):
+                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
             import numba
             _LEVELS_KERNEL.append(numba.njit(cache=True)(_levels_covariance_loops))
         except ImportError:

@@ -14,15 +14,17 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    brought to the frame time with each track's Kalman velocity (constant-velocity model
    (2.1)-(2.2) of Schizas et al. 2018).
 3. **Prediction.**  Every track's Kalman filter is advanced to the frame time, (4.2)-(4.3).
-4. **Multiple-kernel refinement** (Chu et al. 2013, Sec. IV-D): for each confirmed or
-   occluded track with an appearance model, the Kalman prediction initialises the
-   multiple-kernel search whose result is a Kalman measurement.  Its similarity sets the
-   measurement noise (:func:`mk_tracker.track.measurement_sigma`) and, below
-   ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).
-5. **Association** (:mod:`mk_tracker.association`): Hungarian assignment of detections to
+4. **Association** (:mod:`mk_tracker.association`): Hungarian assignment of detections to
    tentative/confirmed/occluded tracks on overlap + Kalman-gated distance; then the
-   remaining detections against *lost* tracks, where the appearance model must also match
-   (re-acquisition with the old id).  Remaining detections start tentative tracks.
+   remaining detections (and those of still-tentative tracks) against *lost* tracks, where
+   the appearance model must also match (re-acquisition with the old id).  Remaining
+   detections start tentative tracks.
+5. **Multiple-kernel refinement** (Chu et al. 2013, Sec. IV-D): for each confirmed or
+   occluded track with an appearance model and no detection this frame (or every such track
+   with ``refine_when_detected``), the Kalman prediction initialises the multiple-kernel
+   search whose result is a Kalman measurement.  Its similarity sets the measurement noise
+   (:func:`mk_tracker.track.measurement_sigma`) and, below
+   ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).
 6. **Update and lifecycle** (:mod:`mk_tracker.track`).
 
 The refiner is any object with ``start(image, box) -> target``,
@@ -290,14 +292,14 @@ class MultiObjectTracker:
         for t in live:
             t.predict(stamp)
 
-        # 5a. detections vs tentative / confirmed / occluded tracks
+        # 4a. detections vs tentative / confirmed / occluded tracks
         active = [t for t in live if t.state is not TrackState.LOST]
         matched_track: dict[int, int] = {}          # detection index -> track id
         if active and dets:
             a = self._match(active, dets, self.config.association.gate)
             for r, k in a.matches:
                 matched_track[k] = active[r].id
-        # 5b. remaining detections vs lost tracks (re-acquisition)
+        # 4b. remaining detections vs lost tracks (re-acquisition)
         # A person reappearing part-occluded may first be seen by a new tentative track (its
         # appearance does not match yet); its detections stay candidates until it is
         # confirmed, and when one re-acquires a lost track the tentative track is dropped.
@@ -329,7 +331,7 @@ class MultiObjectTracker:
                                           for k, tid in matched_track.items()}
         det_boxes_now = {tid: self._at_frame_time(by_id[tid], d)
                          for tid, d in detected.items()}
-        # 5c. multiple-kernel refinement from the Kalman prediction (Chu et al. Sec. IV-D)
+        # 5. multiple-kernel refinement from the Kalman prediction (Chu et al. Sec. IV-D)
         # for the tracks no detection was assigned to this frame (missed, part- or fully
         # occluded), or for all with refine_when_detected.  Keeps the per-frame cost to the
         # hard cases.

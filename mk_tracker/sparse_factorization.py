@@ -28,6 +28,7 @@ updating that coordinate in all blocks at once.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -315,8 +316,8 @@ def _factorize_loops(s, lam, n_cols, max_cycles, tol):
                     rjj = sb[j, j]
                     cross = 0.0
                     for mu in range(p):
-                        if mu != j:
-                            cross += sb[j, mu] * m[mu, r]
+                        cross += sb[j, mu] * m[mu, r]
+                    cross -= sb[j, j] * old
                     for r2 in range(n_cols):
                         if r2 != r:
                             mj2 = m[j, r2]
@@ -350,11 +351,13 @@ _COMPILED: list = []
 
 
 def _compiled_kernel():
-    """The numba-compiled coordinate descent, or ``None`` without numba (compiled once,
-    cached on disk by numba)."""
+    """The numba-compiled coordinate descent, or ``None`` without numba or with the
+    environment variable ``MK_TRACKER_NO_NUMBA`` set (compiled once, cached on disk)."""
     if _COMPILED:
         return _COMPILED[0]
     try:
+        if os.environ.get("MK_TRACKER_NO_NUMBA"):
+            raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
         import numba
     except ImportError:
         _COMPILED.append(None)

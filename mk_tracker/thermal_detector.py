@@ -613,11 +613,10 @@ class ThermalDetector:
                     if np.count_nonzero(mine) >= c.min_object_pixels:
                         allowed = None
                         if len(preds) > 1:
-                            gy, gx = np.mgrid[y0:y1, x0:x1]
-                            gx = gx + 0.5
-                            gy = gy + 0.5
+                            gx = np.arange(x0, x1) + 0.5
+                            gy = (np.arange(y0, y1) + 0.5)[:, None]
                             d_own = (gx - state[0]) ** 2 + (gy - state[1]) ** 2
-                            allowed = np.ones(gx.shape, dtype=bool)
+                            allowed = np.ones(d_own.shape, dtype=bool)
                             for other in preds:
                                 if other is not state:
                                     allowed &= d_own <= (gx - other[0]) ** 2 + (gy - other[1]) ** 2

@@ -65,8 +65,8 @@ def test_mot_file_round_trip_and_gt_consider_flag(tmp_path):
     back = ev.read_mot_file(path)
     assert [(r.frame, r.id) for r in back] == [(1, 3), (2, 5)]
     assert back[1].box == (1.5, 2.25, 10.0, 20.0) and back[1].score == pytest.approx(0.75)
-    gt = ev.parse_mot_lines(["1,1,0,0,10,10,1,1,1.0", "1,2,0,0,10,10,0,1,1.0"],
-                            ground_truth=True)
+    gt = ev.parse_mot_lines(["1,1,0,0,10,10,1,1,1.0", "1,2,0,0,10,10,0,1,1.0",
+                             "1,3,0,0,10,10,1,3,1.0"], ground_truth=True)
     assert [r.id for r in gt] == [1]
 
 
