@@ -179,10 +179,11 @@ class FrameResult:
 
     def reported(self) -> list[TrackOutput]:
         """Tracks to draw or score: confirmed ones, and occluded (coasting) ones for at most
-        ``max_reported_coast_time`` seconds since their last detection."""
+        ``max_reported_coast_time`` seconds since their last detection (always for tracks
+        started by hand, which have no detector)."""
         return [t for t in self.tracks if t.state == TrackState.CONFIRMED.value
                 or (t.state == TrackState.OCCLUDED.value
-                    and t.time_since_detection <= self.max_reported_coast_time)]
+                    and (t.manual or t.time_since_detection <= self.max_reported_coast_time))]
 
 
 @dataclass
@@ -593,7 +594,9 @@ class MultiObjectTracker:
         new = next_state(was, detected=det_box is not None, visible=visible,
                          in_image=self._in_image(t, width, height), hits=t.hits,
                          tentative_misses=t.tentative_misses,
-                         unseen_time=stamp - t.last_seen,
+                         # a track started by hand has no detector to come back with: it
+                         # coasts (and keeps refining) until it leaves the image
+                         unseen_time=0.0 if t.manual else stamp - t.last_seen,
                          lost_time=0.0 if t.lost_since is None else stamp - t.lost_since,
                          config=cfg,
                          undetected_time=0.0 if t.manual else stamp - t.last_detection)

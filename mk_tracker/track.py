@@ -147,7 +147,8 @@ class TrackOutput:
     ``box`` is ``(x, y, w, h)`` at the frame time; ``score`` the match quality this frame
     (multiple-kernel similarity, or the detection score when no refiner runs; 0 when
     coasting); ``velocity`` ``(vx, vy)`` in px/s; ``age`` seconds since the track started;
-    ``time_since_detection`` seconds since a detection was last assigned.
+    ``time_since_detection`` seconds since a detection was last assigned; ``manual`` for a
+    track started by hand (:meth:`MultiObjectTracker.start_track`).
     """
 
     id: int
@@ -158,6 +159,7 @@ class TrackOutput:
     age: float
     time_since_detection: float
     hits: int
+    manual: bool = False
 
 
 class Track:
@@ -240,4 +242,4 @@ class Track:
                                      float(self.smoothed_velocity[1])),
                            age=self.stamp - self.created,
                            time_since_detection=self.stamp - self.last_detection,
-                           hits=self.hits)
+                           hits=self.hits, manual=self.manual)

@@ -224,6 +224,9 @@ def test_start_track_by_hand_is_confirmed_at_once():
     r = trk.step(IMG, DT, [])
     assert [(t.id, t.state) for t in r.tracks] == [(tid, "occluded")]
     assert ref.refined == 1                      # the prediction initialised a refinement
+    for i in range(2, 100):                      # 4 s without a match: still coasting, reported
+        r = trk.step(IMG, i * DT, [])
+    assert [(t.id, t.state, t.manual) for t in r.reported()] == [(tid, "occluded", True)]
     with pytest.raises(TrackerInputError):
         trk.start_track(IMG, 0.0, (0, 0, -5, 10))
 
