@@ -389,3 +389,13 @@ def test_real_bag_with_unimportable_types_is_reported(storage, processes):
     assert "cannot play /test_topic [test_msgs/msg/BasicTypes]" in err
     assert "cannot play /array_topic [test_msgs/msg/Arrays]" in err
     assert "Traceback" not in err
+
+
+def test_start_offset_past_the_end_is_an_error_even_with_loop(test_bag, processes):
+    bag, _ = test_bag
+    proc = processes.start(module_argv("mk_tracker.ros.bag_player", str(bag), "--loop",
+                                       "--start-offset", "5"), fresh_domain())
+    out, err = proc.communicate(timeout=30)  # would spin forever if loop replayed nothing
+    assert proc.returncode == 1
+    assert "no message of the selected topics at or after the start offset of 5 s" in err
+    assert "played 0 messages" in out and "Traceback" not in err

@@ -317,10 +317,16 @@ def run(args: argparse.Namespace) -> int:
         selected = sorted(played)
         while not stop.is_set():
             try:
-                total += play_iteration(plan, reader.messages(topics=selected), played,
-                                        clock_pub, clock_period, stop, lateness)
+                count = play_iteration(plan, reader.messages(topics=selected), played,
+                                       clock_pub, clock_period, stop, lateness)
             except (bag_io.BagError, PlaybackError) as exc:
                 _log(f"error while reading the bag: {exc}")
+                status = 1
+                break
+            total += count
+            if count == 0 and not stop.is_set():
+                _log(f"error: no message of the selected topics at or after the start "
+                     f"offset of {options.start_offset_s:g} s")
                 status = 1
                 break
             if len(reader.problems) > reported:
