@@ -87,7 +87,7 @@ def test_detector_and_tracker_nodes_track_the_paper_scene(domain, nodes):
             thermal_pub.publish(numpy_to_image(
                 frame.thermal, "mono8",
                 Header(stamp=make_stamp(frame.stamp), frame_id="thermal_camera"), types=TYPES))
-            assert peer.spin_until(lambda: _latest(detections, frame.stamp) is not None, 5.0), \
+            assert peer.spin_until(lambda: _latest(detections, frame.stamp) is not None, 60.0), \
                 f"no detections for frame {i}"
             rgb_pub.publish(numpy_to_image(
                 frame.rgb, "bgr8", Header(stamp=make_stamp(frame.stamp), frame_id="camera"),

@@ -22,3 +22,17 @@ def test_each_kind_is_logged_once_per_period_with_a_count_of_the_suppressed():
     assert log("short data: 40 bytes")
     assert lines == ["short data: 10 bytes", "unsupported encoding 'yuv422'",
                      "short data: 40 bytes (2 similar message(s) suppressed)"]
+
+
+def test_ros_loggers_of_different_severities_do_not_collide():
+    # rclpy fixes the severity per call site and raises when one site logs at two
+    from rclpy.logging import get_logger
+
+    from mk_tracker.ros.throttled_log import throttled_ros_log
+
+    logger = get_logger("throttled_log_test")
+    warn = throttled_ros_log(logger, "warning")
+    info = throttled_ros_log(logger, "info")
+    error = throttled_ros_log(logger, "error")
+    assert warn("a warning") and info("an event") and error("an error")
+    assert info("another event")

@@ -101,20 +101,22 @@ class Player:
         header = Header(stamp=make_stamp(stamp), frame_id=frame_id)
         self.image_pub.publish(numpy_to_image(image, encoding, header, types=TYPES))
 
-    def tracks_at(self, stamp):
-        for msg in reversed(self.tracks):
+    def tracks_at(self, stamp, first=0):
+        """The newest tracks message of ``stamp`` among those from index ``first``."""
+        for msg in reversed(self.tracks[first:]):
             if abs(stamp_of(msg) - stamp) < 1e-6:
                 return msg
         return None
 
     def step(self, image, stamp, boxes=None, frame_id="thermal_camera", timeout=5.0):
         """Detections, then the image; returns the tracks message of ``stamp``."""
+        first = len(self.tracks)              # only an answer to this very frame counts
         if boxes is not None:
             self.send_detections(boxes, stamp, frame_id)
             self.peer.spin_for(0.01)
         self.send_image(image, stamp)
-        self.peer.spin_until(lambda: self.tracks_at(stamp) is not None, timeout)
-        return self.tracks_at(stamp)
+        self.peer.spin_until(lambda: self.tracks_at(stamp, first) is not None, timeout)
+        return self.tracks_at(stamp, first)
 
 
 def _play_scene(player: Player, scene, indices=None, noise_px: float = 1.5):

@@ -43,7 +43,7 @@ from mk_tracker.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
 from mk_tracker.ros.parameter_bridge import ParameterBridge
-from mk_tracker.ros.throttled_log import ThrottledLog
+from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
 from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
@@ -103,9 +103,9 @@ class DetectorNode(Node):
         super().__init__("detector_node", **kwargs)
         self._types = ros_message_types()
         self._lock = threading.Lock()     # the detector (worker thread vs parameters)
-        self._warn = ThrottledLog(self.get_logger().warning, period=1.0)
-        self._error = ThrottledLog(self.get_logger().error, period=1.0)
-        self._event = ThrottledLog(self.get_logger().info, period=1.0)
+        self._warn = throttled_ros_log(self.get_logger(), "warning", period=1.0)
+        self._error = throttled_ros_log(self.get_logger(), "error", period=1.0)
+        self._event = throttled_ros_log(self.get_logger(), "info", period=1.0)
         self._bridge = ParameterBridge(self)
         self.node_config: DetectorNodeConfig = self._bridge.add_config(
             "", DetectorNodeConfig(), on_change=self._on_node_config)

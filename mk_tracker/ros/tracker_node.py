@@ -55,7 +55,7 @@ from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
 from mk_tracker.ros.parameter_bridge import ParameterBridge
-from mk_tracker.ros.throttled_log import ThrottledLog
+from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
 
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
@@ -140,9 +140,9 @@ class TrackerNode(Node):
         self._types = ros_message_types()
         self._buffer_lock = threading.Lock()   # detection buffer and start requests
         self._tracker_lock = threading.Lock()  # the tracker (worker thread vs parameters)
-        self._warn = ThrottledLog(self.get_logger().warning, period=1.0)
-        self._error = ThrottledLog(self.get_logger().error, period=1.0)
-        self._event = ThrottledLog(self.get_logger().info, period=1.0)
+        self._warn = throttled_ros_log(self.get_logger(), "warning", period=1.0)
+        self._error = throttled_ros_log(self.get_logger(), "error", period=1.0)
+        self._event = throttled_ros_log(self.get_logger(), "info", period=1.0)
         self._bridge = ParameterBridge(self)
         self.node_config: TrackerNodeConfig = self._bridge.add_config(
             "", TrackerNodeConfig(), extra_check=check_node_config,
