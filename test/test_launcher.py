@@ -135,6 +135,10 @@ def test_ros_args_and_specs(tmp_path):
     player = list(specs[-1].argv)
     waited = player[player.index("--wait-topics") + 1:player.index("--wait-topics") + 3]
     assert sorted(waited) == ["/cam", "/thermal/image_raw"]
+    assert "use_sim_time:=true" not in specs[0].argv
+    sim = build_specs(parser.parse_args(["--bag", str(bag), "--clock"]))
+    assert all("use_sim_time:=true" in s.argv for s in sim if s.name.endswith("_node"))
+    assert "--clock" in sim[-1].argv
     with pytest.raises(LaunchError, match="does not exist"):
         build_specs(parser.parse_args(["--bag", str(tmp_path / "missing")]))
     with pytest.raises(LaunchError, match="record-topics"):

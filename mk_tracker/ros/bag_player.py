@@ -242,6 +242,10 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # signals first: a Ctrl-C while the bag opens or rclpy loads ends quietly too
+    stop = StopFlag()
+    signal.signal(signal.SIGINT, stop.set)
+    signal.signal(signal.SIGTERM, stop.set)
     reader = None
     try:
         overrides = dict(parse_qos_override(o, args.qos_depth) for o in args.qos_override)
@@ -282,9 +286,6 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.signals import SignalHandlerOptions
     from rosgraph_msgs.msg import Clock
 
-    stop = StopFlag()
-    signal.signal(signal.SIGINT, stop.set)
-    signal.signal(signal.SIGTERM, stop.set)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("bag_player")
     status = 0

@@ -64,11 +64,13 @@ def remapped(topic: str, remaps: Sequence[str]) -> str:
 
 
 def ros_args(params_files: Sequence[str] = (), remaps: Sequence[str] = (),
-             node_name: str | None = None) -> list[str]:
+             node_name: str | None = None, use_sim_time: bool = False) -> list[str]:
     """``--ros-args`` tail with the params files and ``from:=to`` remappings."""
     tail: list[str] = []
     for params_file in params_files:
         tail += ["--params-file", params_file]
+    if use_sim_time:
+        tail += ["-p", "use_sim_time:=true"]
     if node_name:
         tail += ["-r", f"__node:={node_name}"]
     for remap in remaps:
@@ -88,10 +90,12 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     specs: list[ProcessSpec] = []
     if not args.no_detector:
         specs.append(ProcessSpec("detector_node", module_command(
-            "mk_tracker.ros.detector_node", ros_args(args.params_file, args.remap))))
+            "mk_tracker.ros.detector_node",
+            ros_args(args.params_file, args.remap, use_sim_time=args.clock))))
     if not args.no_tracker:
         specs.append(ProcessSpec("tracker_node", module_command(
-            "mk_tracker.ros.tracker_node", ros_args(args.params_file, args.remap))))
+            "mk_tracker.ros.tracker_node",
+            ros_args(args.params_file, args.remap, use_sim_time=args.clock))))
     if args.record:
         if not args.record_topics:
             raise LaunchError("--record needs --record-topics")
@@ -254,7 +258,8 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
                         help="topic remapping applied to the nodes and the player")
     parser.add_argument("--rate", type=float, default=1.0, help="playback rate factor")
-    parser.add_argument("--clock", action="store_true", help="player publishes /clock")
+    parser.add_argument("--clock", action="store_true",
+                        help="player publishes /clock and the nodes run on it (use_sim_time)")
     parser.add_argument("--wait-for-subscribers", type=float, default=10.0, metavar="S",
                         help="player waits up to S seconds for the nodes to subscribe")
     parser.add_argument("--record", metavar="OUT", help="record into this new bag")
