@@ -257,3 +257,52 @@ def block_kernel_covariance_levels(levels: np.ndarray, table: np.ndarray) -> np.
         # table[1] = exp(-s^2 / 2 sigma^2) -> rebuild values in units where sigma^2 = 1
         return block_kernel_covariance(lv * scale, 1.0, dtype=np.float64)
     return kernel(lv, tab, out)
+
+
+def _levels_variance_loops(levels, table, out):
+    n_blocks, n_frames, p = levels.shape
+    scale = 2.0 / (n_frames * n_frames)
+    for b in range(n_blocks):
+        x = levels[b]
+        for i in range(p):
+            acc = 0.0
+            for a in range(n_frames):
+                xa = x[a, i]
+                for c in range(a + 1, n_frames):
+                    acc += 1.0 - table[abs(xa - x[c, i])]
+            out[b, i] = acc * scale
+    return out
+
+
+_LEVELS_VARIANCE: list = []
+
+
+def block_variance_levels(levels: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """Diagonal ``Sigma(j, j)`` of (3.5) for blocks of integer levels ``(B, F, p)``.
+
+    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])`` with a
+    :func:`kernel_table`; ``(B, p)`` float64.  Compiled with numba when it is installed.
+    """
+    lv = np.ascontiguousarray(levels, dtype=np.int32)
+    if lv.ndim != 3:
+        raise KernelCovarianceError(f"levels must be (B, F, p), got shape {lv.shape}")
+    tab = np.ascontiguousarray(table, dtype=np.float64)
+    if lv.size and int(lv.max()) - int(lv.min()) >= tab.size:
+        raise KernelCovarianceError("level differences exceed the kernel table")
+    if not _LEVELS_VARIANCE:
+        try:
+            if os.environ.get("MK_TRACKER_NO_NUMBA"):
+                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
+            import numba
+            _LEVELS_VARIANCE.append(numba.njit(cache=True)(_levels_variance_loops))
+        except ImportError:
+            _LEVELS_VARIANCE.append(None)
+    out = np.zeros((lv.shape[0], lv.shape[2]))
+    kernel = _LEVELS_VARIANCE[0]
+    if kernel is None:
+        n_frames = lv.shape[1]
+        for a in range(n_frames):
+            for c in range(a + 1, n_frames):
+                out += 1.0 - tab[np.abs(lv[:, a, :] - lv[:, c, :])]
+        return out * (2.0 / (n_frames * n_frames))
+    return kernel(lv, tab, out)

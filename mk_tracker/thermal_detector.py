@@ -62,7 +62,8 @@ from mk_tracker.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
 from mk_tracker.kernel_covariance import (block_kernel_covariance,
-                                          block_kernel_covariance_levels, kernel_table,
+                                          block_kernel_covariance_levels,
+                                          block_variance_levels, kernel_table,
                                           pixel_kernel_variance, range_for_variance)
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.pixel_clustering import (cluster_support_pixels, describe_pixels, link_groups,
@@ -199,22 +200,26 @@ def support_in_frame(window: np.ndarray, config: ThermalDetectorConfig, scale: f
     p = rho * rho
     blocks = (padded.reshape(n_frames, nby, rho, nbx, rho)[:, by, :, bx, :]
               .reshape(by.size, n_frames, p))
-    # exact activity test: Sigma(j, j) > T(lambda) for some pixel (range bound first)
-    spread = blocks.max(axis=1) - blocks.min(axis=1)
-    candidates = spread > np.float32(range_for_variance(threshold, sigma2))
-    variance = np.zeros((by.size, p), dtype=np.float32)
-    if candidates.any():
-        variance = pixel_kernel_variance(blocks.transpose(1, 0, 2), sigma2, mask=candidates)
+    use_table = integer_levels and by.size > 0 and \
+        float(blocks.max()) - float(blocks.min()) < TABLE_LEVELS
+    table = _kernel_table(sigma2) if use_table else None
+    # exact activity test: Sigma(j, j) > T(lambda) for some pixel of the block
+    if table is not None:
+        blocks = blocks.astype(np.int32)
+        variance = block_variance_levels(blocks, table).astype(np.float32)
+    else:
+        spread = blocks.max(axis=1) - blocks.min(axis=1)      # range bound first
+        candidates = spread > np.float32(range_for_variance(threshold, sigma2))
+        variance = np.zeros((by.size, p), dtype=np.float32)
+        if candidates.any():
+            variance = pixel_kernel_variance(blocks.transpose(1, 0, 2), sigma2, mask=candidates)
     active = np.flatnonzero((variance > np.float32(threshold)).any(axis=1))
     supports = np.zeros((by.size, p), dtype=bool)
     work = blocks[active]
-    use_table = integer_levels and active.size > 0 and \
-        float(work.max()) - float(work.min()) < TABLE_LEVELS
-    table = _kernel_table(sigma2) if use_table else None
     for start in range(0, active.size, chunk):
         part = work[start:start + chunk]
         if table is not None:
-            sigma = block_kernel_covariance_levels(part.astype(np.int32), table)
+            sigma = block_kernel_covariance_levels(part, table)
         else:
             sigma = block_kernel_covariance(part, sigma2)
         res = sparse_factorize(sigma, config.lam, columns=config.columns,
@@ -473,11 +478,12 @@ class ThermalDetector:
         n, labels = cv2.connectedComponents(fg, connectivity=8)
         if n <= 1:
             return None
-        hit = np.unique(labels[rows - y0, cols - x0])
-        hit = hit[hit > 0]
-        if hit.size == 0:
+        lut = np.zeros(n, dtype=bool)
+        lut[labels[rows - y0, cols - x0]] = True
+        lut[0] = False
+        if not lut.any():
             return None
-        return (y0, x0), np.isin(labels, hit)
+        return (y0, x0), lut[labels]
 
     def _candidate(self, window: np.ndarray, result: SupportResult, rows: np.ndarray,
                    cols: np.ndarray, oy: int, ox: int,

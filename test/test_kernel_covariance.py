@@ -136,3 +136,22 @@ def test_bad_inputs_raise_our_error():
         block_kernel_covariance(np.zeros((1, 3, 4)), 0.0)
     with pytest.raises(KernelCovarianceError):
         active_pixels(np.zeros((3, 4)), 0.01, 0.1)
+
+
+def test_level_table_path_equals_the_exponential_path():
+    """Integer (mono8) windows: the table path gives (3.5) exactly, diagonal included."""
+    from mk_tracker.kernel_covariance import (block_kernel_covariance_levels,
+                                              block_variance_levels, kernel_table)
+    rng = np.random.default_rng(9)
+    levels = rng.integers(0, 256, size=(4, 5, 9))
+    levels[1, :, :3] = 17                       # constant pixels
+    levels[2] = np.where(rng.random((5, 9)) > 0.5, 240, 20)
+    table = kernel_table(255, 1 / 255, 0.01)
+    fast = block_kernel_covariance_levels(levels, table)
+    var = block_variance_levels(levels, table)
+    for b in range(4):
+        ref = naive_kernel_covariance(levels[b] / 255.0, 0.01)
+        np.testing.assert_allclose(fast[b], ref, atol=1e-12)
+        np.testing.assert_allclose(var[b], np.diag(ref), atol=1e-12)
+    with pytest.raises(KernelCovarianceError):
+        block_kernel_covariance_levels(levels, table[:100])
