@@ -32,14 +32,29 @@ Where the paper is silent, and what we add (each switchable):
   pixels that touch the support are the object.  Clusters whose footprints share pixels
   are merged (a large object's support can fall apart into bands), and a cluster with no
   footprint is the trail an object has left and is dropped.
+* **Linked support** (``link_gap``): support pixels closer than ``link_gap`` px always belong
+  to one object, in addition to (3.13).  With (3.13) alone, ``epsilon_d`` must be of the
+  order of (half an object)^2, i.e. a size prior; the link rule and the footprint merge
+  make the default scale-free at the price of merging people who touch (see the crowd
+  rows of docs/benchmark_thermal_detector.md; ``link_gap=0, merge_by_footprint=False``
+  with a large ``merge_distance_sq`` is the paper's rule alone).
 * The (5.2) window is the object's box plus ``window_margin`` pixels plus the distance the
-  Kalman velocity covers in ``F`` frames on each side.
+  Kalman velocity covers in the window's time span on each side, snapped to the ``rho``
+  grid so that overlapping windows share blocks (their union is factored once).  Support
+  pixels in a window go to the object whose predicted centroid is nearest.
+* At a reconfiguration, objects found again keep their Kalman filter (Hungarian matching on
+  predicted-centroid distance); the others are kept ``max_missed`` frames, then dropped.
 * Objects with fewer than ``min_object_pixels`` support pixels are dropped as noise; an
   object whose window has no support for more than ``max_missed`` frames is dropped until
   the next full-frame pass finds it again (a person who stands still has no temporal change
   and is, as in the paper, not detected).
 * Centroids are continuous (pixel ``(c, r)`` has centre ``(c + 0.5, r + 0.5)``), not the
-  floor of (2.x)'s definition.
+  floor in the definition of Sec. 2.
+* Frames: NaN/inf pixels are held at their last valid value (:mod:`mk_tracker.thermal_image`);
+  a frame with fewer than ``min_valid_fraction`` valid pixels, or a stamp not after the
+  previous one, is skipped (no detections, ``skipped_frames`` counts it); a frame of another
+  size or encoding resets the detector (``resets``, ``last_reset``).  Memory is bounded: a
+  ring buffer of ``max(F, F_s)`` frames and at most ``M_up`` objects.
 
 Defaults: only ``sigma^2 = 0.01`` (Sec. 6) and ``sigma_w < 3 px`` (Sec. 4) come from the
 paper; the others are ours, chosen on the synthetic scenes (see docs/benchmark_thermal_detector.md).
@@ -52,7 +67,7 @@ from __future__ import annotations
 
 import collections
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
