@@ -109,12 +109,12 @@ class DetectorNode(Node):
         self._bridge = ParameterBridge(self)
         self.node_config: DetectorNodeConfig = self._bridge.add_config(
             "", DetectorNodeConfig(), on_change=self._on_node_config)
-        kernel_cfg = self._bridge.add_config("detector", ThermalDetectorConfig(),
-                                             extra_check=_check_with(ThermalDetector),
-                                             on_change=self._on_detector_config)
-        threshold_cfg = self._bridge.add_config("threshold", ThresholdDetectorConfig(),
-                                                extra_check=_check_with(ThresholdDetector),
-                                                on_change=self._on_detector_config)
+        kernel_cfg = self._bridge.add_config(
+            "detector", ThermalDetectorConfig(), extra_check=_check_with(ThermalDetector),
+            on_change=lambda _cfg: self._rebuild_if_active("kernel_covariance"))
+        threshold_cfg = self._bridge.add_config(
+            "threshold", ThresholdDetectorConfig(), extra_check=_check_with(ThresholdDetector),
+            on_change=lambda _cfg: self._rebuild_if_active("threshold"))
         self.detector = build_detector(self.node_config.method, kernel_cfg, threshold_cfg)
         self._bridge.activate()
         self._counters = _Counters()
@@ -138,9 +138,12 @@ class DetectorNode(Node):
         method_changed = config.method != self.node_config.method
         self.node_config = config
         if method_changed:
-            self._on_detector_config(None)
+            self._rebuild_if_active(config.method)
 
-    def _on_detector_config(self, _config: Any) -> None:
+    def _rebuild_if_active(self, method: str) -> None:
+        """Apply a changed config; the detector not in use is built when selected."""
+        if method != self.node_config.method:
+            return
         # a detector holds a sliding window of frames; a new config starts a new window
         with self._lock:
             self.detector = build_detector(self.node_config.method,
