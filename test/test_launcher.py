@@ -94,6 +94,28 @@ def test_launch_ends_after_the_player_finishes_and_linger(tmp_path):
     assert 1.0 <= time.monotonic() - t0 < 8
 
 
+def test_later_processes_wait_for_ready_lines_with_a_timeout():
+    out = io.StringIO()
+    slow = ProcessSpec("slow", py("import time; time.sleep(1.0); print('listening on /x', "
+                                  "flush=True); time.sleep(30)"),
+                       ready_lines=("listening on /x",))
+    t0 = time.monotonic()
+    status = run_processes([slow, ProcessSpec("next", py("print('go')"), essential=False)],
+                           out=out, grace_s=2.0, timeout_s=20)
+    text = out.getvalue()
+    assert status == 0, text
+    assert text.index("[slow] listening on /x") < text.index("started next")
+    assert time.monotonic() - t0 >= 1.0
+    # a process that never gets ready delays the next one only by the timeout
+    out = io.StringIO()
+    never = ProcessSpec("never", py("import time; time.sleep(30)"), ready_lines=("ready",))
+    status = run_processes([never, ProcessSpec("next", py("print('go')"), essential=False)],
+                           out=out, grace_s=2.0, timeout_s=20, ready_timeout_s=0.5)
+    assert status == 0
+    assert "never not ready after 0.5 s" in out.getvalue()
+    assert "[next] go" in out.getvalue()
+
+
 def test_failing_player_is_reported():
     out = io.StringIO()
     status = run_processes([ProcessSpec("player", py("raise SystemExit(2)"), essential=False)],
@@ -130,6 +152,8 @@ def test_ros_args_and_specs(tmp_path):
     assert [s.name for s in specs] == ["detector_node", "tracker_node", "bag_recorder",
                                        "bag_player"]
     assert [s.essential for s in specs] == [True, True, True, False]
+    # the player waits for the recorder to subscribe to /tracks (published by the nodes)
+    assert specs[2].ready_lines == ("recording into", "recording /tracks [")
     assert all(str(params) in s.argv and "image_raw:=/cam" in s.argv for s in specs[:2])
     # the player waits for the nodes' (remapped) inputs only
     player = list(specs[-1].argv)
@@ -193,6 +217,10 @@ def test_mk_launch_runs_player_nodes_and_recorder_end_to_end(tmp_path):
     for name in ("detector_node", "tracker_node", "bag_recorder", "bag_player"):
         assert f"[mk_launch] started {name}" in out
     assert "[bag_player] played" in out and "[bag_recorder] recorded" in out
+    # the player started once the recorder had subscribed to the nodes' outputs
+    assert out.index("[bag_recorder] recording /tracks [") < out.index("started bag_player")
+    assert out.index("[bag_recorder] recording /thermal/detections [") < out.index(
+        "started bag_player")
     with bag_io.open_bag(out_bag) as reader:
         topics = reader.topics
     assert topics["/tracks"].count >= 1 and topics["/thermal/detections"].count >= 1, out

@@ -41,6 +41,9 @@ class ProcessSpec:
     argv: tuple[str, ...]
     essential: bool = True
     env: dict = field(default_factory=dict)
+    # texts that must each appear in this process's output before later processes start
+    # (the recorder announces "recording /topic [type]" once it is subscribed)
+    ready_lines: tuple[str, ...] = ()
 
 
 def module_command(module: str, args: Sequence[str] = ()) -> tuple[str, ...]:
@@ -80,6 +83,20 @@ def ros_args(params_files: Sequence[str] = (), remaps: Sequence[str] = (),
     return ["--ros-args", *tail] if tail else []
 
 
+def _bag_topics(bag: str) -> set[str]:
+    """Absolute names of the topics of ``bag`` (empty if it cannot be read: the player
+    will report that itself)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from mk_tracker import bag_io
+    try:
+        with bag_io.open_bag(bag, on_error="skip",
+                             typestore=get_typestore(Stores.EMPTY)) as reader:
+            return {"/" + name.lstrip("/") for name in reader.topics}
+    except bag_io.BagError:
+        return set()
+
+
 def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     """The processes ``mk_launch`` starts for parsed command-line ``args``."""
     for params_file in args.params_file:
@@ -100,8 +117,14 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
         if not args.record_topics:
             raise LaunchError("--record needs --record-topics")
         rec = ["-o", args.record, "--storage", args.storage, *args.record_topics]
+        # the player starts once the recorder has subscribed to every recorded topic
+        # that the nodes publish (topics only the player publishes appear with it)
+        played = _bag_topics(args.bag) if args.bag else set()
+        awaited = ["/" + t.lstrip("/") for t in args.record_topics]
+        ready = tuple(f"recording {t} [" for t in awaited
+                      if remapped(t, args.remap) not in played and t not in played)
         specs.append(ProcessSpec("bag_recorder", module_command(
-            "mk_tracker.ros.bag_recorder", rec)))
+            "mk_tracker.ros.bag_recorder", rec), ready_lines=("recording into",) + ready))
     if args.bag:
         play = [args.bag, "--rate", str(args.rate), "--wait-for-subscribers",
                 str(args.wait_for_subscribers)]
@@ -138,6 +161,7 @@ class _Running:
         env.setdefault("PYTHONUNBUFFERED", "1")
         self.spec = spec
         self.stopped_by_us = False
+        self.waiting_for = list(spec.ready_lines)
         self.proc = subprocess.Popen(spec.argv, stdout=subprocess.PIPE,
                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                      env=env, text=True, errors="replace", bufsize=1,
@@ -147,9 +171,13 @@ class _Running:
         self.pump = threading.Thread(target=self._copy, args=(out, lock), daemon=True)
         self.pump.start()
 
+    def ready(self) -> bool:
+        return not self.waiting_for
+
     def _copy(self, out: TextIO, lock: threading.Lock) -> None:
         assert self.proc.stdout is not None
         for line in self.proc.stdout:
+            self.waiting_for = [t for t in self.waiting_for if t not in line]
             with lock:
                 out.write(f"[{self.spec.name}] {line.rstrip()}\n")
                 out.flush()
@@ -188,11 +216,30 @@ def crashed(returncode: int, stopped_by_us: bool) -> bool:
     return True
 
 
+def _wait_ready(procs: list[_Running], timeout_s: float, stop_event: threading.Event,
+                log) -> None:
+    """Wait until every started process has printed its ``ready_lines`` (or exited)."""
+    deadline = time.monotonic() + timeout_s
+    while not stop_event.is_set():
+        waiting = [p for p in procs if not p.ready() and p.proc.poll() is None]
+        if not waiting:
+            return
+        if time.monotonic() >= deadline:
+            for p in waiting:
+                log(f"{p.spec.name} not ready after {timeout_s:g} s (still waiting for "
+                    f"{', '.join(repr(t) for t in p.waiting_for)}); starting the next anyway")
+            return
+        stop_event.wait(0.05)
+
+
 def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
                   linger_s: float = 0.0, timeout_s: float | None = None,
                   out: TextIO | None = None, stop_event: threading.Event | None = None,
-                  start_delay_s: float = 0.0) -> int:
+                  start_delay_s: float = 0.0, ready_timeout_s: float = 20.0) -> int:
     """Start ``specs`` in order, relay their output, and stop them all; return 0 or 1.
+
+    A spec starts only once every earlier process has printed its ``ready_lines`` (or
+    exited), at most ``ready_timeout_s`` later.
 
     The launch ends when ``stop_event`` is set (SIGINT/SIGTERM of ``mk_launch``), when an
     essential process exits, when every non-essential process has finished and
@@ -210,6 +257,7 @@ def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
     procs: list[_Running] = []
     try:
         for spec in specs:
+            _wait_ready(procs, ready_timeout_s, stop_event, log)
             procs.append(_Running(spec, out, lock))
             log(f"started {spec.name} (pid {procs[-1].proc.pid})")
             if start_delay_s and spec is not specs[-1]:
@@ -271,6 +319,9 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="after the bag is played, keep running S seconds (default 2)")
     parser.add_argument("--timeout", type=float, default=None, metavar="S",
                         help="stop everything after S seconds")
+    parser.add_argument("--ready-timeout", type=float, default=20.0, metavar="S",
+                        help="the player starts when the recorder has subscribed to the "
+                             "nodes' topics, or after S seconds")
     parser.add_argument("--grace", type=float, default=GRACE_S, metavar="S",
                         help="seconds between SIGINT, SIGTERM and SIGKILL on shutdown")
 
@@ -292,7 +343,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     return run_processes(specs, grace_s=args.grace, linger_s=args.linger,
-                         timeout_s=args.timeout, stop_event=stop)
+                         timeout_s=args.timeout, stop_event=stop,
+                         ready_timeout_s=args.ready_timeout)
 
 
 if __name__ == "__main__":
