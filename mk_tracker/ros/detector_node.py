@@ -35,8 +35,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image
 
 from mk_tracker.detection_messages import make_detection_array
-from mk_tracker.frame_processing import (METHODS, SKIPPED_MODES, THERMAL_ENCODINGS,
-                                         build_detector, detector_debug_image,
+from mk_tracker.frame_processing import (METHODS, build_detector, detector_debug_image,
                                          detector_outputs, skipped_reason, thermal_input)
 from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.message_types import ros_message_types, stamp_to_seconds

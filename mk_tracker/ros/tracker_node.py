@@ -1,8 +1,10 @@
 """``tracker_node``: multiple-kernel tracking of people in RGB video, as a ROS 2 node.
 
 A thin adapter around :class:`mk_tracker.multi_object_tracker.MultiObjectTracker` with the
-projected-gradient multiple-kernel refiner (:mod:`mk_tracker.multi_kernel`, Chu et al. 2013) and Kalman filtering; every decision (association, staleness of
-detections, time going backwards, lifecycle) is the library's.
+projected-gradient multiple-kernel refiner (:mod:`mk_tracker.multi_kernel`, Chu et al.
+2013) and Kalman filtering; every decision (association, staleness of detections, time
+going backwards, lifecycle) is the library's, the per-frame glue is
+:mod:`mk_tracker.frame_processing` (shared with the offline pipeline).
 
 Topics (names are parameters):
 
@@ -45,7 +47,7 @@ from mk_tracker.debug_drawing import KernelEllipse
 from mk_tracker.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection,
                                            read_detection_array)
-from mk_tracker.frame_processing import (RGB_ENCODINGS, detection_plane, kernel_drawings,
+from mk_tracker.frame_processing import (detection_plane, kernel_drawings,
                                          tracker_debug_image, tracker_input, tracker_inputs,
                                          tracks_to_detections)
 from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
