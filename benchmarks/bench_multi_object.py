@@ -11,7 +11,8 @@ All three trackers run in the same process on the same detections:
 
 Reports MOTA, IDF1, ID switches, mostly tracked / mostly lost (motmetrics, IoU >= 0.5) and
 the median milliseconds per frame of each tracker's update (detections ready, image loaded;
-rendering and scoring excluded; CPU time of the thread, since the machine may be shared), writes every result as a MOTChallenge file (score them
+rendering and scoring excluded; CPU time of the thread, as the machine may be shared;
+the wall time is reported too), writes every result as a MOTChallenge file (score them
 again with ``mk_tracker eval``) and a markdown report with the command that produced it.
 
     .venv/bin/python benchmarks/bench_multi_object.py --out docs/benchmark_multi_object.md

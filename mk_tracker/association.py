@@ -42,7 +42,7 @@ class AssociationConfig:
     """Constants of the track-detection cost (see the module docstring)."""
 
     overlap_weight: float = parameter(
-        0.5, "Weight of (1 - IoU) in the cost; the Mahalanobis term gets 1 - this",
+        0.8, "Weight of (1 - IoU) in the cost; the Mahalanobis term gets 1 - this",
         minimum=0.0, maximum=1.0)
     gate: float = parameter(
         13.8, "Chi-square (2 dof) gate on the squared Mahalanobis distance of a detection "

@@ -271,7 +271,8 @@ class MultiObjectTracker:
                              max_reported_coast_time=self.config.max_reported_coast_time)
         self.totals["frames"] += 1
         size = tuple(image_bgr.shape[:2])
-        if self.last_stamp is not None and stamp < self.last_stamp - self.config.backwards_tolerance:
+        if self.last_stamp is not None and \
+                stamp < self.last_stamp - self.config.backwards_tolerance:
             result.events.append(f"time went backwards by {self.last_stamp - stamp:.3f} s: reset")
             result.resets = 1
             self.reset()
