@@ -431,18 +431,24 @@ class _Run:
             raise PipelineError(f"cannot start the target on {box}: {exc}") from exc
         self.pending_start = ()   # started (an empty tuple: never again)
 
-    def rgb_image(self, msg: Any, timestamp_ns: int) -> None:
+    def new_frame(self, ns: int) -> tuple[int, list[Detection]]:
+        """Count an RGB frame (good or bad) and bind its ground truth to its number, so a
+        skipped frame's people count as misses and later frames keep their numbers."""
         r = self.result
         r.frames += 1
-        frame_no = r.frames
+        truth = self.truth_by_stamp.pop(ns, [])
+        for d in truth:
+            if d.id.lstrip("-").isdigit():
+                r.gt_rows.append(MotRow(r.frames, int(d.id), d.box))
+        return r.frames, truth
+
+    def rgb_image(self, msg: Any, timestamp_ns: int) -> None:
+        r = self.result
         try:
             ns = stamp_to_nanoseconds(msg.header.stamp)
         except (AttributeError, TypeError, ValueError):
             ns = timestamp_ns
-        truth = self.truth_by_stamp.pop(ns, [])
-        for d in truth:
-            if d.id.lstrip("-").isdigit():
-                r.gt_rows.append(MotRow(frame_no, int(d.id), d.box))
+        frame_no, truth = self.new_frame(ns)
         try:
             bgr = tracker_input(msg)
         except ImageConversionError as exc:
@@ -613,8 +619,8 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
     try:
         msg = reader.deserialize(m)
     except BagError as exc:
-        if topic == opts.image_topic:
-            run.result.frames += 1
+        if topic == opts.image_topic:   # no header to read: the bag time is the stamp
+            run.new_frame(m.timestamp_ns)
             run.result.bad_frames += 1
         run.result.problem(f"undecodable message: {exc}")
         return

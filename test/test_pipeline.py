@@ -217,6 +217,8 @@ def test_corrupted_messages_are_skipped_and_counted(scene_bag, tmp_path):
     frames = {r.frame for r in read_mot_file(out / "tracks.txt")}
     assert 10 not in frames and 20 not in frames and max(frames) == FRAMES
     assert summary["metrics"]["mota"] >= 0.5
+    # the skipped frames' people are still in the ground truth (as misses)
+    assert summary["metrics"]["num_frames"] == FRAMES
 
 
 def test_bad_options_give_a_clear_error(scene_bag, tmp_path, capsys):
