@@ -152,8 +152,8 @@ def camshift_factory(use_camshift: bool):
                 rot, window = cv2.CamShift(back, holder["window"], crit)
             else:
                 _, window = cv2.meanShift(back, holder["window"], crit)
-            if window[2] <= 0 or window[3] <= 0:
-                return None
+            if window[2] <= 0 or window[3] <= 0:       # collapsed: keep the last window
+                window = holder["window"]
             holder["window"] = window
             return tuple(float(v) for v in window)
         return init, update
@@ -161,15 +161,20 @@ def camshift_factory(use_camshift: bool):
 
 
 def opencv_tracker_factory(create: Callable):
+    """An OpenCV tracker; when it reports failure its last box stands (as for a lost MK)."""
     def make():
         tracker = create()
+        holder = {}
 
         def init(frame, box):
             tracker.init(frame, tuple(int(round(v)) for v in box))
+            holder["last"] = tuple(float(v) for v in box)
 
         def update(frame):
             ok, box = tracker.update(frame)
-            return tuple(float(v) for v in box) if ok and box[2] > 0 and box[3] > 0 else None
+            if ok and box[2] > 0 and box[3] > 0:
+                holder["last"] = tuple(float(v) for v in box)
+            return holder["last"]
         return init, update
     return make
 
@@ -225,7 +230,7 @@ def run(seq: Sequence, factory) -> tuple[dict, float]:
         try:
             box = update(frame)
         except cv2.error:
-            box = None
+            box = predicted[-1]
         times.append(time.process_time() - t0)
         predicted.append(box)
     metrics = single_target_metrics(predicted[1:], seq.truth[1:])

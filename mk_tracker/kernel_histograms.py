@@ -233,31 +233,167 @@ def scale_ratio(sample: KernelSample, weights: np.ndarray, half_axes: np.ndarray
 
 @dataclass
 class KernelEvaluation:
-    """One kernel evaluated at one position: candidate, cost, similarity, mean shift."""
+    """One kernel evaluated at one position: candidate, cost, similarity, mean shift.
+
+    ``scale_ratio`` (``r(h)`` of (9)-(10)) is computed on first access from the kept sample.
+    """
 
     p: np.ndarray
     cost: float
     similarity: float
     mean_shift: np.ndarray
-    scale_ratio: float
     n_pixels: int
+    sample: KernelSample | None = None
+    weights: np.ndarray | None = None
+    half_axes: np.ndarray | None = None
+
+    @property
+    def scale_ratio(self) -> float:
+        if self.sample is None or self.n_pixels == 0:
+            return 0.0
+        return scale_ratio(self.sample, self.weights, self.half_axes)
 
 
 def evaluate_kernel(bin_roi: np.ndarray, roi_origin: tuple[int, int], centre: np.ndarray,
                     half_axes: np.ndarray, q: np.ndarray, *, profile: str = "roof",
                     epsilon: float = 0.01, weighting: str = "kl",
-                    with_scale: bool = False, stride: int = 1) -> KernelEvaluation:
-    """Candidate ``p(x)``, ``J_i``, ``sim_i``, mean shift ``m`` (and ``r(h)``) of one kernel.
+                    stride: int = 1) -> KernelEvaluation:
+    """Candidate ``p(x)``, ``J_i``, ``sim_i``, mean shift ``m`` (and lazily ``r(h)``).
 
-    A kernel with no pixel in the ROI has cost ``inf``, similarity 0 and no mean shift.
+    Same values as :func:`kl_cost`, :func:`pixel_weights` and :func:`mean_shift_vector`, with
+    the ratio ``q / p~`` computed once.  A kernel with no pixel in the ROI has cost ``inf``,
+    similarity 0 and no mean shift.
     """
     sample = sample_kernel(bin_roi, roi_origin, centre, half_axes, profile, stride)
     n_bins = q.size
     if sample.empty:
-        return KernelEvaluation(np.zeros(n_bins), float("inf"), 0.0, np.zeros(2), 0.0, 0)
+        return KernelEvaluation(np.zeros(n_bins), float("inf"), 0.0, np.zeros(2), 0)
     p = kernel_histogram(sample, n_bins)
-    cost = kl_cost(q, p, epsilon)
-    w = pixel_weights(sample, q, p, epsilon, weighting)
+    ratio = q / smoothed(p, epsilon)
+    log_ratio = np.zeros(n_bins)
+    np.log(ratio, out=log_ratio, where=q > 0)
+    cost = float(np.sum(q * log_ratio))
+    if weighting == "bhattacharyya":
+        ratio = np.sqrt(ratio)
+    elif weighting != "kl":
+        raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
+    w = ratio[sample.bins]
     ms = mean_shift_vector(sample, w, centre)
-    r = scale_ratio(sample, w, half_axes) if with_scale else 0.0
-    return KernelEvaluation(p, cost, similarity_from_cost(cost), ms, r, int(sample.k.size))
+    return KernelEvaluation(p, cost, similarity_from_cost(cost), ms, int(sample.k.size),
+                            sample, w, np.asarray(half_axes, dtype=np.float64))
+
+
+# --------------------------------------------------------------------------------------------
+# Fast path used by the tracker: kernels evaluated at grid-aligned centres from a template
+# --------------------------------------------------------------------------------------------
+
+class KernelTemplate:
+    """The sampling-grid offsets that can fall inside one kernel ellipse, precomputed.
+
+    Within one frame a kernel's shape does not change, only its centre.  The template holds
+    every grid offset within the ellipse grown by one stride; an evaluation anchors it at the
+    grid node nearest the continuous centre ``x`` and computes ``v`` of each offset relative to
+    ``x`` itself, so the result equals :func:`evaluate_kernel` at ``x`` (tested), with one
+    gather instead of building the pixel set anew.
+    """
+
+    def __init__(self, half_axes: np.ndarray, stride: int, profile: str = "roof"):
+        if profile not in PROFILES:
+            raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
+        ax, ay = float(half_axes[0]), float(half_axes[1])
+        st = int(stride)
+        jx, jy = int(np.ceil(ax / st)) + 1, int(np.ceil(ay / st)) + 1
+        dj = np.arange(-jx, jx + 1)
+        di = np.arange(-jy, jy + 1)
+        grown = ((di[:, None] * st / (ay + st)) ** 2) + ((dj[None, :] * st / (ax + st)) ** 2)
+        ii, jj = np.nonzero(grown < 1.0)
+        self.di = di[ii]
+        self.dj = dj[jj]
+        self.dx = self.dj * float(st)
+        self.dy = self.di * float(st)
+        self.reach = (jx, jy)
+        self.stride = st
+        self.profile = profile
+        self.half_axes = np.array([ax, ay])
+        self.linear_offsets: tuple[int, np.ndarray] | None = None   # (row width, offsets)
+
+
+class PaddedBins:
+    """A quantised ROI padded with a sentinel bin ``m`` so templates never index outside it.
+
+    Evaluations of :class:`KernelTemplate` kernels on it are the tracker's fast path.
+
+    ``bins`` is the ``(H, W)`` ROI of :func:`quantize` sampled every ``stride`` px from image
+    pixel ``origin``; ``pad`` is the largest template reach.  Sentinel pixels count in no
+    histogram and have zero weight, exactly like pixels missing from the ROI.
+    """
+
+    def __init__(self, bins: np.ndarray, origin: tuple[int, int], stride: int, n_bins: int,
+                 pad: tuple[int, int]):
+        px, py = int(pad[0]), int(pad[1])
+        h, w = bins.shape
+        padded = np.full((h + 2 * py, w + 2 * px), n_bins, dtype=np.int64)
+        padded[py:py + h, px:px + w] = bins
+        self.flat = padded.reshape(-1)
+        self.width = w + 2 * px
+        self.shape = (h, w)
+        self.pad = (px, py)
+        self.origin = (int(origin[0]), int(origin[1]))
+        self.stride = int(stride)
+        self.n_bins = int(n_bins)
+
+    def grid_node(self, centre: np.ndarray) -> tuple[int, int]:
+        """ROI (row, col) of the grid node nearest ``centre``, clamped into the ROI."""
+        st = self.stride
+        c = int(round((float(centre[0]) - 0.5 - self.origin[0]) / st))
+        r = int(round((float(centre[1]) - 0.5 - self.origin[1]) / st))
+        return (min(max(r, 0), self.shape[0] - 1), min(max(c, 0), self.shape[1] - 1))
+
+    def evaluate(self, template: KernelTemplate, centre: np.ndarray, q: np.ndarray,
+                 epsilon: float = 0.01, weighting: str = "kl") -> KernelEvaluation:
+        """:func:`evaluate_kernel` at ``centre``, gathering pixels through ``template``."""
+        if template.reach[0] > self.pad[0] or template.reach[1] > self.pad[1]:
+            raise ValueError(f"kernel reach {template.reach} exceeds the padding {self.pad}")
+        cached = template.linear_offsets
+        if cached is None or cached[0] != self.width:
+            cached = (self.width, template.di * self.width + template.dj)
+            template.linear_offsets = cached
+        lin = cached[1]
+        r, c = self.grid_node(centre)
+        base = (r + self.pad[1]) * self.width + (c + self.pad[0])
+        b = self.flat[base + lin]
+        m = self.n_bins
+        gx = self.origin[0] + c * self.stride + 0.5
+        gy = self.origin[1] + r * self.stride + 0.5
+        ax, ay = template.half_axes
+        ox = template.dx - (float(centre[0]) - gx)      # pixel offsets from the true centre
+        oy = template.dy - (float(centre[1]) - gy)
+        v = (ox / ax) ** 2 + (oy / ay) ** 2
+        use = (v < 1.0) & (b < m)
+        b, ox, oy, v = b[use], ox[use], oy[use], v[use]
+        if b.size == 0:
+            return KernelEvaluation(np.zeros(m), float("inf"), 0.0, np.zeros(2), 0)
+        k, g = profile_values(v, template.profile)
+        hist = np.bincount(b, weights=k, minlength=m)
+        total = float(hist.sum())
+        if not total > 0:
+            return KernelEvaluation(np.zeros(m), float("inf"), 0.0, np.zeros(2), 0)
+        p = hist / total
+        ratio = q / smoothed(p, epsilon)
+        log_ratio = np.zeros(m)
+        np.log(ratio, out=log_ratio, where=q > 0)
+        cost = float(np.sum(q * log_ratio))
+        if weighting == "bhattacharyya":
+            ratio = np.sqrt(ratio)
+        elif weighting != "kl":
+            raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
+        w = ratio[b]
+        wg = w * g
+        s = float(wg.sum())
+        ms = (np.array([float(np.sum(wg * ox)) / s, float(np.sum(wg * oy)) / s]) if s > 0
+              else np.zeros(2))
+        n_valid = int(b.size)
+        sample = KernelSample(bins=b, k=k, g=g, xs=ox + float(centre[0]),
+                              ys=oy + float(centre[1]), v=v)
+        return KernelEvaluation(p, cost, similarity_from_cost(cost), ms, n_valid, sample, w,
+                                template.half_axes)

@@ -73,7 +73,7 @@ import numpy as np
 from mk_tracker.boxes import BoxLike, InvalidBoxError, as_box, clip_box
 from mk_tracker.kernel_histograms import (
     COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES, InvalidImageError, KernelEvaluation,
-    check_image, evaluate_kernel, kernel_histogram, kl_cost, number_of_bins, quantize,
+    KernelTemplate, PaddedBins, check_image, evaluate_kernel, kernel_histogram, kl_cost, number_of_bins, quantize,
     roi_has_nan, sample_kernel, similarity_from_cost)
 from mk_tracker.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_layout, kernels_bounding_box
 from mk_tracker.parameters import parameter, validate_config
@@ -440,13 +440,15 @@ class MultiKernelTracker:
             return None, (x0, y0)
         return quantize(roi, self.config.colour_space, self.config.bins), (x0, y0)
 
-    def _evaluate(self, bin_roi, origin, centres, axes, models, stride, with_scale=False
-                  ) -> list[KernelEvaluation]:
+    def _templates(self, axes: np.ndarray, stride: int) -> list[KernelTemplate]:
+        return [KernelTemplate(a, stride, self.config.profile) for a in axes]
+
+    def _evaluate(self, padded: PaddedBins, templates: list[KernelTemplate],
+                  centres: np.ndarray, models: np.ndarray) -> list[KernelEvaluation]:
+        """Evaluate every kernel (fast template path; see :class:`KernelTemplate`)."""
         cfg = self.config
-        return [evaluate_kernel(bin_roi, origin, centres[i], axes[i], models[i],
-                                profile=cfg.profile, epsilon=cfg.histogram_epsilon,
-                                weighting=cfg.pixel_weighting, with_scale=with_scale,
-                                stride=stride)
+        return [padded.evaluate(templates[i], centres[i], models[i], cfg.histogram_epsilon,
+                                cfg.pixel_weighting)
                 for i in range(centres.shape[0])]
 
     # -- public API ------------------------------------------------------------------------
@@ -534,8 +536,12 @@ class MultiKernelTracker:
         eps_j = cfg.epsilon_j_factor * n_k
         max_step = cfg.max_step_fraction * axes
 
-        evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride,
-                               with_scale=cfg.scale_update)
+        templates = self._templates(axes, stride)
+        reach = np.max([t.reach for t in templates], axis=0)
+        # room for the templates of a scale step (at most +max_scale_change) as well
+        pad = tuple(int(np.ceil(r * (1.0 + cfg.max_scale_change))) + 1 for r in reach)
+        padded = PaddedBins(bin_roi, origin, stride, self.n_bins, pad)
+        evals = self._evaluate(padded, templates, x, state.models)
         iterations = 0
         history = []
         for _ in range(cfg.max_iterations):
@@ -564,8 +570,7 @@ class MultiKernelTracker:
             step = np.nan_to_num(step, nan=0.0, posinf=0.0, neginf=0.0)
             x = np.clip(x + step, lo, hi)
             iterations += 1
-            evals = self._evaluate(bin_roi, origin, x, axes, state.models, stride,
-                                   with_scale=cfg.scale_update)
+            evals = self._evaluate(padded, templates, x, state.models)
             if float(np.abs(step).max()) < cfg.min_step_px:
                 break
 
@@ -591,7 +596,7 @@ class MultiKernelTracker:
                         state.models[i] = (1.0 - rate) * state.models[i] + rate * e.p
             scale_sim = mean_sim if cfg.scale_gate_statistic == "mean" else float(sims.min())
             if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
-                self._update_scale(bin_roi, origin, state, w, stride, evals)
+                self._update_scale(padded, state, w, evals)
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
         return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
@@ -600,8 +605,8 @@ class MultiKernelTracker:
                                 iterations=iterations, lost=False, cost=total,
                                 scale=state.scale, cost_history=history)
 
-    def _update_scale(self, bin_roi, origin, state: TargetState, weights: np.ndarray,
-                      stride: int, evals: list[KernelEvaluation]) -> None:
+    def _update_scale(self, padded: PaddedBins, state: TargetState, weights: np.ndarray,
+                      evals: list[KernelEvaluation]) -> None:
         """Eqs. (9)-(11): ``Delta s = beta r(h)``, ``s_t = s_{t-1}(1 + Delta s)``.
 
         ``r`` is the W-weighted mean of the kernels' ratios.  The kernels' offsets from the
@@ -619,8 +624,9 @@ class MultiKernelTracker:
         centroid = state.center
         centres = centroid + (state.centres - centroid) * ratio
         if cfg.verify_scale_step:
-            trial = self._evaluate(bin_roi, origin, centres, state.base_half_axes * new_scale,
-                                   state.models, stride)
+            trial = self._evaluate(
+                padded, self._templates(state.base_half_axes * new_scale, padded.stride),
+                centres, state.models)
             old_cost = float(np.sum(weights * [e.cost for e in evals]))
             new_cost = float(np.sum(weights * [e.cost for e in trial]))
             if not new_cost <= old_cost:

@@ -149,3 +149,31 @@ def test_sample_only_reads_the_roi_with_its_origin():
 def test_bad_images_raise_our_error(bad):
     with pytest.raises(InvalidImageError):
         check_image(bad)
+
+
+@pytest.mark.parametrize("stride", [1, 2, 3])
+def test_template_fast_path_matches_the_direct_evaluation(stride):
+    from mk_tracker.kernel_histograms import KernelTemplate, PaddedBins
+    img = _blob_scene()
+    origin = (8, 4)                          # ROI starts at image pixel (8, 4)
+    roi = img[origin[1]::stride, origin[0]::stride]
+    bins = quantize(roi, "hsv", BINS)
+    axes = np.array([15.0, 20.0])
+    q = kernel_histogram(sample_kernel(bins, origin, np.array([85.5, 60.5]), axes,
+                                       stride=stride), M)
+    template = KernelTemplate(axes, stride)
+    padded = PaddedBins(bins, origin, stride, M, template.reach)
+    right = origin[0] + stride * (bins.shape[1] - 1)
+    bottom = origin[1] + stride * (bins.shape[0] - 1)
+    # off-grid centres, one so close to the ROI corner that part of the kernel is outside
+    for centre in ([85.5, 60.5], [71.3, 49.8], [30.9, 22.2], [right - 0.3, bottom + 0.4]):
+        centre = np.array(centre)
+        direct = evaluate_kernel(bins, origin, centre, axes, q, stride=stride)
+        fast = padded.evaluate(template, centre, q)
+        assert fast.n_pixels == direct.n_pixels > 0
+        assert fast.cost == pytest.approx(direct.cost, abs=1e-12)
+        assert np.allclose(fast.mean_shift, direct.mean_shift)
+        assert fast.scale_ratio == pytest.approx(direct.scale_ratio, abs=1e-12)
+    # a kernel too large for the padding is refused rather than read out of bounds
+    with pytest.raises(ValueError, match="padding"):
+        padded.evaluate(KernelTemplate(axes * 2, stride), np.array([40.5, 40.5]), q)
