@@ -99,6 +99,9 @@ class MultiObjectTrackerConfig:
     reacquire_similarity: float = parameter(
         0.4, "Appearance similarity a detection needs to re-acquire a lost track",
         minimum=0.0, maximum=1.0)
+    reacquire_distance_weight: float = parameter(
+        0.5, "Weight of the gated distance (d2 / gate) next to 1 - appearance similarity in "
+        "the re-acquisition cost", minimum=0.0, maximum=100.0)
     reacquire_hold_time: float = parameter(
         0.6, "A new track on a detection inside a lost track's gate stays tentative for up "
         "to this many seconds, so the lost person can take its id back once its appearance "
@@ -519,7 +522,8 @@ class MultiObjectTracker:
                     best_reference[(i, j)] = int(np.argmax(sims))
                     if not math.isfinite(sim) or sim < self.config.reacquire_similarity:
                         continue
-                cost[i, j] = (1.0 - sim) + 0.5 * maha[i, j] / self.config.reacquire_gate
+                cost[i, j] = (1.0 - sim) + self.config.reacquire_distance_weight * \
+                    maha[i, j] / self.config.reacquire_gate
         matches = assign(cost, math.inf).matches
         for i, j in matches:
             # the working target's models were blended while the person disappeared: restart
