@@ -342,7 +342,11 @@ class TrackerNode(Node):
 
     def destroy_node(self) -> None:
         self._worker.stop()
-        self.get_logger().info(f"shutting down: {self.statistics()}")
+        text = f"shutting down: {self.statistics()}"
+        if self.context.ok():
+            self.get_logger().info(text)
+        else:   # after Ctrl-C the context is gone and /rosout cannot be published to
+            print(f"[{self.get_name()}] {text}", file=sys.stderr, flush=True)
         super().destroy_node()
 
 
