@@ -23,6 +23,7 @@ short data, empty or all-NaN images) are logged (throttled) and skipped.
 
 from __future__ import annotations
 
+import signal
 import sys
 import threading
 import time
@@ -227,6 +228,10 @@ class DetectorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of the ``detector_node`` console script."""
+    # rclpy shuts the context down on SIGTERM and then calls the previous handler, which by
+    # default kills the process at once; a no-op Python handler lets the node stop cleanly
+    # (worker joined, statistics logged), as on Ctrl-C.
+    signal.signal(signal.SIGTERM, lambda signum, frame: None)
     rclpy.init(args=args)
     try:
         node = DetectorNode()

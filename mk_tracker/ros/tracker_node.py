@@ -29,6 +29,7 @@ Parameters: ``tracker.*`` (MultiObjectTrackerConfig, e.g. ``tracker.kalman.sigma
 
 from __future__ import annotations
 
+import signal
 import sys
 import threading
 import time
@@ -352,6 +353,10 @@ class TrackerNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of the ``tracker_node`` console script."""
+    # rclpy shuts the context down on SIGTERM and then calls the previous handler, which by
+    # default kills the process at once; a no-op Python handler lets the node stop cleanly
+    # (worker joined, statistics logged), as on Ctrl-C.
+    signal.signal(signal.SIGTERM, lambda signum, frame: None)
     rclpy.init(args=args)
     try:
         node = TrackerNode()
