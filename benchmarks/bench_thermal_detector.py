@@ -112,6 +112,12 @@ def main(argv=None) -> int:
                                              "benchmark_thermal_detector.md"))
     args = parser.parse_args(argv)
 
+    load_before = os.getloadavg()
+    c0 = time.process_time()
+    total = 0
+    for i in range(3_000_000):
+        total += i
+    calibration = (time.process_time() - c0) * 1e3
     rows = []
     header = ("| scene | detector | full-frame pass ms CPU / wall (n) | tracking frame ms CPU / "
               "wall (n) | precision | recall | centroid RMSE px |")
@@ -174,6 +180,11 @@ def main(argv=None) -> int:
         f"{np.__version__}.  Times are medians per `process()` call, one thread: CPU time "
         f"(`time.process_time`, what one core spends) and wall-clock (inflated when the machine "
         f"is busy).  The numba caches are loaded before timing.",
+        "",
+        f"Machine load while it ran: load average {load_before[0]:.1f} before, "
+        f"{os.getloadavg()[0]:.1f} after, on {os.cpu_count()} cores; calibration: a Python loop "
+        f"of 3M integer additions took {calibration:.0f} ms CPU (~100-150 ms on an idle modern "
+        f"core), so CPU times here are inflated by roughly that ratio.",
         "",
         "Full-frame pass = start-up or reconfiguration (every T_c frames, whole frame, F_s "
         "frames); tracking frame = per-object windows (5.2) only, F frames.  Precision/recall: "

@@ -468,8 +468,9 @@ class ThermalDetector:
         Inside the support's bounding box grown by ``window_margin`` plus half its larger
         side (parts of the object that did not move have no support), the pixels dissimilar
         to the local background (kernel (3.6) below 1/2; background = median of the
-        non-support pixels there) form connected components; those touching the support are
-        the object.  ``allowed`` (window-sized bool) restricts them.  Returns
+        non-support pixels there) and on the same side of it as most of the support (warmer or
+        colder) form connected components; those touching the support are the object.
+        ``allowed`` (window-sized bool) restricts them.  Returns
         ``((y0, x0), mask)`` or ``None`` when there is nothing.
         """
         c = self.config
@@ -487,7 +488,14 @@ class ThermalDetector:
             return None
         level = np.float32(np.median(background))
         radius = np.float32(_similarity_radius(c.sigma2) / self._map[1])   # window units
-        fg = (np.abs(patch - level) > radius).astype(np.uint8)
+        diff = patch - level
+        at_support = diff[rows - y0, cols - x0]
+        at_support = at_support[np.abs(at_support) > radius]
+        if at_support.size == 0:
+            return None
+        # one polarity: a warm person in front of a cold pillar is not one object with it
+        polarity = np.float32(1.0 if np.median(at_support) > 0 else -1.0)
+        fg = (diff * polarity > radius).astype(np.uint8)
         if allowed is not None:
             fg &= allowed[y0:y1, x0:x1].astype(np.uint8)
         n, labels = cv2.connectedComponents(fg, connectivity=8)
