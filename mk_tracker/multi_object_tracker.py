@@ -330,7 +330,6 @@ class MultiObjectTracker:
                 result.events.append(f"track {lost[r].id} re-acquired")
         live = [t for t in live if t.state is not TrackState.DELETED]
 
-        # 6. updates and lifecycle
         by_id = {t.id: t for t in live}
         detected: dict[int, _Prepared] = {by_id[tid].id: dets[k]
                                           for k, tid in matched_track.items()}
@@ -361,6 +360,7 @@ class MultiObjectTracker:
                 refined[t.id] = (np.asarray(box, dtype=np.float64), sim)
                 t.refined_box = refined[t.id][0]
 
+        # 6. updates and lifecycle
         for t in live:
             self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
                                detected.get(t.id), refined.get(t.id), width, height,

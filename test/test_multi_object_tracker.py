@@ -344,3 +344,14 @@ def test_thermal_detections_land_on_the_rgb_targets():
     # the same detections read as RGB-plane boxes (identity homography) miss the targets
     _, gt_id, hyp_id = run_scene(scene, MultiObjectTrackerConfig(), plane="thermal")
     assert mot_metrics(gt_id, hyp_id)["mota"] < 0.2
+
+
+def test_grey_frames_do_not_break_the_colour_refiner():
+    """The multiple-kernel refiner needs BGR; on grey frames the tracker runs on detections."""
+    trk = MultiObjectTracker(MultiObjectTrackerConfig())
+    grey = np.full((480, 640), 90, np.uint8)
+    for i in range(6):
+        r = trk.step(grey, i * DT, [FrameDetection((100 + 2 * i, 100, 30, 60), 0.9)])
+    assert [(t.id, t.state) for t in r.reported()] == [(1, "confirmed")]
+    r = trk.step(grey, 6 * DT, [])
+    assert r.tracks[0].state == "occluded"
