@@ -21,7 +21,7 @@ def test_demo_end_to_end(tmp_path):
         pytest.skip("vision_msgs is not built into this venv")
     out = tmp_path / "demo"
     rc = cli_main(["demo", "--out", str(out), "--frames", str(FRAMES), "--people", str(PEOPLE),
-                   "--period", "0.6"])
+                   "--seed", "2", "--period", "0.6"])
     summary = json.loads((out / "demo_summary.json").read_text())
     assert rc == 0, summary
     assert summary["launch_status"] == 0
