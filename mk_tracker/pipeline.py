@@ -583,7 +583,13 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
             for group in _grouped(reader.messages()):
                 group.sort(key=lambda m: _order(m.topic, options, source))
                 for m in group:
-                    _handle(run, reader, m, source)
+                    try:
+                        _handle(run, reader, m, source)
+                    except PipelineError:
+                        raise
+                    except Exception as exc:  # like the nodes' frame workers: log, go on
+                        r.problem(f"processing a {m.topic} message failed "
+                                  f"({type(exc).__name__}: {exc}); message skipped")
                 if bar is not None:
                     bar.update(len(group))
         finally:

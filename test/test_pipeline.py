@@ -282,3 +282,26 @@ def test_tud_campus_with_public_detections(shared_data, tmp_path):
     # MOT15 trackers reach MOTA 0.5-0.7 here, so these are regression guards below our own
     # figure, not a claim of quality; ungated detections measure MOTA -0.38.
     assert m["mota"] >= 0.25 and m["idf1"] >= 0.55, m
+
+
+def test_an_unexpected_error_on_one_message_does_not_end_the_run(scene_bag, tmp_path,
+                                                                  monkeypatch):
+    """Like the nodes' frame workers, the pipeline logs a crash on one message and goes on."""
+    import mk_tracker.pipeline as pipeline
+
+    class Exploding:
+        calls = 0
+        last_mode = "tracking"
+
+        def process(self, frame, stamp, encoding=None):
+            Exploding.calls += 1
+            if Exploding.calls == 3:
+                raise RuntimeError("boom")
+            return []
+
+    monkeypatch.setattr(pipeline, "build_detector", lambda *a: Exploding())
+    result = process_bag(scene_bag, tmp_path, options=PipelineOptions(
+        detections="thermal", progress=False, write_video=False))
+    assert Exploding.calls == FRAMES
+    assert result.tracked_frames == FRAMES
+    assert any("RuntimeError: boom" in p for p in result.problems)
