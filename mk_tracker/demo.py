@@ -178,8 +178,10 @@ class Agreement:
                 and self.max_box_difference <= tolerance)
 
 
-def read_tracks(bag: Path, topic: str = "/tracks") -> dict[int, list[tuple[int, tuple]]]:
-    """``{header stamp (ns): [(track id, box), ...]}`` of a tracks topic."""
+def read_tracks(bag: Path, topic: str = "/tracks", scores: bool = False
+                ) -> dict[int, list[tuple]]:
+    """``{header stamp (ns): [(track id, box), ...]}`` of a tracks topic
+    (``(track id, box, score)`` with ``scores``)."""
     out: dict[int, list[tuple[int, tuple]]] = {}
     with open_bag(bag, on_error="skip") as reader:
         if topic not in reader.topics:
@@ -187,7 +189,8 @@ def read_tracks(bag: Path, topic: str = "/tracks") -> dict[int, list[tuple[int, 
         for _, msg in reader.read_messages([topic]):
             dets, _ = read_detection_array(msg, on_error="skip")
             out[stamp_to_nanoseconds(msg.header.stamp)] = [
-                (int(d.id), d.box) for d in dets if d.id.lstrip("-").isdigit()]
+                (int(d.id), d.box, d.score) if scores else (int(d.id), d.box)
+                for d in dets if d.id.lstrip("-").isdigit()]
     return out
 
 
@@ -255,7 +258,7 @@ def render_online(scene_bag: Path, recorded: Path, out: Path, homography: Any,
 
     out.mkdir(parents=True, exist_ok=True)
     stamps, truth_rows, images, truth = _frames_and_truth(scene_bag)
-    tracks = read_tracks(recorded)
+    tracks = read_tracks(recorded, scores=True)
     dets_by_stamp: dict[int, list] = {}
     with open_bag(recorded, on_error="skip") as reader:
         if "/thermal/detections" in reader.topics:
@@ -264,13 +267,13 @@ def render_online(scene_bag: Path, recorded: Path, out: Path, homography: Any,
                     FrameDetection(d.box, d.score, stamp_to_seconds(msg.header.stamp),
                                    "thermal")
                     for d in read_detection_array(msg, on_error="skip")[0]]
-    rows = [MotRow(i + 1, tid, box) for i, ns in enumerate(stamps)
-            for tid, box in tracks.get(ns, [])]
+    rows = [MotRow(i + 1, tid, box, score) for i, ns in enumerate(stamps)
+            for tid, box, score in tracks.get(ns, [])]
     write_mot_file(out / "tracks.txt", rows)
     h = np.asarray(homography, dtype=float).reshape(3, 3)
     with VideoOutput(out / "video.mp4", fps=fps) as video:
         for i, (ns, image) in enumerate(zip(stamps, images)):
-            drawn = [_Drawn(tid, box, 1.0) for tid, box in tracks.get(ns, [])]
+            drawn = [_Drawn(tid, box, score) for tid, box, score in tracks.get(ns, [])]
             video.write(tracker_debug_image(
                 image, drawn, {}, dets_by_stamp.get(ns, []), h,
                 [f"online frame {i + 1}  tracks {len(drawn)}"
