@@ -28,6 +28,7 @@ With the project's own .venv the contrib trackers are reported as unavailable.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -219,7 +220,7 @@ def run(seq: Sequence, factory) -> tuple[dict, float]:
     frames = seq.frames()
     first = next(frames)
     try:
-        init(first, seq.init_box)
+        init(first, clip_box(seq.init_box, first.shape[1], first.shape[0]))
     except (TrackingInputError, cv2.error) as exc:
         print(f"  init failed on {seq.name}: {exc}", file=sys.stderr)
         return {"mean_center_error": float("inf"), "precision_at_20px": 0.0,
@@ -244,6 +245,7 @@ def main(argv=None) -> int:
     parser.add_argument("--trackers", default="", help="substring filter on tracker names")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
+    load_before = os.getloadavg()
 
     seqs = synthetic_sequences() + otb_sequences() + tud_sequences()
     seqs = [s for s in seqs if args.only.lower() in s.name.lower()]
@@ -260,7 +262,8 @@ def main(argv=None) -> int:
             print(f"  {name:34s} err {m['mean_center_error']:8.2f}  P@20 "
                   f"{m['precision_at_20px']:.3f}  AUC {m['success_auc']:.3f}  {ms:7.2f} ms",
                   flush=True)
-    write_markdown(Path(args.output), seqs, trackers, results, argv)
+    write_markdown(Path(args.output), seqs, trackers, results, argv,
+                   (load_before, os.getloadavg()))
     return 0
 
 
@@ -273,7 +276,7 @@ def _group_mean(results, name, names):
             float(np.median([v[1] for v in vals])))
 
 
-def write_markdown(path: Path, seqs, trackers, results, argv) -> None:
+def write_markdown(path: Path, seqs, trackers, results, argv, loads=None) -> None:
     cmd = "PYTHONPATH=. /tmp/bench_venv/bin/python benchmarks/bench_single_target.py"
     if argv:
         cmd += " " + " ".join(argv)
@@ -286,14 +289,23 @@ def write_markdown(path: Path, seqs, trackers, results, argv) -> None:
              "(lower is better); P@20 = fraction of frames with centre error <= 20 px; AUC = "
              "success AUC of IoU; ms = median time per frame for this one target "
              "(MK: includes HSV conversion of its search region; CamShift/meanShift convert "
-             "the whole frame). MK = multiple-kernel tracker (this package), PG = projected "
-             "gradient.", ""]
+             "the whole frame), measured as process CPU time (`time.process_time`) so that "
+             "other load on the machine inflates it less than wall-clock time would. "
+             "MK = multiple-kernel tracker (this package), PG = projected gradient. Every "
+             "tracker starts from the first ground-truth box clipped to the image; when a "
+             "tracker reports failure (MK: `lost`; OpenCV: `ok=False`) its last box is "
+             "scored for that frame.", ""]
+    if loads is not None:
+        lines += [f"Machine: {os.cpu_count()} cores, load average (1 min) "
+                  f"{loads[0][0]:.1f} at the start and {loads[1][0]:.1f} at the end of the run "
+                  "(other jobs were running).", ""]
     missing = [n for n, f in trackers if f is None]
     if missing:
         lines += [f"Not available in this environment (opencv-contrib missing): "
                   f"{', '.join(missing)}.", ""]
     groups = [("synthetic occlusion scenes", [s.name for s in seqs if "synthetic" in s.name]),
-              ("TUD-Campus persons", [s.name for s in seqs if "TUD" in s.name])]
+              ("TUD-Campus persons", [s.name for s in seqs if "TUD" in s.name]),
+              ("OTB Crossing", [s.name for s in seqs if "OTB" in s.name])]
     lines += ["## Summary (mean over the sequences of a group)", "",
               "| tracker | " + " | ".join(f"{g} err / P@20 / AUC / ms" for g, _ in groups) +
               " |", "|---|" + "---|" * len(groups)]
