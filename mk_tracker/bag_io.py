@@ -579,6 +579,7 @@ class BagReader:
         self._files: list[_StorageFile] = []
         self._expected: dict[str, int] | None = None
         self._expected_types: dict[str, str] = {}
+        self._expected_per_file: dict[str, int] = {}
         self.storage: str = ""
         try:
             self._open()
@@ -622,6 +623,10 @@ class BagReader:
                 name = entry["topic_metadata"]["name"]
                 self._expected[name] = self._expected.get(name, 0) + int(entry["message_count"])
                 self._expected_types[name] = entry["topic_metadata"]["type"]
+            for entry in info.get("files") or []:   # per-file counts name a damaged file
+                if isinstance(entry, dict) and "path" in entry and "message_count" in entry:
+                    self._expected_per_file[Path(str(entry["path"])).name] = int(
+                        entry["message_count"])
         except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError,
                 ValueError) as exc:
             self._problem(f"{meta_path}: unreadable or incomplete metadata "
@@ -696,6 +701,12 @@ class BagReader:
     def _check_counts(self) -> None:
         if self._expected is None:
             return
+        for f in self._files:
+            listed = self._expected_per_file.get(f.path.name)
+            held = sum(f.counts.values())
+            if listed is not None and held != listed:
+                self._problem(f"{f.path}: metadata.yaml lists {listed} messages in this file, "
+                              f"it holds {held} (truncated or damaged file)")
         found = self._found_counts()
         for name, expected in sorted(self._expected.items()):
             got = found.get(name, 0)
