@@ -389,6 +389,21 @@ class _McapScan(_StorageFile):
                 yield ts, topic, data
 
 
+def _sqlite_truncation(path: Path, header: bytes) -> str:
+    """Why an SQLite file is shorter than its header says, or "" (header fields: page size
+    at 16, change counter at 24, page count at 28, valid when 92 equals the counter)."""
+    if len(header) < 100:
+        return f"file truncated inside the 100-byte header ({len(header)} bytes)"
+    (page_size,) = struct.unpack_from(">H", header, 16)
+    page_size = 65536 if page_size == 1 else page_size
+    counter, pages = struct.unpack_from(">II", header, 24)
+    (valid_for,) = struct.unpack_from(">I", header, 92)
+    size = path.stat().st_size
+    if counter == valid_for and pages > 0 and size < pages * page_size:
+        return f"file truncated: {size} of {pages * page_size} bytes"
+    return ""
+
+
 class _SqliteFile(_StorageFile):
     """rosbag2 sqlite3 file read with the standard library (tables topics, messages and,
     when present, message_definitions).
@@ -406,10 +421,15 @@ class _SqliteFile(_StorageFile):
         self._salvaged: list[tuple[int, int, int]] | None = None  # (timestamp, id, topic_id)
         self._tmp: Any = None
         with open(path, "rb") as fh:
-            magic = fh.read(16)
-        if magic != b"SQLite format 3\x00":
+            header = fh.read(100)
+        if header[:16] != b"SQLite format 3\x00":
             raise BagError(f"{path}: not an SQLite database (bad header)")
         try:
+            truncated = _sqlite_truncation(path, header)
+            if truncated:
+                # SQLite reads the missing pages as zeros: rows there would come back with
+                # zeroed bytes instead of an error, so a short file is damage as a whole
+                raise sqlite3.DatabaseError(truncated)
             self._setup(path)
         except sqlite3.DatabaseError as exc:
             if on_error == "raise":
