@@ -654,6 +654,10 @@ def _finish(run: _Run, has_truth: bool) -> None:
     if opts.write_video and r.video_frames:
         r.files["video"] = str(out / "video.mp4")
     if has_truth and r.frames:
+        # the ground truth as a MOTChallenge file: ``mk_tracker eval --gt gt.txt tracks.txt``
+        # scores any result of this bag the same way
+        write_mot_file(out / "gt.txt", r.gt_rows)
+        r.files["ground_truth"] = str(out / "gt.txt")
         if opts.single_target:
             tid, gid = r.single_target_id, r.single_target_gt_id
             predicted = [None] * r.frames
@@ -665,6 +669,11 @@ def _finish(run: _Run, has_truth: bool) -> None:
                 if row.id == gid:
                     truth[row.frame - 1] = row.box
             if gid is not None and any(b is not None for b in truth):
+                # OTB-style box lists for ``mk_tracker eval --single-target``
+                _write_box_list(out / "target.txt", predicted)
+                _write_box_list(out / "target_gt.txt", truth)
+                r.files["target"] = str(out / "target.txt")
+                r.files["target_ground_truth"] = str(out / "target_gt.txt")
                 r.metrics = single_target_metrics(predicted, truth)
                 r.metrics["target_id"], r.metrics["ground_truth_id"] = tid, gid
                 if opts.write_plots:
@@ -698,6 +707,14 @@ def _finish(run: _Run, has_truth: bool) -> None:
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     r.files["summary"] = str(out / "summary.json")
+
+
+def _write_box_list(path: Path, boxes: Sequence[Sequence[float] | None]) -> None:
+    """One ``x,y,w,h`` line per frame (``nan,nan,nan,nan`` without a box), the OTB layout
+    :func:`mk_tracker.evaluation.read_box_list` reads."""
+    lines = ["nan,nan,nan,nan" if b is None else ",".join(f"{float(v):.2f}" for v in b)
+             for b in boxes]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 def format_metrics(metrics: Mapping[str, Any]) -> str:

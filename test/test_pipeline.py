@@ -14,7 +14,7 @@ from mk_tracker.bag_io import BagWriter, open_bag
 from mk_tracker.boxes import iou
 from mk_tracker.cli import main as cli_main
 from mk_tracker.detection_messages import Detection, make_detection_array, read_detection_array
-from mk_tracker.evaluation import read_mot_file
+from mk_tracker.evaluation import mot_metrics, read_box_list, read_mot_file, single_target_metrics
 from mk_tracker.message_types import bag_message_types
 from mk_tracker.pipeline import (DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS,
                                  PipelineError, PipelineOptions, load_pipeline_config,
@@ -88,6 +88,17 @@ def test_thermal_mode_writes_every_output(scene_bag, thermal_run):
     # the synthetic scene's thermal -> RGB homography is the tracker's
     scene_h = np.asarray(read_scene_info(scene_bag)["homography"], dtype=float).reshape(9)
     assert np.allclose(summary["homography"], scene_h)
+
+
+def test_outputs_can_be_rescored_with_mk_tracker_eval(thermal_run, capsys):
+    out, result = thermal_run
+    gt = read_mot_file(out / "gt.txt", ground_truth=True)
+    assert len(gt) == len(result.gt_rows)
+    rescored = mot_metrics(gt, read_mot_file(out / "tracks.txt"))
+    for name in ("mota", "idf1", "num_switches", "num_misses", "num_false_positives"):
+        assert rescored[name] == pytest.approx(result.metrics[name], abs=1e-9), name
+    assert cli_main(["eval", "--gt", str(out / "gt.txt"), str(out / "tracks.txt")]) == 0
+    assert f"{100 * result.metrics['mota']:.1f}%" in capsys.readouterr().out
 
 
 def test_thermal_mode_scores(thermal_run):
@@ -169,6 +180,11 @@ def test_single_target_from_ground_truth(scene_bag, tmp_path):
     assert m["precision_at_20px"] >= 0.8, m
     assert m["success_auc"] >= 0.5, m
     assert (tmp_path / "errors.png").is_file()
+    # the OTB-style files give the same scores to ``mk_tracker eval --single-target``
+    again = single_target_metrics(read_box_list(tmp_path / "target.txt"),
+                                  read_box_list(tmp_path / "target_gt.txt"))
+    assert again["precision_at_20px"] == pytest.approx(m["precision_at_20px"])
+    assert again["success_auc"] == pytest.approx(m["success_auc"], abs=0.01)
 
 
 def test_single_target_from_a_box(scene_bag, tmp_path):
