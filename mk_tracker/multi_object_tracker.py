@@ -361,25 +361,34 @@ class MultiObjectTracker:
                 t.refined_box = refined[t.id][0]
 
         # 6. updates and lifecycle
+        # boxes other tracks may block an appearance refresh with (computed once per frame)
+        blockers = dict(det_boxes_now)
+        blockers.update({t.id: t.box for t in live
+                         if t.id not in blockers and t.state in OUTPUT_STATES})
         for t in live:
             self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
                                detected.get(t.id), refined.get(t.id), width, height,
-                               det_boxes_now, hold=t.id in held)
+                               blockers, hold=t.id in held)
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
                                and t.state is not TrackState.LOST]).reshape(-1, 4)
-        for k, d in enumerate(dets):
-            if k in matched_track or d.score < self.config.new_track_score:
-                continue
+        candidates = [k for k, d in enumerate(dets)
+                      if k not in matched_track and d.score >= self.config.new_track_score]
+        overlap = iou_matrix(np.array([dets[k].box for k in candidates]).reshape(-1, 4),
+                             live_boxes)
+        started: list[np.ndarray] = []
+        for row, k in enumerate(candidates):
+            d = dets[k]
             if len(live) >= self.config.max_tracks:
                 result.events.append("max_tracks reached: detection not started")
                 break
-            if live_boxes.shape[0] and iou_matrix(d.box[None], live_boxes).max() > \
-                    self.config.new_track_max_iou:
+            if (overlap.shape[1] and overlap[row].max() > self.config.new_track_max_iou) or \
+                    (started and iou_matrix(d.box[None], np.array(started)).max()
+                     > self.config.new_track_max_iou):
                 continue
             t = self._new_track(d.box, stamp, d.score, TrackState.TENTATIVE)
             live.append(t)
-            live_boxes = np.vstack([live_boxes, t.box[None]])
+            started.append(t.box)
             if self.config.lifecycle.min_hits <= 1:
                 t.state = TrackState.CONFIRMED
                 self._refresh_appearance(t, image_bgr, d.box, stamp, force=True)
@@ -466,9 +475,15 @@ class MultiObjectTracker:
 
     def _det_geometry(self, tracks: list[Track], dets: list[_Prepared]
                       ) -> tuple[np.ndarray, np.ndarray]:
-        """Detection boxes per track at the frame time ``(T, D, 4)`` and centres ``(T, D, 2)``."""
+        """Detection boxes per track at the frame time ``(T, D, 4)`` and centres ``(T, D, 2)``.
+
+        When every detection has the frame's stamp the boxes are the same for every track and
+        ``(D, 4)`` / ``(D, 2)`` are returned instead (one IoU matrix for all tracks).
+        """
         boxes = np.array([d.box for d in dets])                        # (D, 4)
         lags = np.array([d.lag for d in dets])                         # (D,)
+        if not np.any(lags):
+            return boxes, boxes[:, :2] + boxes[:, 2:] / 2.0
         vel = np.array([t.kf.velocity for t in tracks]).reshape(-1, 2)  # (T, 2)
         shift = vel[:, None, :] * lags[None, :, None]                  # (T, D, 2)
         per_track = np.broadcast_to(boxes[None], (len(tracks),) + boxes.shape).copy()
@@ -566,7 +581,7 @@ class MultiObjectTracker:
     def _update_track(self, t: Track, stamp: float, image: np.ndarray,
                       det_box: np.ndarray | None, det: _Prepared | None,
                       refined: tuple[np.ndarray, float] | None, width: int, height: int,
-                      all_det_boxes: dict[int, np.ndarray], hold: bool = False) -> None:
+                      blockers: dict[int, np.ndarray], hold: bool = False) -> None:
         cfg = self.config.lifecycle
         was = t.state
         sim = refined[1] if refined is not None else None
@@ -612,17 +627,18 @@ class MultiObjectTracker:
         if new is not TrackState.LOST:
             t.lost_since = None
         t.state = new
-        if det_box is not None and new is TrackState.CONFIRMED:
-            others = [b for tid, b in all_det_boxes.items() if tid != t.id]
-            others += [o.box for o in self.tracks
-                       if o.id != t.id and o.state in OUTPUT_STATES]
-            isolated = not others or float(iou_matrix(det_box[None], np.array(others)).max()) \
-                <= self.config.isolation_iou
+        if det_box is not None and new is TrackState.CONFIRMED and self.refiner is not None:
             # refresh only from a clean view: not next to another person, and (when the
             # refiner ran) a good match, so an occluder's pixels never enter the model; a
             # re-acquired track keeps the model that just proved to match
+            due = t.target_stamp is None or \
+                stamp - t.target_stamp >= self.config.appearance_update_interval
             clean = sim is None or sim >= self.config.appearance_update_similarity
-            if t.target is None or (isolated and clean and was is not TrackState.LOST):
-                self._refresh_appearance(t, image, det_box, stamp,
-                                         force=t.target is None)
+            if t.target is None:
+                self._refresh_appearance(t, image, det_box, stamp, force=True)
+            elif due and clean and was is not TrackState.LOST:
+                others = [b for tid, b in blockers.items() if tid != t.id]
+                if not others or float(iou_matrix(det_box[None], np.array(others)).max()) \
+                        <= self.config.isolation_iou:
+                    self._refresh_appearance(t, image, det_box, stamp)
         t.finish_frame()
