@@ -486,7 +486,8 @@ class ThermalDetector:
             background = newest[~result.support]
         if background.size == 0:
             return None
-        level = np.float32(np.median(background))
+        step = max(1, background.size // 2048)     # a stride sample is enough for a median
+        level = np.float32(np.median(background[::step]))
         radius = np.float32(_similarity_radius(c.sigma2) / self._map[1])   # window units
         diff = patch - level
         at_support = diff[rows - y0, cols - x0]
@@ -494,7 +495,8 @@ class ThermalDetector:
         if at_support.size == 0:
             return None
         # one polarity: a warm person in front of a cold pillar is not one object with it
-        polarity = np.float32(1.0 if np.median(at_support) > 0 else -1.0)
+        polarity = np.float32(1.0 if 2 * np.count_nonzero(at_support > 0) >= at_support.size
+                              else -1.0)
         fg = (diff * polarity > radius).astype(np.uint8)
         if allowed is not None:
             fg &= allowed[y0:y1, x0:x1].astype(np.uint8)
@@ -513,9 +515,9 @@ class ThermalDetector:
                    allowed: np.ndarray | None = None) -> _Candidate | None:
         """Detection from support pixels ``(rows, cols)`` of a window at offset (oy, ox)."""
         c = self.config
-        score = float(min(1.0, np.mean(result.variance[rows, cols]) / 0.5))
-        swept = describe_pixels(cols + ox, rows + oy)
+        score = float(min(1.0, result.variance[rows, cols].mean() / 0.5))
         if not c.current_frame_refinement:
+            swept = describe_pixels(cols + ox, rows + oy)
             return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
         fp = self._footprint(window, result, rows, cols, allowed)
         if fp is None:
