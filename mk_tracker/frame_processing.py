@@ -12,8 +12,8 @@ identical decisions on the same input.
 * Tracker side: which image plane a detection message is in, decided by its
   ``header.frame_id`` (:func:`detection_plane`: the RGB image's frame, or the thermal
   camera's frame whose boxes the tracker maps with its homography), the tracker's input
-  list built from the buffered messages (:func:`tracker_inputs`), hand-started boxes
-  (:func:`start_box`), and the tracks that are published (:func:`tracks_to_detections`).
+  list built from the buffered messages (:func:`tracker_inputs`) and the tracks that are
+  published (:func:`tracks_to_detections`).
 * Debug images: :func:`tracker_debug_image` and :func:`detector_debug_image` (what the
   nodes publish on ``~/debug_image`` and the pipeline writes into its video).
 
@@ -140,18 +140,6 @@ def tracker_inputs(batches: Iterable[DetectionBatch], image_frame_id: str,
         dets.extend(FrameDetection(box=d.box, score=d.score, stamp=batch.stamp, plane=plane)
                     for d in batch.detections)
     return dets, unknown
-
-
-def start_box(box: Sequence[float], plane: str | None, homography: np.ndarray
-              ) -> tuple[float, float, float, float]:
-    """A hand-given start box in the RGB plane (thermal boxes are mapped by ``homography``);
-    raises :class:`~mk_tracker.boxes.InvalidBoxError` when it is unusable."""
-    if plane is None:
-        raise InvalidBoxError("the box is in an unknown frame")
-    if plane == "thermal":
-        return transform_box(box, homography)
-    b = as_box(box)
-    return float(b[0]), float(b[1]), float(b[2]), float(b[3])
 
 
 def _finite(box: Sequence[float]) -> bool:

@@ -321,3 +321,37 @@ def test_an_unexpected_error_on_one_message_does_not_end_the_run(scene_bag, tmp_
     assert Exploding.calls == FRAMES
     assert result.tracked_frames == FRAMES
     assert any("RuntimeError: boom" in p for p in result.problems)
+
+
+
+# -- the per-frame decisions shared with the nodes (mk_tracker.frame_processing) -----------
+
+def test_detection_planes_follow_the_frame_id():
+    from mk_tracker.frame_processing import DetectionBatch, tracker_inputs
+
+    box = (1.0, 2.0, 3.0, 4.0)
+    batches = [DetectionBatch(1.0, "camera", [Detection(box, 0.5)]),
+               DetectionBatch(1.1, "thermal_camera", [Detection(box, 0.7), Detection(box, 0.2)]),
+               DetectionBatch(1.2, "lidar", [Detection(box, 0.9)])]
+    dets, unknown = tracker_inputs(batches, "camera", "thermal_camera")
+    assert [(d.plane, d.stamp, d.score) for d in dets] == [
+        ("rgb", 1.0, 0.5), ("thermal", 1.1, 0.7), ("thermal", 1.1, 0.2)]
+    assert unknown == ["lidar"]
+
+
+def test_published_tracks_and_detector_outputs_drop_unusable_boxes():
+    from types import SimpleNamespace as NS
+
+    from mk_tracker.frame_processing import detector_outputs, tracks_to_detections
+
+    tracks = [NS(id=3, box=(1.0, 2.0, 3.0, 4.0), score=1.7),
+              NS(id=4, box=(float("nan"), 2.0, 3.0, 4.0), score=0.5),
+              NS(id=5, box=(1.0, 2.0, 0.0, 4.0), score=0.5),
+              NS(id=6, box=(5.0, 6.0, 7.0, 8.0), score=-0.2)]
+    out = tracks_to_detections(tracks, "person")
+    assert [(d.id, d.score) for d in out] == [("3", 1.0), ("6", 0.0)]
+    found = [NS(box=(1.0, 1.0, 2.0, 2.0), score=0.9), NS(box=(1.0, 1.0, -2.0, 2.0), score=0.9),
+             NS(box=(1.0, 1.0, 2.0, 2.0), score=float("inf"))]
+    dets, errors = detector_outputs(found, "person")
+    assert [d.box for d in dets] == [(1.0, 1.0, 2.0, 2.0)] and dets[0].id == ""
+    assert len(errors) == 2
