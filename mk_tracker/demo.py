@@ -19,7 +19,7 @@
    parameters file (before step 2, which also warms numba's on-disk cache) and reports whether online and offline agree: the same track ids in
    every frame and every box within ``--tolerance`` pixels (1 by default).
 
-Everything goes into ``--out`` (default ``demo_output``); ``demo_summary.json`` holds the
+Everything goes into ``--out`` (default ``out/demo``); ``demo_summary.json`` holds the
 figures.  Exit status: 0 when the run completed (1 if a process crashed, 3 with
 ``--require-agreement`` when online and offline disagree).
 """
@@ -296,8 +296,8 @@ def render_online(scene_bag: Path, recorded: Path, out: Path, homography: Any,
 # -- the command --------------------------------------------------------------------------
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=Path("demo_output"),
-                        help="output folder (default demo_output; a previous demo output "
+    parser.add_argument("--out", type=Path, default=Path("out/demo"),
+                        help="output folder (default out/demo; a previous demo output "
                              "there is replaced)")
     parser.add_argument("--frames", type=int, default=120, help="frames (default 120)")
     parser.add_argument("--people", type=int, default=4, help="people (default 4)")
@@ -333,6 +333,12 @@ def _prepare_out(out: Path) -> None:
 def run_demo(args: argparse.Namespace) -> dict[str, Any]:
     if args.frames < 10 or args.people < 1 or args.period <= 0:
         raise DemoError("need --frames >= 10, --people >= 1 and --period > 0")
+    import importlib.util
+
+    for module in ("rclpy", "vision_msgs"):
+        if importlib.util.find_spec(module) is None:
+            raise DemoError(f"{module} is not installed in this Python ({sys.executable}); "
+                            "'make env' sets the environment up")
     out: Path = args.out
     _prepare_out(out)
     t0 = time.monotonic()
