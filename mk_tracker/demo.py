@@ -51,8 +51,9 @@ SUMMARY_FILE = "demo_summary.json"
 RECORD_TOPICS = ("/tracks", "/thermal/detections")
 #: share of a frame period between a thermal frame and its RGB frame in bag time
 RGB_DELAY = 0.75
-#: wall seconds between /scene_info and the first frame
+#: wall seconds between /scene_info and the first frame, and after the last one
 LEAD_S = 2.0
+END_TOPIC = "/demo/end_of_scene"
 
 
 class DemoError(ValueError):
@@ -67,7 +68,9 @@ def write_demo_bag(scene_bag: Path, out: Path, fps: float,
     each RGB frame (and its ground truth) ``RGB_DELAY`` periods after its thermal frame,
     ``pauses[k]`` seconds of bag time between the thermal and the RGB frame number ``k``,
     and every frame ``lead_s`` after ``/scene_info`` (time for the recorder to match the
-    nodes' publishers before the first frame)."""
+    nodes' publishers before the first frame).  A last ``END_TOPIC`` message ``lead_s``
+    after the last frame keeps the player (and its publishers) alive until the last frame
+    has been delivered."""
     pauses = dict(pauses or {})
     period_ns = 1e9 / fps
     with open_bag(scene_bag) as reader, BagWriter(out, typestore=reader.typestore) as writer:
@@ -83,7 +86,12 @@ def write_demo_bag(scene_bag: Path, out: Path, fps: float,
             if m.topic != SCENE_INFO_TOPIC:
                 shift += lead_s * 1e9
             shift += 1e9 * sum(p for j, p in pauses.items() if j < k or (rgb and j == k))
-            writer.write_raw(m.topic, int(round(m.timestamp_ns + shift)), m.data)
+            last = int(round(m.timestamp_ns + shift))
+            writer.write_raw(m.topic, last, m.data)
+        if t0 is not None:
+            writer.add_topic(END_TOPIC, "std_msgs/msg/String")
+            end = reader.typestore.types["std_msgs/msg/String"](data="end of the demo scene")
+            writer.write(END_TOPIC, last + int(round(max(lead_s, 1.0 / fps) * 1e9)), end)
 
 
 def detector_pauses(config: Any, frames: int, warmup_s: float, full_pass_s: float
@@ -365,7 +373,7 @@ def run_demo(args: argparse.Namespace) -> dict[str, Any]:
     result = process_bag(bag, out / "offline", config,
                          PipelineOptions(progress=False, use_scene_homography=False))
     domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
-    playback_s = args.period * args.frames + sum(pauses.values()) + LEAD_S
+    playback_s = args.period * args.frames + sum(pauses.values()) + 2 * LEAD_S
     print(f"playing it through detector_node and tracker_node over DDS (domain {domain}, "
           f"rate {rate:.3f}, about {playback_s:.0f} s) ...", flush=True)
     status = run_nodes(bag, params, out / "recorded", rate, domain,
