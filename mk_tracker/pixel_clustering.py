@@ -92,7 +92,7 @@ def closest_pair(centroids: np.ndarray) -> tuple[int, int, float]:
 
 
 def cluster_support_pixels(coords: np.ndarray, *, max_objects: int, merge_distance_sq: float,
-                           seed: int = 0, max_points: int = 4000
+                           seed: int = 0, max_points: int = 1000
                            ) -> tuple[np.ndarray, np.ndarray]:
     """K-means of support pixel coordinates with the merge rule (3.13) and the limit M_up.
 
