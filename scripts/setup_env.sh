@@ -88,11 +88,37 @@ VISION_KEY="$(hash_inputs "${MSG_FILES[@]}" "$IFACE_DIR/CMakeLists.txt" "$IFACE_
 ENV_KEY="$(hash_inputs "$REQ/runtime.txt" "$REQ/constraints.txt" "$ROOT/setup.py" "$ROOT/setup.cfg" \
   "$ROOT/package.xml" "$ROOT/scripts/setup_env.sh")-$VISION_KEY"
 
+# The build of vision_msgs (only when it is not cached) needs cmake and C/C++ compilers;
+# checked before anything is installed so that a missing tool is reported at once.
+check_build_tools() {
+  command -v cmake >/dev/null 2>&1 \
+    || fail "cmake not found; it is needed once to build vision_msgs (Ubuntu: apt install cmake)."
+  "$PYTHON_BIN" - "$(cmake --version | head -n1)" <<'EOF' \
+    || fail "cmake >= 3.21 is needed to build vision_msgs (found: $(cmake --version | head -n1))."
+import re, sys
+found = tuple(int(x) for x in re.search(r"(\d+)\.(\d+)", sys.argv[1]).groups())
+sys.exit(found < (3, 21))
+EOF
+  CXX_BIN="${CXX:-}"
+  [ -n "$CXX_BIN" ] || CXX_BIN="$(command -v c++ || command -v g++ || command -v clang++ || true)"
+  [ -n "$CXX_BIN" ] || fail "no C++ compiler found; one is needed once to build vision_msgs (Ubuntu: apt install g++)."
+  CC_BIN="${CC:-}"
+  [ -n "$CC_BIN" ] || CC_BIN="$(command -v cc || command -v gcc || command -v clang || true)"
+  [ -n "$CC_BIN" ] || fail "no C compiler found; one is needed once to build vision_msgs (Ubuntu: apt install gcc)."
+}
+
 # ---- fast path -------------------------------------------------------------------
 if [ "$FORCE" = 0 ] && [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$ENV_KEY" ] \
    && [ -x "$VENV/bin/python" ]; then
   say "environment up to date ($VENV)"
   exit 0
+fi
+
+VISION_CACHE="$CACHE/vision_msgs/$VISION_KEY"
+VISION_VERSION="$VISION_MSGS_VERSION+mk$VISION_KEY"
+VISION_WHEELS=("$VISION_CACHE"/mk_tracker_vision_msgs-*.whl)
+if [ "$FORCE" = 1 ] || [ "${#VISION_WHEELS[@]}" -eq 0 ]; then
+  check_build_tools
 fi
 
 # ---- 1. the virtual environment ------------------------------------------------------
@@ -140,25 +166,7 @@ pip_quiet "$VENV/bin/python" -m pip install --quiet "${OFFLINE_PIP[@]}" \
   || fail "installing mk_tracker in editable mode failed"
 
 # ---- 3. vision_msgs ---------------------------------------------------------------
-VISION_CACHE="$CACHE/vision_msgs/$VISION_KEY"
-VISION_VERSION="$VISION_MSGS_VERSION+mk$VISION_KEY"
-VISION_WHEELS=("$VISION_CACHE"/mk_tracker_vision_msgs-*.whl)
-
 if [ "$FORCE" = 1 ] || [ "${#VISION_WHEELS[@]}" -eq 0 ]; then
-  command -v cmake >/dev/null 2>&1 \
-    || fail "cmake not found; it is needed once to build vision_msgs (Ubuntu: apt install cmake)."
-  "$PYTHON_BIN" - "$(cmake --version | head -n1)" <<'EOF' \
-    || fail "cmake >= 3.21 is needed to build vision_msgs (found: $(cmake --version | head -n1))."
-import re, sys
-found = tuple(int(x) for x in re.search(r"(\d+)\.(\d+)", sys.argv[1]).groups())
-sys.exit(found < (3, 21))
-EOF
-  CXX_BIN="${CXX:-}"
-  [ -n "$CXX_BIN" ] || CXX_BIN="$(command -v c++ || command -v g++ || command -v clang++ || true)"
-  [ -n "$CXX_BIN" ] || fail "no C++ compiler found; one is needed once to build vision_msgs (Ubuntu: apt install g++)."
-  CC_BIN="${CC:-}"
-  [ -n "$CC_BIN" ] || CC_BIN="$(command -v cc || command -v gcc || command -v clang || true)"
-  [ -n "$CC_BIN" ] || fail "no C compiler found; one is needed once to build vision_msgs (Ubuntu: apt install gcc)."
 
   BUILD_STAMP="$BUILD_VENV/.mk_tracker_build_stamp"
   if [ ! -f "$BUILD_STAMP" ] || [ "$(cat "$BUILD_STAMP")" != "$REQ_KEY" ]; then
