@@ -4,8 +4,9 @@
   RIHS01 type hashes -- read from the type support through rclpy's graph API -- equal
   those of the real ROS 2 Jazzy vision_msgs 4.1 package, so our nodes interoperate with
   robots that use apt's ros-jazzy-vision-msgs.
-* A Detection2DArray survives a CDR round trip through rclpy.serialization, and the bytes
-  agree with a hand-computed encoding and with rosbags' encoder.
+* A Detection2DArray survives a CDR round trip through rclpy.serialization, the bytes
+  agree with a hand-computed encoding and with rosbags' encoder, and it travels over DDS
+  from one process to another.
 * Every .msg file parses with rosbags and has exactly the upstream field list.
 * package.xml, setup.py, setup.cfg, requirements/runtime.txt and the installed
   distribution agree with each other.
@@ -400,3 +401,59 @@ def test_installed_distribution_matches_setup_py():
 def test_colcon_skips_the_pip_side_vision_msgs_recipe():
     for marker in ("COLCON_IGNORE", "AMENT_IGNORE"):
         assert (REPO / "interfaces" / "vision_msgs" / marker).is_file()
+
+
+_PUBLISHER_SCRIPT = """
+import sys, time
+import rclpy
+from vision_msgs.msg import Detection2D, Detection2DArray
+rclpy.init()
+node = rclpy.create_node("mk_env_publisher")
+pub = node.create_publisher(Detection2DArray, sys.argv[1], 10)
+msg = Detection2DArray()
+msg.header.frame_id = "thermal"
+det = Detection2D()
+det.id = "from-another-process"
+det.bbox.size_x = 3.5
+msg.detections.append(det)
+deadline = time.monotonic() + 20.0
+while time.monotonic() < deadline:
+    pub.publish(msg)
+    time.sleep(0.05)
+"""
+
+
+def test_detection_array_travels_between_two_processes():
+    import subprocess
+    import time
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from vision_msgs.msg import Detection2DArray
+
+    domain = 200 + os.getpid() % 30
+    topic = f"/mk_env_two_process_{os.getpid()}"
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    publisher = subprocess.Popen([sys.executable, "-c", _PUBLISHER_SCRIPT, topic], env=env)
+    context = Context()
+    received = []
+    try:
+        rclpy.init(context=context, domain_id=domain)
+        node = rclpy.create_node("mk_env_subscriber", context=context)
+        node.create_subscription(Detection2DArray, topic, received.append, 10)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        deadline = time.monotonic() + 20.0
+        while not received and time.monotonic() < deadline and publisher.poll() is None:
+            executor.spin_once(timeout_sec=0.1)
+        node.destroy_node()
+    finally:
+        publisher.terminate()
+        publisher.wait(timeout=10)
+        if context.ok():
+            rclpy.shutdown(context=context)
+    assert received, "no Detection2DArray arrived from the publishing process"
+    assert received[0].header.frame_id == "thermal"
+    assert received[0].detections[0].id == "from-another-process"
+    assert received[0].detections[0].bbox.size_x == 3.5
