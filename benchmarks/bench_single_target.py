@@ -139,6 +139,7 @@ def camshift_factory(use_camshift: bool):
         crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 1)
 
         def init(frame, box):
+            box = clip_box(box, frame.shape[1], frame.shape[0])
             x, y, w, h = (int(round(v)) for v in box)
             hsv = cv2.cvtColor(frame[y:y + h, x:x + w], cv2.COLOR_BGR2HSV)
             mask = cv2.inRange(hsv, (0, 40, 30), (180, 255, 255))
@@ -168,6 +169,7 @@ def opencv_tracker_factory(create: Callable):
         holder = {}
 
         def init(frame, box):
+            box = clip_box(box, frame.shape[1], frame.shape[0])   # OpenCV needs it inside
             tracker.init(frame, tuple(int(round(v)) for v in box))
             holder["last"] = tuple(float(v) for v in box)
 
@@ -220,7 +222,7 @@ def run(seq: Sequence, factory) -> tuple[dict, float]:
     frames = seq.frames()
     first = next(frames)
     try:
-        init(first, clip_box(seq.init_box, first.shape[1], first.shape[0]))
+        init(first, seq.init_box)
     except (TrackingInputError, cv2.error) as exc:
         print(f"  init failed on {seq.name}: {exc}", file=sys.stderr)
         return {"mean_center_error": float("inf"), "precision_at_20px": 0.0,
@@ -292,7 +294,9 @@ def write_markdown(path: Path, seqs, trackers, results, argv, loads=None) -> Non
              "the whole frame), measured as process CPU time (`time.process_time`) so that "
              "other load on the machine inflates it less than wall-clock time would. "
              "MK = multiple-kernel tracker (this package), PG = projected gradient. Every "
-             "tracker starts from the first ground-truth box clipped to the image; when a "
+             "tracker starts from the first ground-truth box (clipped to the image for the "
+             "OpenCV trackers, which cannot take a box reaching outside it; the MK tracker "
+             "takes it as is and simply sees no pixels outside the image); when a "
              "tracker reports failure (MK: `lost`; OpenCV: `ok=False`) its last box is "
              "scored for that frame.", ""]
     if loads is not None:
