@@ -35,6 +35,7 @@ the scene's thermal-to-RGB homography is used.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import sys
@@ -571,7 +572,9 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
             run.writer.add_topic(TRACKS_TOPIC, DETECTION_TYPE)
         image_stamps = []
         if options.write_video:
-            image_stamps = [m.timestamp_ns for m in reader.messages([options.image_topic])]
+            # the frame rate from the first frames (raw messages, nothing deserialized)
+            image_stamps = [m.timestamp_ns for m in
+                            itertools.islice(reader.messages([options.image_topic]), 25)]
             run.video = VideoOutput(out / "video.mp4", fps=_median_fps(image_stamps))
         total = reader.message_count
         bar = None
