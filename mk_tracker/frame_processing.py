@@ -90,6 +90,12 @@ def skipped_reason(detector: Any) -> str | None:
     return SKIPPED_MODES.get(getattr(detector, "last_mode", ""))
 
 
+def detector_event(detector: Any) -> str | None:
+    """What the detector's last frame changed in its state (a reset because time went
+    backwards, or the frame size or encoding changed), in words, or None."""
+    return getattr(detector, "last_event", None) or None
+
+
 # -- tracker side ---------------------------------------------------------------------------
 
 @dataclass

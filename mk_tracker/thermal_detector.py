@@ -51,9 +51,12 @@ Where the paper is silent, and what we add (each switchable):
 * Centroids are continuous (pixel ``(c, r)`` has centre ``(c + 0.5, r + 0.5)``), not the
   floor in the definition of Sec. 2.
 * Frames: NaN/inf pixels are held at their last valid value (:mod:`mk_tracker.thermal_image`);
-  a frame with fewer than ``min_valid_fraction`` valid pixels, or a stamp not after the
+  a frame with fewer than ``min_valid_fraction`` valid pixels, or a stamp equal to the
   previous one, is skipped (no detections, ``skipped_frames`` counts it); a frame of another
-  size or encoding resets the detector (``resets``, ``last_reset``).  Memory is bounded: a
+  size or encoding resets the detector (``resets``, ``last_reset``), and so does a stamp
+  earlier than the previous one (a bag played in a loop: ``time_resets``, ``last_event``
+  says by how much), after which the new frames fill a new window and detection resumes
+  after ``F_s`` of them, as at start-up.  Memory is bounded: a
   ring buffer of ``max(F, F_s)`` frames and at most ``M_up`` objects.
 
 Defaults: only ``sigma^2 = 0.01`` (Sec. 6) and ``sigma_w < 3 px`` (Sec. 4) come from the
@@ -291,11 +294,12 @@ def _similarity_radius(sigma2: float) -> float:
 class ThermalDetector:
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
-    Counters the node can log: ``resets`` (frame size or encoding changed),
-    ``skipped_frames`` (too few valid pixels, or a stamp not after the previous one),
-    ``full_passes``; ``last_mode`` is one of ``warming_up``, ``startup``,
-    ``reconfiguration``, ``tracking``, ``invalid_frame``, ``out_of_order``, and
-    ``last_reset`` says whether the last frame reset the detector.
+    Counters the node can log: ``resets`` (frame size or encoding changed, or time went
+    backwards), ``time_resets`` (the latter only), ``skipped_frames`` (too few valid pixels,
+    or the same stamp as the previous frame), ``full_passes``; ``last_mode`` is one of
+    ``warming_up``, ``startup``, ``reconfiguration``, ``tracking``, ``invalid_frame``,
+    ``out_of_order``; ``last_reset`` says whether the last frame reset the detector and
+    ``last_event`` why (e.g. ``"time went backwards by 4.000 s: reset"``), else None.
     """
 
     def __init__(self, config: ThermalDetectorConfig | None = None) -> None:
@@ -307,6 +311,8 @@ class ThermalDetector:
         self._buffer: collections.deque = collections.deque(
             maxlen=max(c.window_frames, c.startup_frames))
         self.resets = 0
+        self.time_resets = 0
+        self.last_event: str | None = None
         self.skipped_frames = 0
         self.full_passes = 0
         self.last_mode = "warming_up"
@@ -348,16 +354,28 @@ class ThermalDetector:
         if not math.isfinite(t):
             raise ThermalInputError(f"stamp {stamp!r} is not finite")
         self.last_reset = False
+        self.last_event = None
         if self._shape is not None and (raw.shape != self._shape or enc != self._encoding):
+            self.last_event = (f"frame {raw.shape[1]}x{raw.shape[0]} {enc} differs from the "
+                               f"previous {self._shape[1]}x{self._shape[0]} {self._encoding}: "
+                               "reset")
             self._clear()
             self.resets += 1
+            self.last_reset = True
+        elif self._last_stamp is not None and t < self._last_stamp:
+            # a looping bag: skipping every frame until the stamps pass the old newest one
+            # would stall detection for a whole loop; start a new window from this frame
+            self.last_event = f"time went backwards by {self._last_stamp - t:.3f} s: reset"
+            self._clear()
+            self.resets += 1
+            self.time_resets += 1
             self.last_reset = True
         valid = np.isfinite(raw)
         if np.count_nonzero(valid) < self.config.min_valid_fraction * raw.size or not valid.any():
             self.skipped_frames += 1
             self.last_mode = "invalid_frame"
             return []
-        if self._last_stamp is not None and t <= self._last_stamp:
+        if self._last_stamp is not None and t == self._last_stamp:
             self.skipped_frames += 1
             self.last_mode = "out_of_order"
             return []

@@ -153,6 +153,39 @@ def test_frame_size_change_resets_and_says_so():
     assert det.resets == 2
 
 
+def test_scene_played_twice_resets_once_and_detects_again():
+    """A bag played in a loop: the second pass's stamps start again below the first's.
+    The detector resets once (window and objects cleared), says so, and detects from the
+    new frames within F_s frames, like at start-up."""
+    cfg = ThermalDetectorConfig()
+    frames = moving_square_frames(16)
+    stamps = [10.0 + 0.04 * i for i in range(len(frames))]
+    det = ThermalDetector(cfg)
+    first = [det.process(f, t) for f, t in zip(frames, stamps)]
+    assert det.resets == 0 and det.time_resets == 0
+    assert all(len(d) == 1 for d in first[cfg.startup_frames - 1:])
+    second, modes, events = [], [], []
+    for i, (f, t) in enumerate(zip(frames, stamps)):
+        second.append(det.process(f, t))
+        modes.append(det.last_mode)
+        events.append(det.last_event)
+        if i == 0:
+            assert det.last_reset and det.tracks == []
+    gap = stamps[-1] - stamps[0]
+    assert events[0] == f"time went backwards by {gap:.3f} s: reset"
+    assert events[1:] == [None] * (len(frames) - 1)
+    assert det.time_resets == 1 and det.resets == 1
+    assert "out_of_order" not in modes
+    # no frame of the new pass is skipped; the first F_s - 1 fill the new window
+    assert modes[:cfg.startup_frames - 1] == ["warming_up"] * (cfg.startup_frames - 1)
+    resumed = next(i for i, d in enumerate(second) if d)
+    assert resumed <= cfg.startup_frames - 1
+    assert all(len(d) == 1 for d in second[resumed:])
+    # same frames, same window: the second pass finds the square where the first did
+    for a, b in zip(first[resumed:], second[resumed:]):
+        assert np.allclose(a[0].centroid, b[0].centroid, atol=1e-6)
+
+
 def test_constant_and_all_nan_frames_give_no_detections():
     det = ThermalDetector()
     for i in range(12):

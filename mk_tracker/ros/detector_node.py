@@ -37,7 +37,8 @@ from sensor_msgs.msg import Image
 
 from mk_tracker.detection_messages import make_detection_array
 from mk_tracker.frame_processing import (METHODS, build_detector, detector_debug_image,
-                                         detector_outputs, skipped_reason, thermal_input)
+                                         detector_event, detector_outputs, skipped_reason,
+                                         thermal_input)
 from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
@@ -167,10 +168,11 @@ class DetectorNode(Node):
         stamp = stamp_to_seconds(msg.header.stamp)
         with self._lock:
             detector = self.detector
-            if self._last_stamp is not None and stamp < self._last_stamp:
-                self._warn(
-                    f"thermal time went backwards by {self._last_stamp - stamp:.3f} s (bag "
-                    "restarted?)")
+            if self._last_stamp is not None and stamp < self._last_stamp \
+                    and not hasattr(detector, "time_resets"):
+                # a detector that keeps no time (threshold): nothing to reset, only say so
+                self._warn(f"thermal time went backwards by {self._last_stamp - stamp:.3f} s "
+                           "(bag restarted?)")
             self._last_stamp = stamp
             try:
                 found = detector.process(frame, stamp, encoding=msg.encoding)
@@ -182,8 +184,11 @@ class DetectorNode(Node):
             if reason:
                 counters.rejected_frames += 1
                 self._warn(f"detector skipped the frame of stamp {stamp:.3f}: {reason}")
-            if getattr(detector, "last_reset", False):
-                self._event("detector reset: the frame size or encoding changed")
+            event = detector_event(detector)
+            if event:
+                # the library resets itself (time went backwards: a looping bag; another
+                # frame size or encoding) and says why
+                self._warn(f"thermal detector: {event}")
         out, errors = detector_outputs(found, self.node_config.class_id)
         for error in errors:
             self._warn(error)
