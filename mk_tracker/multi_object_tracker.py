@@ -4,8 +4,10 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
 :meth:`MultiObjectTracker.step` per RGB frame does, in order:
 
 1. **Input checks.**  A time stamp that goes backwards (a bag played in a loop) resets the
-   tracker and says so in ``events``; a frame whose size differs from the previous one is
-   skipped and counted (call :meth:`reset` to accept a new size).
+   tracker and says so in ``events``; so does a frame whose size differs from the previous
+   one (a camera that changed resolution: the old boxes mean nothing in the new frame), and
+   the tracker then tracks at the new size (``resets`` counts both, ``totals["size_resets"]``
+   the latter).
 2. **Detections to the frame.**  Each detection carries a box, a score, a stamp and an image
    plane.  Thermal-plane boxes are mapped into the RGB plane by the configured 3x3 homography
    (:func:`mk_tracker.boxes.transform_box`); boxes with NaN or non-positive sizes, or
@@ -175,7 +177,6 @@ class FrameResult:
     dropped_stale: int = 0
     skipped_bad_detections: int = 0
     resets: int = 0
-    skipped_frame: bool = False
     events: list[str] = field(default_factory=list)
 
     max_reported_coast_time: float = float("inf")
@@ -232,7 +233,7 @@ class MultiObjectTracker:
         self.last_stamp: float | None = None
         self.frame_size: tuple[int, int] | None = None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
-                       "resets": 0, "skipped_frames": 0}
+                       "resets": 0, "size_resets": 0}
 
     # -- public API -----------------------------------------------------------------------
     def reset(self) -> None:
@@ -280,14 +281,13 @@ class MultiObjectTracker:
             result.resets = 1
             self.reset()
         if self.frame_size is not None and size != self.frame_size:
-            result.skipped_frame = True
+            # skipping every later frame would stop tracking silently; the old tracks'
+            # boxes are in the old pixel grid, so they go, and tracking restarts here
             result.events.append(f"frame {size[1]}x{size[0]} differs from the previous "
-                                 f"{self.frame_size[1]}x{self.frame_size[0]}: skipped "
-                                 f"(reset() accepts a new size)")
-            self._count(result)
-            self.totals["skipped_frames"] += 1
-            result.tracks = [t.output() for t in self.tracks]
-            return result
+                                 f"{self.frame_size[1]}x{self.frame_size[0]}: reset")
+            result.resets = 1
+            self.totals["size_resets"] += 1
+            self.reset()
         self.frame_size = size
         self.last_stamp = stamp
         height, width = size

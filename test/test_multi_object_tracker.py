@@ -115,16 +115,29 @@ def test_time_going_backwards_resets_and_says_so():
     assert trk.totals["resets"] == 1
 
 
-def test_frame_of_another_size_is_skipped():
+def test_frame_of_another_size_resets_once_and_tracks_at_the_new_size():
+    """A camera that changes resolution: the tracker resets once (old tracks cleared, event,
+    counted) and then tracks at the new size instead of skipping every later frame."""
     trk = MultiObjectTracker(plain())
     walk(trk, 5, lambda i: [(100, 100, 30, 60)])
-    before = [(t.id, t.box) for t in trk.step(IMG, 5 * DT, [FrameDetection((100, 100, 30,
-                                                                            60))]).tracks]
-    r = trk.step(np.zeros((240, 320, 3), np.uint8), 6 * DT, [FrameDetection((10, 10, 5, 5))])
-    assert r.skipped_frame
-    assert "differs from the previous 640x480" in r.events[0]
-    assert [(t.id, t.box) for t in r.tracks] == before
-    assert trk.totals["skipped_frames"] == 1
+    old_ids = {t.id for t in trk.step(IMG, 5 * DT, [FrameDetection((100, 100, 30, 60))]).tracks}
+    assert old_ids
+    small = np.zeros((240, 320, 3), np.uint8)
+    r = trk.step(small, 6 * DT, [FrameDetection((50, 40, 15, 30))])
+    assert r.resets == 1
+    assert any("frame 320x240 differs from the previous 640x480: reset" in e for e in r.events)
+    assert not old_ids & {t.id for t in r.tracks}         # old tracks are gone
+    assert [tuple(t.box) for t in r.tracks] == [pytest.approx((50, 40, 15, 30))]
+    assert trk.totals["resets"] == 1 and trk.totals["size_resets"] == 1
+    assert trk.frame_size == (240, 320)
+    # later frames at the new size are tracked (no further reset): the new track confirms
+    results = [trk.step(small, (7 + i) * DT, [FrameDetection((50 + 2 * i, 40, 15, 30))])
+               for i in range(5)]
+    assert all(res.resets == 0 for res in results)
+    assert trk.totals["resets"] == 1
+    reported = results[-1].reported()
+    assert len(reported) == 1 and reported[0].id not in old_ids
+    assert reported[0].box[0] == pytest.approx(58.0, abs=2.0)
 
 
 # -- lifecycle --------------------------------------------------------------------------------
