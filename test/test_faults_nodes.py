@@ -108,6 +108,10 @@ class Stream:
         frame = SCENE.frame(index)
         stamp = round(frame.stamp + offset + 1.0, 6)   # +1 s: no zero stamps
         header = Header(stamp=make_stamp(stamp), frame_id="camera")
+        # a looping stream repeats stamps: only answers to this publication count
+        self.peer.spin_for(0.02)
+        self.detections.pop(stamp, None)
+        self.tracks.pop(stamp, None)
         thermal = numpy_to_image(frame.thermal, "mono8", header, types=TYPES)
         self.thermal.publish(thermal)
         if detector_alive:
@@ -226,7 +230,8 @@ def test_stream_loops_back_in_time_state_resets_once_and_logs_it(domain, launch)
     assert len(majority_ids(first[15:])) == 3
     again = second[15:]
     assert sum(len(matches(f, t)) for f, t in again) >= 0.9 * 3 * len(again)
-    assert "went backwards" in detector.output()
+    backwards = [line for line in detector.output().splitlines() if "went backwards" in line]
+    assert len(backwards) == 1 and "reset" in backwards[0], backwards
     for text in ("Traceback", "frame processing failed"):
         assert text not in log and text not in detector.output()
 
@@ -251,3 +256,62 @@ def test_image_topics_stop_for_10_s_and_resume(domain, launch):
         assert node.alive()
         assert "Traceback" not in node.output()
         assert "frame processing failed" not in node.output()
+
+
+def test_real_bag_player_looping_resets_the_tracker_once_per_loop(domain, launch, tmp_path):
+    """The scene as a bag, played by mk_tracker.ros.bag_player --loop in real time: the
+    header stamps jump back at every loop; the tracker resets exactly once per loop (and
+    logs it), then tracks the three people again in every pass."""
+    import subprocess
+    import sys
+
+    from mk_tracker.scene_bag import write_scene_bag
+    from nodes_harness import REPO
+
+    bag = tmp_path / "paper_bag"
+    write_scene_bag(SCENE, bag, "mcap")
+    detector = launch(DETECTOR)
+    tracker = launch(TRACKER)
+    peer = Peer(domain)
+    tracks: list = []
+    log_path = tmp_path / "bag_player.log"
+    with open(log_path, "w") as log:
+        player = subprocess.Popen(
+            [sys.executable, "-m", "mk_tracker.ros.bag_player", str(bag), "--loop",
+             "--topics", "/thermal/image_raw", "/image_raw", "--wait-for-subscribers", "20"],
+            env=ros_env(domain), cwd=str(REPO), stdout=log, stderr=subprocess.STDOUT,
+            start_new_session=True)
+        try:
+            peer.node.create_subscription(Detection2DArray, "tracks", tracks.append, RELIABLE)
+            # 2.4 s per pass: run until three passes have started (two loops back in time)
+            def loops() -> int:
+                stamps = [stamp_of(m) for m in tracks]
+                return sum(1 for a, b in zip(stamps, stamps[1:]) if b < a - 1.0)
+            assert peer.spin_until(lambda: loops() >= 2 and stamp_of(tracks[-1]) > 2.2
+                                   and len(tracks) > 0, 40.0), (len(tracks), loops())
+        finally:
+            os.killpg(player.pid, signal.SIGINT)
+            try:
+                player.wait(10)
+            except subprocess.TimeoutExpired:
+                os.killpg(player.pid, signal.SIGKILL)
+                player.wait(5)
+            peer.close()
+    stamps = [stamp_of(m) for m in tracks]
+    wraps = [k + 1 for k, (a, b) in enumerate(zip(stamps, stamps[1:])) if b < a - 1.0]
+    assert len(wraps) >= 2
+    log = tracker.output()
+    assert log.count(": reset") == len(wraps), log[-3000:]
+    assert log.count("time went backwards") >= len(wraps)
+    # every pass tracks the three people once the detector's window has refilled
+    passes = [tracks[a:b] for a, b in zip([0] + wraps, wraps + [len(tracks)])][1:-1]
+    for one in passes:
+        late = [m for m in one if stamp_of(m) - SCENE.stamp(0) > 1.0]
+        assert late
+        counts = []
+        for msg in late:
+            index = int(round((stamp_of(msg) - SCENE.stamp(0)) * SCENE.config.fps))
+            counts.append(len(matches(SCENE.frame(index), read_detection_array(msg))))
+        assert np.mean(counts) > 2.5, counts
+    for node in (detector, tracker):
+        assert node.alive() and "Traceback" not in node.output()
