@@ -33,7 +33,7 @@ from mk_tracker.debug_drawing import (KernelEllipse, TrackDrawing, draw_detectio
                                       draw_text_lines, draw_tracks, thermal_to_display)
 from mk_tracker.detection_messages import Detection, DetectionMessageError
 from mk_tracker.image_conversion import ImageConversionError, image_to_numpy, to_bgr
-from mk_tracker.multi_object_tracker import FrameDetection
+from mk_tracker.multi_object_tracker import FrameDetection, FrameResult
 from mk_tracker.parameters import ParameterError
 from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
@@ -162,22 +162,11 @@ def tracks_to_detections(reported: Iterable[Any], class_id: str) -> list[Detecti
 
 # -- debug images ---------------------------------------------------------------------------
 
-def kernel_drawings(tracker: Any) -> dict[int, list[KernelEllipse]]:
-    """Kernel ellipses per track id, read from the tracks' multiple-kernel targets
-    (Chu et al. 2013, Sec. III: kernel centres and half-axes)."""
-    out: dict[int, list[KernelEllipse]] = {}
-    for track in getattr(tracker, "tracks", []):
-        target = getattr(track, "target", None)
-        if target is None:
-            continue
-        try:
-            centres = np.asarray(target.centres, dtype=float)
-            axes = np.asarray(target.half_axes, dtype=float)
-        except (AttributeError, TypeError, ValueError):
-            continue
-        out[track.id] = [KernelEllipse((c[0], c[1]), (a[0], a[1]))
-                         for c, a in zip(centres, axes)]
-    return out
+def kernel_drawings(result: FrameResult) -> dict[int, list[KernelEllipse]]:
+    """Kernel ellipses per track id from a tracker step's output (``FrameResult.kernels``:
+    the multiple-kernel targets' centres and half-axes, Chu et al. 2013, Sec. III)."""
+    return {tid: [KernelEllipse(c, a) for c, a in zip(k.centres, k.half_axes)]
+            for tid, k in result.kernels.items()}
 
 
 def detection_boxes_in_rgb(dets: Iterable[FrameDetection], homography: np.ndarray

@@ -162,17 +162,49 @@ class Refiner(Protocol):
                               box: Sequence[float]) -> float: ...
 
 
+@dataclass(frozen=True)
+class TrackKernels:
+    """The multiple-kernel target of one track after this frame (Chu et al. 2013, Sec. III:
+    kernel centres and half-axes, (2)-(3); ``similarity`` is the target's mean kernel
+    similarity, (5)), in RGB pixels, for drawing."""
+
+    track_id: int
+    centres: tuple[tuple[float, float], ...]
+    half_axes: tuple[tuple[float, float], ...]
+    similarity: float
+
+
+def track_kernels(track: Track) -> TrackKernels | None:
+    """:class:`TrackKernels` of a track whose target has ``centres`` and ``half_axes``
+    (N x 2 each), else None (no refiner, no model yet, or a refiner without kernels)."""
+    target = track.target
+    if target is None:
+        return None
+    try:
+        centres = np.asarray(target.centres, dtype=float).reshape(-1, 2)
+        axes = np.asarray(target.half_axes, dtype=float).reshape(-1, 2)
+        similarity = float(getattr(target, "similarity", math.nan))
+    except (AttributeError, TypeError, ValueError):
+        return None
+    if centres.shape != axes.shape:
+        return None
+    return TrackKernels(track.id, tuple((float(x), float(y)) for x, y in centres),
+                        tuple((float(a), float(b)) for a, b in axes), similarity)
+
+
 @dataclass
 class FrameResult:
     """Output of one :meth:`MultiObjectTracker.step`.
 
     ``tracks`` holds every live track (including ``lost`` ones, without a meaningful box);
-    :meth:`reported` only those a consumer should draw or score.  Counters are for this
-    frame; :attr:`MultiObjectTracker.totals` accumulates them.
+    :meth:`reported` only those a consumer should draw or score.  ``kernels`` maps a track
+    id to its multiple-kernel target (:class:`TrackKernels`) for the tracks that have one.
+    Counters are for this frame; :attr:`MultiObjectTracker.totals` accumulates them.
     """
 
     stamp: float
     tracks: list[TrackOutput] = field(default_factory=list)
+    kernels: dict[int, TrackKernels] = field(default_factory=dict)
     deleted_ids: list[int] = field(default_factory=list)
     dropped_stale: int = 0
     skipped_bad_detections: int = 0
@@ -397,6 +429,10 @@ class MultiObjectTracker:
                 result.deleted_ids.append(t.id)
         self.tracks = [t for t in self.tracks if t.state is not TrackState.DELETED]
         result.tracks = [t.output() for t in self.tracks]
+        for t in self.tracks:
+            k = track_kernels(t)
+            if k is not None:
+                result.kernels[t.id] = k
         self._count(result)
         return result
 

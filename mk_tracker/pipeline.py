@@ -494,7 +494,7 @@ class _Run:
                               make_detection_array(published, msg.header, self.types))
         if self.video is not None:
             canvas = tracker_debug_image(
-                bgr, [t for t in reported], kernel_drawings(self.tracker), dets,
+                bgr, [t for t in reported], kernel_drawings(result), dets,
                 self.tracker.homography, [f"frame {frame_no}  tracks {len(published)}"],
                 ground_truth=[d.box for d in truth])
             self.video.write(canvas)

@@ -368,3 +368,34 @@ def test_grey_frames_do_not_break_the_colour_refiner():
     assert [(t.id, t.state) for t in r.reported()] == [(1, "confirmed")]
     r = trk.step(grey, 6 * DT, [])
     assert r.tracks[0].state == "occluded"
+
+
+# -- kernels for the debug image ---------------------------------------------------------------
+
+def test_frame_result_exposes_each_tracks_kernels_for_drawing():
+    from mk_tracker.frame_processing import kernel_drawings
+    rng = np.random.default_rng(3)
+    img = np.full((240, 320, 3), 40, np.uint8)
+    box = (120.0, 60.0, 40.0, 100.0)
+    img[60:160, 120:160] = rng.integers(0, 255, (100, 40, 3), dtype=np.uint8)
+    img[60:110, 120:160, 2] = 230                      # red top half, textured bottom
+    cfg = MultiObjectTrackerConfig()
+    trk = MultiObjectTracker(cfg)
+    results = [trk.step(img, i * DT, [FrameDetection(box, 0.9)]) for i in range(6)]
+    r = results[-1]
+    (track,) = r.reported()
+    k = r.kernels[track.id]
+    assert k.track_id == track.id
+    assert len(k.centres) == len(k.half_axes) == cfg.multi_kernel.num_kernels
+    for (cx, cy), (ax, ay) in zip(k.centres, k.half_axes):
+        assert box[0] - 1 <= cx <= box[0] + box[2] + 1 and box[1] - 1 <= cy <= box[1] + box[3] + 1
+        assert 0 < ax <= box[2] and 0 < ay <= box[3]
+    assert 0.0 <= k.similarity <= 1.0
+    # the debug image's ellipses are read from the result, not from tracker internals
+    ellipses = kernel_drawings(r)
+    assert [e.center for e in ellipses[track.id]] == list(k.centres)
+    assert [e.axes for e in ellipses[track.id]] == list(k.half_axes)
+    # without a refiner no track has kernels
+    plain_trk = MultiObjectTracker(plain())
+    out = [plain_trk.step(img, i * DT, [FrameDetection(box, 0.9)]) for i in range(4)][-1]
+    assert out.reported() and out.kernels == {} and kernel_drawings(out) == {}

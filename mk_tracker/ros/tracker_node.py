@@ -44,7 +44,6 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image
 
 from mk_tracker.boxes import InvalidBoxError, transform_box
-from mk_tracker.debug_drawing import KernelEllipse
 from mk_tracker.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection,
                                            read_detection_array)
@@ -264,7 +263,6 @@ class TrackerNode(Node):
                 counters.bad_images += 1
                 self._warn(f"tracker rejected a frame: {exc}")
                 return
-            kernels = self._kernel_drawings(tracker)
         counters.frames += 1
         for event in result.events:
             self._event(event)
@@ -273,7 +271,8 @@ class TrackerNode(Node):
         out = tracks_to_detections(reported, class_id)
         self._tracks_pub.publish(make_detection_array(out, msg.header, self._types))
         if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
-            self._publish_debug(bgr, msg.header, reported, kernels, dets, tracker)
+            self._publish_debug(bgr, msg.header, reported, kernel_drawings(result), dets,
+                                tracker)
         self._report()
 
     def _start_tracks(self, tracker: MultiObjectTracker, bgr: np.ndarray, stamp: float,
@@ -302,11 +301,6 @@ class TrackerNode(Node):
                 self.get_logger().warning(f"cannot start a track from {source} {box}: {exc}")
                 continue
             self.get_logger().info(f"started track {track_id} from {source} at {box}")
-
-    @staticmethod
-    def _kernel_drawings(tracker: MultiObjectTracker) -> dict[int, list[KernelEllipse]]:
-        """Kernel ellipses per track id, read from the tracks' multiple-kernel targets."""
-        return kernel_drawings(tracker)
 
     def _publish_debug(self, bgr: np.ndarray, header: Any, reported: list, kernels: dict,
                        dets: list[FrameDetection], tracker: MultiObjectTracker) -> None:
