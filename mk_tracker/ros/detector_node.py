@@ -23,15 +23,11 @@ short data, empty or all-NaN images) are logged (throttled) and skipped.
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
@@ -43,6 +39,7 @@ from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
+from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, run_node
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
@@ -93,7 +90,7 @@ class _Counters:
     detections: int = 0
     bad_images: int = 0
     rejected_frames: int = 0
-    last_report: float = field(default_factory=time.monotonic)
+    report_timer: ReportTimer = field(default_factory=ReportTimer)
     reported_drops: int = 0
 
 
@@ -203,10 +200,8 @@ class DetectorNode(Node):
 
     def _report(self) -> None:
         c = self._counters
-        now = time.monotonic()
-        if now - c.last_report < self.node_config.report_period:
+        if not c.report_timer.due(self.node_config.report_period):
             return
-        c.last_report = now
         dropped = self._worker.dropped
         if dropped > c.reported_drops or c.bad_images or c.rejected_frames:
             self.get_logger().info(
@@ -223,35 +218,13 @@ class DetectorNode(Node):
 
     def destroy_node(self) -> None:
         self._worker.stop()
-        text = f"shutting down: {self.statistics()}"
-        if self.context.ok():
-            self.get_logger().info(text)
-        else:   # after Ctrl-C the context is gone and /rosout cannot be published to
-            print(f"[{self.get_name()}] {text}", file=sys.stderr, flush=True)
+        log_shutdown(self, self.statistics())
         super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of the ``detector_node`` console script."""
-    # rclpy shuts the context down on SIGTERM and then calls the previous handler, which by
-    # default kills the process at once; a no-op Python handler lets the node stop cleanly
-    # (worker joined, statistics logged), as on Ctrl-C.
-    signal.signal(signal.SIGTERM, lambda signum, frame: None)
-    rclpy.init(args=args)
-    try:
-        node = DetectorNode()
-    except (ParameterError, ImportError) as exc:
-        print(f"detector_node: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(DetectorNode, "detector_node", args)
 
 
 if __name__ == "__main__":

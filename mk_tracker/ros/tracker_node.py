@@ -29,17 +29,13 @@ Parameters: ``tracker.*`` (MultiObjectTrackerConfig, e.g. ``tracker.kalman.sigma
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
-import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
@@ -56,6 +52,7 @@ from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
+from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, run_node
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
@@ -130,7 +127,7 @@ class _Counters:
     bad_detections: int = 0
     unknown_frame: int = 0
     overflowed_detection_messages: int = 0
-    last_report: float = field(default_factory=time.monotonic)
+    report_timer: ReportTimer = field(default_factory=ReportTimer)
     reported_drops: int = 0
 
 
@@ -312,10 +309,8 @@ class TrackerNode(Node):
 
     def _report(self) -> None:
         c = self._counters
-        now = time.monotonic()
-        if now - c.last_report < self.node_config.report_period:
+        if not c.report_timer.due(self.node_config.report_period):
             return
-        c.last_report = now
         dropped = self._worker.dropped
         totals = self.tracker.totals
         if dropped > c.reported_drops or c.bad_images or c.unknown_frame:
@@ -337,35 +332,13 @@ class TrackerNode(Node):
 
     def destroy_node(self) -> None:
         self._worker.stop()
-        text = f"shutting down: {self.statistics()}"
-        if self.context.ok():
-            self.get_logger().info(text)
-        else:   # after Ctrl-C the context is gone and /rosout cannot be published to
-            print(f"[{self.get_name()}] {text}", file=sys.stderr, flush=True)
+        log_shutdown(self, self.statistics())
         super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of the ``tracker_node`` console script."""
-    # rclpy shuts the context down on SIGTERM and then calls the previous handler, which by
-    # default kills the process at once; a no-op Python handler lets the node stop cleanly
-    # (worker joined, statistics logged), as on Ctrl-C.
-    signal.signal(signal.SIGTERM, lambda signum, frame: None)
-    rclpy.init(args=args)
-    try:
-        node = TrackerNode()
-    except (ParameterError, ImportError) as exc:
-        print(f"tracker_node: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(TrackerNode, "tracker_node", args)
 
 
 if __name__ == "__main__":

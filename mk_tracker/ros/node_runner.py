@@ -1,0 +1,76 @@
+"""What every mk_tracker node process does around its node: start, spin, stop, report.
+
+* :func:`run_node` is the body of a node's ``main()``: a SIGTERM handler that lets the node
+  stop cleanly, ``rclpy.init``, construction (a bad parameter or a missing message package
+  -> message on stderr and exit status 1), spinning until Ctrl-C / SIGTERM /
+  ``rclpy.shutdown``, then ``destroy_node`` and shutdown.
+* :class:`ReportTimer` says when the next periodic report (every ``report_period``
+  seconds of wall time) is due.
+* :func:`log_shutdown` logs the node's statistics at shutdown, also after Ctrl-C when the
+  context (and with it /rosout) is already gone.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from typing import Any, Callable, Sequence
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from mk_tracker.parameters import ParameterError
+
+
+class ReportTimer:
+    """Wall-clock schedule of a node's periodic report (the algorithms never see it)."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
+        self.last_report = clock()
+
+    def due(self, period: float) -> bool:
+        """True (and the schedule restarts) when ``period`` seconds have passed since the
+        last report."""
+        now = self._clock()
+        if now - self.last_report < period:
+            return False
+        self.last_report = now
+        return True
+
+
+def log_shutdown(node: Node, statistics: dict[str, Any]) -> None:
+    """Log ``shutting down: {statistics}``: on /rosout while the context is up, else on
+    stderr (after Ctrl-C the context is gone and /rosout cannot be published to)."""
+    text = f"shutting down: {statistics}"
+    if node.context.ok():
+        node.get_logger().info(text)
+    else:
+        print(f"[{node.get_name()}] {text}", file=sys.stderr, flush=True)
+
+
+def run_node(node_class: Callable[[], Node], name: str,
+             args: Sequence[str] | None = None) -> int:
+    """Run one node until shutdown; returns the process exit status (0, or 1 when the node
+    cannot be constructed)."""
+    # rclpy shuts the context down on SIGTERM and then calls the previous handler, which by
+    # default kills the process at once; a no-op Python handler lets the node stop cleanly
+    # (worker joined, statistics logged), as on Ctrl-C.
+    signal.signal(signal.SIGTERM, lambda signum, frame: None)
+    rclpy.init(args=list(args) if args is not None else None)
+    try:
+        node = node_class()
+    except (ParameterError, ImportError) as exc:
+        print(f"{name}: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -1,0 +1,70 @@
+"""mk_tracker.ros.node_runner: the start/spin/stop scaffolding both node processes share."""
+
+import signal
+
+import pytest
+
+rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) is not installed")
+from rclpy.node import Node  # noqa: E402
+
+from mk_tracker.parameters import ParameterError  # noqa: E402
+from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, run_node  # noqa: E402
+
+
+@pytest.fixture
+def keep_sigterm():
+    previous = signal.getsignal(signal.SIGTERM)
+    yield
+    signal.signal(signal.SIGTERM, previous)
+
+
+def test_report_timer_is_due_once_per_period():
+    now = [100.0]
+    timer = ReportTimer(clock=lambda: now[0])
+    assert not timer.due(5.0)
+    now[0] = 104.9
+    assert not timer.due(5.0)
+    now[0] = 105.0
+    assert timer.due(5.0)
+    assert not timer.due(5.0)           # the schedule restarted at 105
+    now[0] = 109.0
+    assert not timer.due(5.0)
+    assert timer.due(4.0)
+
+
+def test_construction_error_exits_1_with_the_message(keep_sigterm, capsys):
+    def broken():
+        raise ParameterError("tracker.homography: singular")
+
+    assert run_node(broken, "some_node", []) == 1
+    assert "some_node: tracker.homography: singular" in capsys.readouterr().err
+    assert not rclpy.ok()                 # the context was shut down again
+    # the SIGTERM handler lets the node stop cleanly instead of killing the process
+    handler = signal.getsignal(signal.SIGTERM)
+    assert callable(handler) and handler is not signal.SIG_DFL
+
+
+def test_node_is_spun_until_shutdown_then_destroyed_and_statistics_logged(keep_sigterm, capsys):
+    seen = {}
+
+    class Stopping(Node):
+        def __init__(self):
+            super().__init__("runner_test_node")
+            self.ticks = 0
+            self.create_timer(0.01, self._tick)
+
+        def _tick(self):
+            self.ticks += 1
+            if self.ticks == 3:
+                rclpy.shutdown()          # like SIGTERM: the context goes away
+
+        def destroy_node(self):
+            seen["ticks"] = self.ticks
+            log_shutdown(self, {"frames": self.ticks})
+            super().destroy_node()
+
+    assert run_node(Stopping, "runner_test_node") == 0
+    assert seen["ticks"] == 3
+    # the context is gone, so the statistics go to stderr with the node's name
+    assert "[runner_test_node] shutting down: {'frames': 3}" in capsys.readouterr().err
+    assert not rclpy.ok()
