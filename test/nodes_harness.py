@@ -7,6 +7,12 @@
   sends SIGINT, then SIGTERM, then SIGKILL to the whole group, so nothing is left behind.
 * :class:`Peer` -- an rclpy node in the test process (own context and executor) with
   publishers, collecting subscriptions and ``spin_until``.
+* :class:`NodeGroup` -- starts nodes of the package (waiting for each one's ready line) and
+  stops them all at the end; :data:`READY` is each node's ready line.
+* :func:`reliable_qos`, :func:`latest_at` -- the peer's QoS and the lock-step look-up of the
+  answer to one stamp.
+* Fixtures ``domain`` (own ROS_DOMAIN_ID, also in the test process) and ``peer``: a test
+  module imports them (``from nodes_harness import domain, peer``).
 """
 
 from __future__ import annotations
@@ -18,7 +24,9 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
+
+import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 FASTDDS_PROFILE = REPO / "config" / "fastdds_shm.xml"
@@ -155,3 +163,77 @@ def make_stamp(seconds: float) -> Any:
     from builtin_interfaces.msg import Time
     ns = int(round(seconds * 1e9))
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def latest_at(messages: Sequence[Any], stamp: float, first: int = 0) -> Any:
+    """The newest message of ``stamp`` among ``messages[first:]``, or None (lock-step: only
+    an answer to this very frame counts)."""
+    for msg in reversed(messages[first:]):
+        if abs(stamp_of(msg) - stamp) < 1e-6:
+            return msg
+    return None
+
+
+def reliable_qos(depth: int = 10) -> Any:
+    """Reliable keep-last QoS of the test peer's publishers and subscriptions."""
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE)
+
+
+#: The line each node logs once it is subscribed and publishing.
+READY = {"mk_tracker.ros.detector_node": "detecting people",
+         "mk_tracker.ros.tracker_node": "tracking /image_raw"}
+
+
+class NodeGroup:
+    """Nodes started for one test (``start``); ``stop_all`` stops every one of them."""
+
+    def __init__(self, domain: int, log_dir: Path) -> None:
+        self.domain = domain
+        self.log_dir = log_dir
+        self.started: list[NodeProcess] = []
+
+    def start(self, module: str, *ros_args: str, timeout: float = 20.0) -> NodeProcess:
+        """Start ``module`` with ``--ros-args ros_args`` and wait for its ready line."""
+        name = module.rsplit(".", 1)[-1]
+        node = NodeProcess(module, list(ros_args), ros_env(self.domain),
+                           self.log_dir / f"{name}_{len(self.started)}.log")
+        self.started.append(node)
+        assert node.wait_for_output(READY[module], timeout), node.output()
+        return node
+
+    def starter(self, module: str) -> Callable[..., NodeProcess]:
+        """``start(*ros_args)`` for one module (a test's node factory)."""
+        return lambda *ros_args: self.start(module, *ros_args)
+
+    def stop_all(self) -> None:
+        for node in self.started:
+            node.stop()
+        assert not any(node.alive() for node in self.started)
+
+
+@pytest.fixture
+def domain(monkeypatch: Any) -> int:
+    """A ROS domain of its own for one test, set in the test process too."""
+    d = unique_domain()
+    apply_env_to_test_process(monkeypatch, d)
+    return d
+
+
+@pytest.fixture
+def peer(domain: int) -> Any:
+    """The test's rclpy peer node, closed at the end."""
+    p = Peer(domain)
+    yield p
+    p.close()
+
+
+@pytest.fixture
+def node_group(domain: int, tmp_path: Path) -> Any:
+    """A :class:`NodeGroup` of the test's domain; its nodes are stopped at the end."""
+    group = NodeGroup(domain, tmp_path)
+    try:
+        yield group
+    finally:
+        group.stop_all()

@@ -15,7 +15,6 @@ pytest.importorskip("rclpy")
 pytest.importorskip("vision_msgs.msg", reason="vision_msgs is not built into this venv")
 
 from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import Image  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 from vision_msgs.msg import Detection2DArray  # noqa: E402
@@ -26,44 +25,17 @@ from mk_tracker.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.message_types import ros_message_types  # noqa: E402
 from mk_tracker.synthetic import paper_scene  # noqa: E402
 
-from nodes_harness import (NodeProcess, Peer, apply_env_to_test_process,  # noqa: E402
-                           make_stamp, ros_env, stamp_of, unique_domain)
+from nodes_harness import (Peer, domain, latest_at, make_stamp, node_group,  # noqa: E402,F401
+                           peer, reliable_qos, stamp_of)
 
 TYPES = ros_message_types()
-RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                      reliability=ReliabilityPolicy.RELIABLE)
+RELIABLE = reliable_qos()
 FRAME = "thermal_camera"
 
 
 @pytest.fixture
-def domain(monkeypatch):
-    d = unique_domain()
-    apply_env_to_test_process(monkeypatch, d)
-    return d
-
-
-@pytest.fixture
-def peer(domain):
-    p = Peer(domain)
-    yield p
-    p.close()
-
-
-@pytest.fixture
-def start_detector(domain, tmp_path):
-    started: list[NodeProcess] = []
-
-    def start(*ros_args: str) -> NodeProcess:
-        node = NodeProcess("mk_tracker.ros.detector_node", list(ros_args), ros_env(domain),
-                           tmp_path / f"detector_node_{len(started)}.log")
-        started.append(node)
-        assert node.wait_for_output("detecting people", 20.0), node.output()
-        return node
-
-    yield start
-    for node in started:
-        node.stop()
-        assert not node.alive()
+def start_detector(node_group):
+    return node_group.starter("mk_tracker.ros.detector_node")
 
 
 class ThermalPlayer:
@@ -79,10 +51,7 @@ class ThermalPlayer:
 
     def at(self, stamp, first=0):
         """The newest detections message of ``stamp`` among those from index ``first``."""
-        for msg in reversed(self.detections[first:]):
-            if abs(stamp_of(msg) - stamp) < 1e-6:
-                return msg
-        return None
+        return latest_at(self.detections, stamp, first)
 
     def step(self, frame, stamp, encoding="mono8", timeout=60.0):
         first = len(self.detections)          # only an answer to this very frame counts

@@ -15,7 +15,6 @@ import pytest
 pytest.importorskip("rclpy")
 pytest.importorskip("vision_msgs.msg", reason="vision_msgs is not built into this venv")
 
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Image  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
@@ -27,76 +26,46 @@ from mk_tracker.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.message_types import ros_message_types  # noqa: E402
 from mk_tracker.synthetic import paper_scene  # noqa: E402
 
-from nodes_harness import (NodeProcess, Peer, apply_env_to_test_process,  # noqa: E402
-                           make_stamp, ros_env, stamp_of, unique_domain)
+from nodes_harness import (domain, latest_at, make_stamp, node_group,  # noqa: E402,F401
+                           peer, reliable_qos)
 
 TYPES = ros_message_types()
-RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                      reliability=ReliabilityPolicy.RELIABLE)
+RELIABLE = reliable_qos()
 
 
 @pytest.fixture
-def domain(monkeypatch):
-    d = unique_domain()
-    apply_env_to_test_process(monkeypatch, d)
-    return d
-
-
-@pytest.fixture
-def nodes(domain, tmp_path):
-    started: list[NodeProcess] = []
+def nodes(node_group):
     common = ["-p", "use_sim_time:=true", "-p", "image_qos.reliability:=reliable"]
-    try:
-        for module, ready in (("mk_tracker.ros.detector_node", "detecting people"),
-                              ("mk_tracker.ros.tracker_node", "tracking /image_raw")):
-            node = NodeProcess(module, common, ros_env(domain),
-                               tmp_path / f"{module.rsplit('.', 1)[1]}.log")
-            started.append(node)
-            assert node.wait_for_output(ready, 20.0), node.output()
-        yield started
-    finally:
-        for node in started:
-            node.stop()
-        assert not any(node.alive() for node in started)
+    return [node_group.start(module, *common)
+            for module in ("mk_tracker.ros.detector_node", "mk_tracker.ros.tracker_node")]
 
 
-def _latest(messages, stamp):
-    for msg in reversed(messages):
-        if abs(stamp_of(msg) - stamp) < 1e-6:
-            return msg
-    return None
-
-
-def test_detector_and_tracker_nodes_track_the_paper_scene(domain, nodes):
+def test_detector_and_tracker_nodes_track_the_paper_scene(peer, nodes):
     scene = paper_scene()
-    peer = Peer(domain)
-    try:
-        clock_pub = peer.publisher(Clock, "/clock", RELIABLE)
-        thermal_pub = peer.publisher(Image, "thermal/image_raw", RELIABLE)
-        rgb_pub = peer.publisher(Image, "image_raw", RELIABLE)
-        detections = peer.collect(Detection2DArray, "thermal/detections", RELIABLE)
-        tracks = peer.collect(Detection2DArray, "tracks", RELIABLE)
-        assert peer.spin_until(lambda: thermal_pub.get_subscription_count() > 0
-                               and rgb_pub.get_subscription_count() > 0
-                               and peer.node.count_publishers("tracks") > 0
-                               and peer.node.count_publishers("thermal/detections") > 0, 20.0)
-        results = []
-        for i in range(len(scene)):
-            frame = scene.frame(i)
-            clock_pub.publish(Clock(clock=make_stamp(frame.stamp)))
-            thermal_pub.publish(numpy_to_image(
-                frame.thermal, "mono8",
-                Header(stamp=make_stamp(frame.stamp), frame_id="thermal_camera"), types=TYPES))
-            assert peer.spin_until(lambda: _latest(detections, frame.stamp) is not None, 60.0), \
-                f"no detections for frame {i}"
-            rgb_pub.publish(numpy_to_image(
-                frame.rgb, "bgr8", Header(stamp=make_stamp(frame.stamp), frame_id="camera"),
-                types=TYPES))
-            assert peer.spin_until(lambda: _latest(tracks, frame.stamp) is not None, 5.0), \
-                f"no tracks for frame {i}"
-            results.append((frame, read_detection_array(_latest(tracks, frame.stamp))))
-    finally:
-        peer.close()
+    clock_pub = peer.publisher(Clock, "/clock", RELIABLE)
+    thermal_pub = peer.publisher(Image, "thermal/image_raw", RELIABLE)
+    rgb_pub = peer.publisher(Image, "image_raw", RELIABLE)
+    detections = peer.collect(Detection2DArray, "thermal/detections", RELIABLE)
+    tracks = peer.collect(Detection2DArray, "tracks", RELIABLE)
+    assert peer.spin_until(lambda: thermal_pub.get_subscription_count() > 0
+                           and rgb_pub.get_subscription_count() > 0
+                           and peer.node.count_publishers("tracks") > 0
+                           and peer.node.count_publishers("thermal/detections") > 0, 20.0)
+    results = []
+    for i in range(len(scene)):
+        frame = scene.frame(i)
+        clock_pub.publish(Clock(clock=make_stamp(frame.stamp)))
+        thermal_pub.publish(numpy_to_image(
+            frame.thermal, "mono8",
+            Header(stamp=make_stamp(frame.stamp), frame_id="thermal_camera"), types=TYPES))
+        assert peer.spin_until(lambda: latest_at(detections, frame.stamp) is not None, 60.0), \
+            f"no detections for frame {i}"
+        rgb_pub.publish(numpy_to_image(
+            frame.rgb, "bgr8", Header(stamp=make_stamp(frame.stamp), frame_id="camera"),
+            types=TYPES))
+        assert peer.spin_until(lambda: latest_at(tracks, frame.stamp) is not None, 5.0), \
+            f"no tracks for frame {i}"
+        results.append((frame, read_detection_array(latest_at(tracks, frame.stamp))))
     ious, ids = [], defaultdict(list)
     for frame, found in results[12:]:      # detector warm-up (6 frames) + confirmation
         for obj in frame.objects:
