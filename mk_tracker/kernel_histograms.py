@@ -352,48 +352,78 @@ class PaddedBins:
     def evaluate(self, template: KernelTemplate, centre: np.ndarray, q: np.ndarray,
                  epsilon: float = 0.01, weighting: str = "kl") -> KernelEvaluation:
         """:func:`evaluate_kernel` at ``centre``, gathering pixels through ``template``."""
-        if template.reach[0] > self.pad[0] or template.reach[1] > self.pad[1]:
-            raise ValueError(f"kernel reach {template.reach} exceeds the padding {self.pad}")
-        cached = template.linear_offsets
-        if cached is None or cached[0] != self.width:
-            cached = (self.width, template.di * self.width + template.dj)
-            template.linear_offsets = cached
-        lin = cached[1]
-        r, c = self.grid_node(centre)
-        base = (r + self.pad[1]) * self.width + (c + self.pad[0])
-        b = self.flat[base + lin]
+        return self.evaluate_many([template], np.asarray(centre, float).reshape(1, 2),
+                                  np.asarray(q).reshape(1, -1), epsilon, weighting)[0]
+
+    def evaluate_many(self, templates: list[KernelTemplate], centres: np.ndarray,
+                      models: np.ndarray, epsilon: float = 0.01, weighting: str = "kl"
+                      ) -> list[KernelEvaluation]:
+        """Evaluate kernel ``i`` (``templates[i]`` at ``centres[i]`` against ``models[i]``) for
+        all kernels in one pass: the pixels of all kernels are gathered, binned (kernel ``i``
+        uses bins ``i*m ... i*m+m-1``) and summed together, so the number of numpy calls does
+        not grow with the number of kernels.  Each result equals :func:`evaluate_kernel`."""
+        if weighting not in PIXEL_WEIGHTINGS:
+            raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
+        n_k = len(templates)
         m = self.n_bins
-        gx = self.origin[0] + c * self.stride + 0.5
-        gy = self.origin[1] + r * self.stride + 0.5
-        ax, ay = template.half_axes
-        ox = template.dx - (float(centre[0]) - gx)      # pixel offsets from the true centre
-        oy = template.dy - (float(centre[1]) - gy)
-        v = (ox / ax) ** 2 + (oy / ay) ** 2
+        st = self.stride
+        lins, dxs, dys, kid, sizes = [], [], [], [], []
+        gxy = np.empty((n_k, 2))
+        inv_axes = np.empty((n_k, 2))
+        for i, t in enumerate(templates):
+            if t.reach[0] > self.pad[0] or t.reach[1] > self.pad[1]:
+                raise ValueError(f"kernel reach {t.reach} exceeds the padding {self.pad}")
+            cached = t.linear_offsets
+            if cached is None or cached[0] != self.width:
+                cached = (self.width, t.di * self.width + t.dj)
+                t.linear_offsets = cached
+            r, c = self.grid_node(centres[i])
+            lins.append(cached[1] + ((r + self.pad[1]) * self.width + (c + self.pad[0])))
+            gxy[i] = (self.origin[0] + c * st + 0.5, self.origin[1] + r * st + 0.5)
+            dxs.append(t.dx)
+            dys.append(t.dy)
+            sizes.append(t.dx.size)
+            inv_axes[i] = 1.0 / t.half_axes
+        sizes_a = np.array(sizes)
+        kid = np.repeat(np.arange(n_k), sizes_a)
+        shift = gxy - np.asarray(centres, dtype=np.float64)       # node minus true centre
+        b = self.flat[np.concatenate(lins)]
+        ox = np.concatenate(dxs) + shift[kid, 0]                   # offsets from the centre
+        oy = np.concatenate(dys) + shift[kid, 1]
+        v = (ox * inv_axes[kid, 0]) ** 2 + (oy * inv_axes[kid, 1]) ** 2
         use = (v < 1.0) & (b < m)
-        b, ox, oy, v = b[use], ox[use], oy[use], v[use]
-        if b.size == 0:
-            return KernelEvaluation(np.zeros(m), float("inf"), 0.0, np.zeros(2), 0)
-        k, g = profile_values(v, template.profile)
-        hist = np.bincount(b, weights=k, minlength=m)
-        total = float(hist.sum())
-        if not total > 0:
-            return KernelEvaluation(np.zeros(m), float("inf"), 0.0, np.zeros(2), 0)
-        p = hist / total
-        ratio = q / smoothed(p, epsilon)
-        log_ratio = np.zeros(m)
+        b, ox, oy, v, kid = b[use], ox[use], oy[use], v[use], kid[use]
+        k, g = profile_values(v, templates[0].profile)
+        counts = np.bincount(kid, minlength=n_k)
+        hist = np.bincount(kid * m + b, weights=k, minlength=n_k * m).reshape(n_k, m)
+        totals = hist.sum(axis=1)
+        safe = np.where(totals > 0, totals, 1.0)
+        p = hist / safe[:, None]
+        q = np.asarray(models, dtype=np.float64)
+        ratio = q / ((1.0 - epsilon) * p + epsilon / m)
+        log_ratio = np.zeros_like(ratio)
         np.log(ratio, out=log_ratio, where=q > 0)
-        cost = float(np.sum(q * log_ratio))
+        costs = np.sum(q * log_ratio, axis=1)
         if weighting == "bhattacharyya":
             ratio = np.sqrt(ratio)
-        elif weighting != "kl":
-            raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
-        w = ratio[b]
+        w = ratio.reshape(-1)[kid * m + b]
         wg = w * g
-        s = float(wg.sum())
-        ms = (np.array([float(np.sum(wg * ox)) / s, float(np.sum(wg * oy)) / s]) if s > 0
-              else np.zeros(2))
-        n_valid = int(b.size)
-        sample = KernelSample(bins=b, k=k, g=g, xs=ox + float(centre[0]),
-                              ys=oy + float(centre[1]), v=v)
-        return KernelEvaluation(p, cost, similarity_from_cost(cost), ms, n_valid, sample, w,
-                                template.half_axes)
+        s = np.bincount(kid, weights=wg, minlength=n_k)
+        sx = np.bincount(kid, weights=wg * ox, minlength=n_k)
+        sy = np.bincount(kid, weights=wg * oy, minlength=n_k)
+        ends = np.cumsum(counts)
+        out = []
+        for i in range(n_k):
+            if not (counts[i] > 0 and totals[i] > 0):
+                out.append(KernelEvaluation(np.zeros(m), float("inf"), 0.0, np.zeros(2), 0))
+                continue
+            ms = np.array([sx[i] / s[i], sy[i] / s[i]]) if s[i] > 0 else np.zeros(2)
+            a, e = ends[i] - counts[i], ends[i]
+            cx, cy = float(centres[i][0]), float(centres[i][1])
+            sample = KernelSample(bins=b[a:e], k=k[a:e], g=g[a:e], xs=ox[a:e] + cx,
+                                  ys=oy[a:e] + cy, v=v[a:e])
+            cost = float(costs[i])
+            out.append(KernelEvaluation(p[i], cost, similarity_from_cost(cost), ms,
+                                        int(counts[i]), sample, w[a:e],
+                                        templates[i].half_axes))
+        return out

@@ -447,9 +447,8 @@ class MultiKernelTracker:
                   centres: np.ndarray, models: np.ndarray) -> list[KernelEvaluation]:
         """Evaluate every kernel (fast template path; see :class:`KernelTemplate`)."""
         cfg = self.config
-        return [padded.evaluate(templates[i], centres[i], models[i], cfg.histogram_epsilon,
-                                cfg.pixel_weighting)
-                for i in range(centres.shape[0])]
+        return padded.evaluate_many(templates, centres, models, cfg.histogram_epsilon,
+                                    cfg.pixel_weighting)
 
     # -- public API ------------------------------------------------------------------------
     def start(self, image_bgr: np.ndarray, box: BoxLike) -> TargetState:

@@ -177,3 +177,26 @@ def test_template_fast_path_matches_the_direct_evaluation(stride):
     # a kernel too large for the padding is refused rather than read out of bounds
     with pytest.raises(ValueError, match="padding"):
         padded.evaluate(KernelTemplate(axes * 2, stride), np.array([40.5, 40.5]), q)
+
+
+def test_batched_evaluation_equals_one_kernel_at_a_time():
+    from mk_tracker.kernel_histograms import KernelTemplate, PaddedBins
+    img = _blob_scene()
+    stride = 2
+    bins = quantize(img[::stride, ::stride], "hsv", BINS)
+    axes = [np.array([15.0, 20.0]), np.array([9.0, 12.0]), np.array([6.0, 6.0])]
+    centres = np.array([[85.3, 60.7], [70.1, 95.5], [900.0, 900.0]])   # the last is outside
+    rng = np.random.default_rng(4)
+    models = rng.random((3, M))
+    models /= models.sum(axis=1, keepdims=True)
+    templates = [KernelTemplate(a, stride) for a in axes]
+    padded = PaddedBins(bins, (0, 0), stride, M, templates[0].reach)
+    batch = padded.evaluate_many(templates, centres, models)
+    for i in range(2):
+        direct = evaluate_kernel(bins, (0, 0), centres[i], axes[i], models[i], stride=stride)
+        assert batch[i].n_pixels == direct.n_pixels > 0
+        assert batch[i].cost == pytest.approx(direct.cost, abs=1e-12)
+        assert np.allclose(batch[i].p, direct.p)
+        assert np.allclose(batch[i].mean_shift, direct.mean_shift)
+        assert batch[i].scale_ratio == pytest.approx(direct.scale_ratio, abs=1e-12)
+    assert batch[2].n_pixels == 0 and batch[2].similarity == 0.0
