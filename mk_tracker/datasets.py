@@ -32,14 +32,18 @@ OTB (``read_otb_sequence``)::
   A line with a NaN or a non-positive size marks a frame without a visible target (empty
   ground truth for that frame).  The target's identity is 1.
 
-Malformed files raise :class:`DatasetError` naming the file, the line and the problem.
+Malformed files raise :class:`DatasetError` naming the file, the line and the problem.  The
+files are parsed by :mod:`mk_tracker.evaluation` (:func:`~mk_tracker.evaluation.parse_mot_lines`,
+:func:`~mk_tracker.evaluation.parse_box_lines`), so scoring reads them identically; this
+module adds the checks against the folder (frame numbers within the images, one box per
+identity and frame, one OTB line per image).
 """
 
 from __future__ import annotations
 
 import configparser
 import math
-import re
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
@@ -48,6 +52,8 @@ import cv2
 import numpy as np
 
 from mk_tracker.detection_messages import Detection
+from mk_tracker.evaluation import (EvaluationError, parse_box_lines, parse_mot_lines,
+                                   read_text_lines)
 
 Box = tuple[float, float, float, float]
 
@@ -146,43 +152,19 @@ def _images(directory: Path, suffix: str | None = None) -> tuple[Path, ...]:
     return tuple(p for _, p in numbered)
 
 
-_SEPARATORS = re.compile(r"[,\s]+")
-
-
-def _numbers(path: Path, line_no: int, line: str, minimum: int) -> list[float]:
-    parts = [p for p in _SEPARATORS.split(line.strip()) if p]
-    if len(parts) < minimum:
-        raise DatasetError(f"{path}:{line_no}: expected at least {minimum} values, "
-                           f"got {len(parts)}: {line.strip()!r}")
+@contextmanager
+def _as_dataset_error() -> Iterator[None]:
+    """The parsers' :class:`EvaluationError` (naming file and line) as :class:`DatasetError`."""
     try:
-        return [float(p) for p in parts]
-    except ValueError as exc:
-        raise DatasetError(f"{path}:{line_no}: not a number ({exc}): {line.strip()!r}") from None
+        yield
+    except EvaluationError as exc:
+        raise DatasetError(str(exc)) from None
 
 
-def _lines(path: Path) -> Iterator[tuple[int, str]]:
-    try:
-        text = path.read_text()
-    except UnicodeDecodeError as exc:
-        raise DatasetError(f"{path}: not a text file ({exc})") from None
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot read ({exc.strerror})") from None
-    for line_no, line in enumerate(text.splitlines(), start=1):
-        if line.strip() and not line.lstrip().startswith("#"):
-            yield line_no, line
-
-
-def _frame_index(path: Path, line_no: int, value: float, n_frames: int) -> int:
-    if not math.isfinite(value) or value != int(value) or not 1 <= value <= n_frames:
-        raise DatasetError(f"{path}:{line_no}: frame {value:g} outside 1..{n_frames}")
-    return int(value) - 1
-
-
-def _box(path: Path, line_no: int, x: float, y: float, w: float, h: float) -> Box:
-    if not all(math.isfinite(v) for v in (x, y, w, h)) or w <= 0 or h <= 0:
-        raise DatasetError(f"{path}:{line_no}: invalid box {(x, y, w, h)} "
-                           "(needs finite values and positive size)")
-    return (x, y, w, h)
+def _frame_index(path: Path, line_no: int, frame: int, n_frames: int) -> int:
+    if not 1 <= frame <= n_frames:
+        raise DatasetError(f"{path}:{line_no}: frame {frame} outside 1..{n_frames}")
+    return frame - 1
 
 
 def _seqinfo(folder: Path) -> dict[str, str]:
@@ -217,30 +199,24 @@ def read_mot_sequence(folder: str | Path, frame_rate: float | None = None) -> Se
     if not gt_path.is_file():
         raise DatasetError(f"{gt_path}: ground truth file is missing")
     ground_truth: list[dict[int, Box]] = [{} for _ in range(n)]
-    for line_no, line in _lines(gt_path):
-        v = _numbers(gt_path, line_no, line, 6)
-        k = _frame_index(gt_path, line_no, v[0], n)
-        if not math.isfinite(v[1]) or v[1] != int(v[1]):
-            raise DatasetError(f"{gt_path}:{line_no}: identity {v[1]} is not an integer")
-        identity = int(v[1])
-        if len(v) >= 7 and v[6] == 0:
-            continue  # MOT16+ "ignore" row
-        if len(v) == 9 and int(v[7]) != 1:
-            continue  # MOT16+ non-pedestrian class
-        if identity in ground_truth[k]:
-            raise DatasetError(f"{gt_path}:{line_no}: identity {identity} appears twice "
-                               f"in frame {int(v[0])}")
-        ground_truth[k][identity] = _box(gt_path, line_no, *v[2:6])
+    with _as_dataset_error():
+        rows = parse_mot_lines(read_text_lines(gt_path), ground_truth=True, source=str(gt_path))
+    for row in rows:
+        k = _frame_index(gt_path, row.line, row.frame, n)
+        if row.id in ground_truth[k]:
+            raise DatasetError(f"{gt_path}:{row.line}: identity {row.id} appears twice "
+                               f"in frame {row.frame}")
+        ground_truth[k][row.id] = row.box
     detections = None
     det_path = root / "det" / "det.txt"
     if det_path.is_file():
         per_frame: list[list[Detection]] = [[] for _ in range(n)]
-        for line_no, line in _lines(det_path):
-            v = _numbers(det_path, line_no, line, 7)
-            k = _frame_index(det_path, line_no, v[0], n)
-            if not math.isfinite(v[6]):
-                raise DatasetError(f"{det_path}:{line_no}: score {v[6]} is not finite")
-            per_frame[k].append(Detection(_box(det_path, line_no, *v[2:6]), v[6]))
+        with _as_dataset_error():
+            rows = parse_mot_lines(read_text_lines(det_path), source=str(det_path),
+                                   require_score=True)
+        for row in rows:
+            k = _frame_index(det_path, row.line, row.frame, n)
+            per_frame[k].append(Detection(row.box, row.score))
         detections = tuple(tuple(d) for d in per_frame)
     size = None
     if "imwidth" in info and "imheight" in info:
@@ -273,16 +249,11 @@ def read_otb_sequence(folder: str | Path, frame_rate: float | None = None) -> Se
     gt_path = root / "groundtruth_rect.txt"
     if not gt_path.is_file():
         raise DatasetError(f"{gt_path}: ground truth file is missing")
-    rows = [(line_no, _numbers(gt_path, line_no, line, 4)) for line_no, line in _lines(gt_path)]
-    for line_no, v in rows:
-        if len(v) != 4:
-            raise DatasetError(f"{gt_path}:{line_no}: expected 4 values x y w h, got {len(v)}")
-    if len(rows) != len(images):
-        raise DatasetError(f"{gt_path}: {len(rows)} boxes for {len(images)} images")
-    ground_truth = []
-    for line_no, (x, y, w, h) in rows:
-        visible = all(math.isfinite(t) for t in (x, y, w, h)) and w > 0 and h > 0
-        ground_truth.append({1: _box(gt_path, line_no, x, y, w, h)} if visible else {})
+    with _as_dataset_error():
+        boxes = parse_box_lines(read_text_lines(gt_path), str(gt_path))
+    if len(boxes) != len(images):
+        raise DatasetError(f"{gt_path}: {len(boxes)} boxes for {len(images)} images")
+    ground_truth = [{1: box} if box is not None else {} for box in boxes]
     return Sequence(root.name, "otb", root, images, _frame_rate(root, frame_rate, None),
                     tuple(ground_truth))
 

@@ -17,15 +17,17 @@ valid ground-truth box are left out.
 MOTChallenge text format, one line per box: ``frame,id,x,y,w,h,conf,x3d,y3d,z3d`` with 1-based
 frames and a top-left box in pixels.  Ground-truth files of MOT16 and later have
 ``frame,id,x,y,w,h,consider,class,visibility``: rows with ``consider == 0`` or a class other
-than 1 (pedestrian) are dropped, as :func:`mk_tracker.datasets.read_mot_sequence` does.
+than 1 (pedestrian) are dropped.  :mod:`mk_tracker.datasets` reads sequence folders with the
+parsers of this module (:func:`parse_mot_lines`, :func:`parse_box_lines`), so a file means
+the same to the dataset readers and to the scoring.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -51,55 +53,93 @@ class MotRow:
     id: int
     box: tuple[float, float, float, float]
     score: float = 1.0
+    #: 1-based line of the file it was read from (0 when not read from a file); not compared
+    line: int = field(default=0, compare=False, repr=False)
 
 
-# -- MOTChallenge files -------------------------------------------------------------------
+# -- text files of numbers ----------------------------------------------------------------
 
-def parse_mot_lines(lines: Iterable[str], *, ground_truth: bool = False,
-                    source: str = "<text>") -> list[MotRow]:
-    """Parse MOTChallenge lines (comma- or whitespace-separated); blank lines are skipped.
+def read_text_lines(path: str | Path) -> list[str]:
+    """The lines of a text file; :class:`EvaluationError` for a missing, unreadable or
+    binary file."""
+    p = Path(path)
+    if not p.is_file():
+        raise EvaluationError(f"{p}: no such file")
+    try:
+        return p.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        raise EvaluationError(f"{p}: not a text file ({exc})") from None
+    except OSError as exc:
+        raise EvaluationError(f"{p}: cannot read ({exc.strerror})") from None
 
-    With ``ground_truth`` and 9 or more columns, rows whose 7th column ("consider") is 0 are
-    dropped.  Raises :class:`EvaluationError` naming the line for anything unparsable.
-    """
-    rows: list[MotRow] = []
+
+def numeric_lines(lines: Iterable[str], minimum: int, source: str = "<text>",
+                  what: str = "") -> Iterator[tuple[int, list[float]]]:
+    """``(line number, values)`` of every line that is not blank or a ``#`` comment; values
+    are separated by commas and/or whitespace.  :class:`EvaluationError` naming the line
+    when it has fewer than ``minimum`` values or one is not a number."""
     for n, raw in enumerate(lines, start=1):
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
         parts = line.replace(",", " ").split()
-        if len(parts) < 6:
-            raise EvaluationError(f"{source}:{n}: expected at least 6 columns "
-                                  f"(frame,id,x,y,w,h), got {len(parts)}")
+        if len(parts) < minimum:
+            raise EvaluationError(f"{source}:{n}: expected at least {minimum} values{what}, "
+                                  f"got {len(parts)}: {line!r}")
         try:
             values = [float(p) for p in parts]
-        except ValueError as exc:
-            raise EvaluationError(f"{source}:{n}: not a number in {line!r}") from exc
-        if not all(math.isfinite(v) for v in values[:6]):
-            raise EvaluationError(f"{source}:{n}: NaN or infinite value in {line!r}")
-        frame, ident = values[0], values[1]
-        if frame != int(frame) or ident != int(ident):
-            raise EvaluationError(f"{source}:{n}: frame and id must be integers")
-        if ground_truth and len(values) >= 9 and values[6] == 0:
+        except ValueError:
+            raise EvaluationError(f"{source}:{n}: not a number in {line!r}") from None
+        yield n, values
+
+
+def _integer(source: str, n: int, name: str, value: float) -> int:
+    if not math.isfinite(value) or value != int(value):
+        raise EvaluationError(f"{source}:{n}: {name} {value:g} is not an integer")
+    return int(value)
+
+
+# -- MOTChallenge files -------------------------------------------------------------------
+
+def parse_mot_lines(lines: Iterable[str], *, ground_truth: bool = False,
+                    source: str = "<text>", require_score: bool = False) -> list[MotRow]:
+    """Parse MOTChallenge lines (comma- or whitespace-separated); blank and ``#`` lines are
+    skipped.  Each row keeps its line number (:attr:`MotRow.line`).
+
+    With ``ground_truth``, rows with 7 or more columns whose 7th column ("consider") is 0
+    are dropped, and with exactly 9 columns (MOT16+) so are classes other than 1.  A
+    non-finite 7th column reads as score 1, unless ``require_score`` (public detections,
+    ``det.txt``), which needs a finite score in it.  Raises :class:`EvaluationError` naming
+    the line for anything unparsable: too few values, not a number, a frame or id that is
+    not an integer, a box that is not finite with a positive size.
+    """
+    minimum = 7 if require_score else 6
+    what = " (frame,id,x,y,w,h,score)" if require_score else " (frame,id,x,y,w,h)"
+    rows: list[MotRow] = []
+    for n, values in numeric_lines(lines, minimum, source, what):
+        frame = _integer(source, n, "frame", values[0])
+        ident = _integer(source, n, "identity", values[1])
+        if ground_truth and len(values) >= 7 and values[6] == 0:
             continue                    # MOT16+ "ignore" row
         if ground_truth and len(values) == 9 and int(values[7]) != 1:
             continue                    # MOT16+ class other than pedestrian
+        x, y, w, h = values[2:6]
+        if not all(math.isfinite(v) for v in (x, y, w, h)) or w <= 0 or h <= 0:
+            raise EvaluationError(f"{source}:{n}: invalid box {(x, y, w, h)} (needs finite "
+                                  "values and positive size)")
+        if require_score and not math.isfinite(values[6]):
+            raise EvaluationError(f"{source}:{n}: score {values[6]} is not finite")
         score = values[6] if len(values) > 6 and math.isfinite(values[6]) else 1.0
-        w, h = values[4], values[5]
-        if w <= 0 or h <= 0:
-            raise EvaluationError(f"{source}:{n}: non-positive box size {w} x {h}")
-        rows.append(MotRow(frame=int(frame), id=int(ident),
-                           box=(values[2], values[3], w, h), score=score))
+        rows.append(MotRow(frame=frame, id=ident, box=(x, y, w, h), score=score, line=n))
     return rows
 
 
-def read_mot_file(path: str | Path, *, ground_truth: bool = False) -> list[MotRow]:
-    """Read a MOTChallenge result or ground-truth file (see :func:`parse_mot_lines`)."""
-    p = Path(path)
-    if not p.is_file():
-        raise EvaluationError(f"{p}: no such file")
-    with p.open("r", encoding="utf-8") as fh:
-        return parse_mot_lines(fh, ground_truth=ground_truth, source=str(p))
+def read_mot_file(path: str | Path, *, ground_truth: bool = False,
+                  require_score: bool = False) -> list[MotRow]:
+    """Read a MOTChallenge result, ground-truth or detection file (see
+    :func:`parse_mot_lines`)."""
+    return parse_mot_lines(read_text_lines(path), ground_truth=ground_truth,
+                           source=str(Path(path)), require_score=require_score)
 
 
 def format_mot_row(row: MotRow) -> str:
@@ -289,32 +329,26 @@ def single_target_metrics(predicted: Sequence[Sequence[float] | None],
             "missing_frames": int(np.sum(~np.isfinite(err)))}
 
 
-def read_box_list(path: str | Path) -> list[tuple[float, float, float, float] | None]:
-    """Read an OTB ``groundtruth_rect.txt``-style file: one ``x y w h`` per line.
-
-    Commas, tabs or spaces separate values.  A line of NaNs or a zero-size box is a frame
-    without a box (None).
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise EvaluationError(f"{p}: no such file")
+def parse_box_lines(lines: Iterable[str], source: str = "<text>"
+                    ) -> list[tuple[float, float, float, float] | None]:
+    """OTB ``groundtruth_rect.txt`` lines: one ``x y w h`` per line (commas, tabs or spaces;
+    blank and ``#`` lines skipped).  A line with a NaN or a non-positive size is a frame
+    without a box (None).  :class:`EvaluationError` naming the line otherwise."""
     out: list[tuple[float, float, float, float] | None] = []
-    for n, raw in enumerate(p.read_text(encoding="utf-8").splitlines(), start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        parts = line.replace(",", " ").split()
-        if len(parts) != 4:
-            raise EvaluationError(f"{p}:{n}: expected 4 values x y w h, got {len(parts)}")
-        try:
-            x, y, w, h = (float(v) for v in parts)
-        except ValueError as exc:
-            raise EvaluationError(f"{p}:{n}: not a number in {line!r}") from exc
-        if not all(math.isfinite(v) for v in (x, y, w, h)) or w <= 0 or h <= 0:
+    for n, values in numeric_lines(lines, 4, source):
+        if len(values) != 4:
+            raise EvaluationError(f"{source}:{n}: expected 4 values x y w h, got {len(values)}")
+        x, y, w, h = values
+        if not all(math.isfinite(v) for v in values) or w <= 0 or h <= 0:
             out.append(None)
         else:
             out.append((x, y, w, h))
     return out
+
+
+def read_box_list(path: str | Path) -> list[tuple[float, float, float, float] | None]:
+    """Read an OTB ``groundtruth_rect.txt``-style file (see :func:`parse_box_lines`)."""
+    return parse_box_lines(read_text_lines(path), str(Path(path)))
 
 
 def boxes_from_mot(rows: Iterable[MotRow], num_frames: int, track_id: int | None = None

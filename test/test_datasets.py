@@ -208,3 +208,41 @@ def test_otb_crossing_import(shared_data, tmp_path):
         for raw, msg in bag.read_messages(["/image_raw"]):
             last = image_to_numpy(msg)
     assert last.shape == (240, 360, 3)
+
+
+def test_dataset_readers_and_scoring_read_the_same_rows(tmp_path):
+    """One parser: the rows a MOT folder's ground truth holds for the dataset reader are the
+    rows evaluation.read_mot_file reads from the same file (ignore rows and other classes
+    dropped by both), and the OTB boxes are read_box_list's."""
+    from mk_tracker.evaluation import EvaluationError, read_box_list, read_mot_file
+    gt = ("# comment line\n"
+          "1,1,1,1,4,4,1,1,1.0\n"
+          "1,2,2,2,4,4,0,1,1.0\n"      # ignore flag
+          "2,3,1,1,4,4,1,7,1.0\n"      # not a pedestrian
+          "3 4 5.5 6.5 7 8 1 1 0.5\n")
+    root = make_mot(tmp_path / "seq", gt=gt, det="3,-1,1,2,3,4,0.25\n")
+    seq = read_mot_sequence(root)
+    rows = read_mot_file(root / "gt" / "gt.txt", ground_truth=True)
+    assert [(r.frame, r.id, r.box, r.line) for r in rows] == [
+        (1, 1, (1.0, 1.0, 4.0, 4.0), 2), (3, 4, (5.5, 6.5, 7.0, 8.0), 5)]
+    assert [{i: b for i, b in f.items()} for f in seq.ground_truth] == [
+        {1: (1.0, 1.0, 4.0, 4.0)}, {}, {4: (5.5, 6.5, 7.0, 8.0)}]
+    (det,) = read_mot_file(root / "det" / "det.txt", require_score=True)
+    assert seq.detections[2][0].box == det.box == (1.0, 2.0, 3.0, 4.0)
+    assert seq.detections[2][0].score == det.score == 0.25
+    # a det.txt score that is not finite is an error in both
+    (root / "det" / "det.txt").write_text("3,-1,1,2,3,4,nan\n")
+    with pytest.raises(DatasetError, match=r"det.txt:1: score nan is not finite"):
+        read_mot_sequence(root)
+    with pytest.raises(EvaluationError, match=r"det.txt:1: score nan is not finite"):
+        read_mot_file(root / "det" / "det.txt", require_score=True)
+    otb = make_otb(tmp_path / "o", "1,1,4,4\nnan nan nan nan\n2\t2\t5\t5\n")
+    assert [f.get(1) for f in read_otb_sequence(otb).ground_truth] == \
+        read_box_list(otb / "groundtruth_rect.txt") == [(1.0, 1.0, 4.0, 4.0), None,
+                                                        (2.0, 2.0, 5.0, 5.0)]
+    # a binary file is our error in both, not a UnicodeDecodeError
+    (otb / "groundtruth_rect.txt").write_bytes(b"\xff\xfe\x00\x81")
+    with pytest.raises(DatasetError, match="not a text file"):
+        read_otb_sequence(otb)
+    with pytest.raises(EvaluationError, match="not a text file"):
+        read_box_list(otb / "groundtruth_rect.txt")
