@@ -207,10 +207,16 @@ else
 fi
 [ "${#VISION_WHEELS[@]}" -eq 1 ] || fail "expected one vision_msgs wheel in $VISION_CACHE"
 
-say "installing vision_msgs into $VENV"
-pip_quiet "$VENV/bin/python" -m pip install --quiet "${OFFLINE_PIP[@]}" \
-    --no-deps --force-reinstall "${VISION_WHEELS[0]}" \
-  || fail "installing the vision_msgs wheel failed"
+INSTALLED_VISION="$("$VENV/bin/python" -c \
+  'import importlib.metadata as m; print(m.version("mk_tracker_vision_msgs"))' 2>/dev/null || true)"
+if [ "$FORCE" = 0 ] && [ "$INSTALLED_VISION" = "$VISION_VERSION" ]; then
+  say "vision_msgs $VISION_VERSION already installed in $VENV"
+else
+  say "installing vision_msgs into $VENV"
+  pip_quiet "$VENV/bin/python" -m pip install --quiet "${OFFLINE_PIP[@]}" \
+      --no-deps --force-reinstall "${VISION_WHEELS[0]}" \
+    || fail "installing the vision_msgs wheel failed"
+fi
 
 # ---- check and stamp ------------------------------------------------------------------
 (cd "$ROOT" && "$VENV/bin/python" -c 'import mk_tracker, rclpy; from vision_msgs.msg import Detection2DArray') \
