@@ -14,6 +14,10 @@
 * With ``bag:=PATH`` the bag is played with ``ros2 bag play --clock`` (add
   ``use_sim_time:=true`` to run the nodes on the bag's time); with ``record:=PATH`` the detections and tracks are recorded
   with ``ros2 bag record``.
+* Fast DDS shared memory: every process gets ``config/fastdds_shm.xml`` as
+  ``FASTRTPS_DEFAULT_PROFILES_FILE`` and ``FASTDDS_DEFAULT_PROFILES_FILE`` (640x480 frames
+  between processes are mostly lost with the default transports, docs/fastdds_transport.md),
+  unless either variable is already set or ``fastdds_shm:=false``.
 
 Where only the pip wheels of rclpy are installed there is no ``ros2 launch``: ``mk_launch``
 (mk_tracker/ros/launcher.py) starts the same processes with the package's own bag player
@@ -21,9 +25,11 @@ and recorder.
 """
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, ExecuteProcess
+from launch.actions import (DeclareLaunchArgument, ExecuteProcess, GroupAction,
+                            SetEnvironmentVariable)
 from launch.conditions import IfCondition
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
+from launch.substitutions import (EnvironmentVariable, LaunchConfiguration,
+                                  PathJoinSubstitution, PythonExpression)
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
@@ -34,6 +40,7 @@ DETECTOR_REMAPS = {"thermal/image_raw": "thermal_image_topic",
                    "thermal/detections": "detections_topic"}
 TRACKER_REMAPS = {"image_raw": "image_topic", "thermal/detections": "detections_topic",
                   "tracks": "tracks_topic"}
+FASTDDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 TOPIC_DEFAULTS = {"thermal_image_topic": "thermal/image_raw", "image_topic": "image_raw",
                   "detections_topic": "thermal/detections", "tracks_topic": "tracks"}
 
@@ -57,10 +64,22 @@ def generate_launch_description():
         DeclareLaunchArgument("rate", default_value="1.0", description="playback rate"),
         DeclareLaunchArgument("record", default_value="",
                               description="record detections and tracks into this new bag"),
+        DeclareLaunchArgument("fastdds_shm", default_value="true",
+                              description="give every process config/fastdds_shm.xml (Fast "
+                              "DDS shared memory) unless a profiles file is already set"),
     ]
     arguments += [DeclareLaunchArgument(name, default_value=default, description=f"{name}")
                   for name, default in TOPIC_DEFAULTS.items()]
     use_sim_time = LaunchConfiguration("use_sim_time")
+    # one condition for both variables, evaluated before either is set; not scoped, so the
+    # variables reach the processes started after the group
+    shm_wanted = ["'", LaunchConfiguration("fastdds_shm"), "'.lower() == 'true'"]
+    for variable in FASTDDS_PROFILE_VARIABLES:
+        shm_wanted += [" and '", EnvironmentVariable(variable, default_value=""), "' == ''"]
+    profile = PathJoinSubstitution([config_dir, "fastdds_shm.xml"])
+    fastdds_shm = GroupAction(
+        [SetEnvironmentVariable(variable, profile) for variable in FASTDDS_PROFILE_VARIABLES],
+        condition=IfCondition(PythonExpression(shm_wanted)), scoped=False)
 
     detector = Node(
         package=PACKAGE, executable="detector_node", name="detector_node", output="screen",
@@ -78,4 +97,4 @@ def generate_launch_description():
         cmd=["ros2", "bag", "record", "--output", LaunchConfiguration("record"),
              LaunchConfiguration("detections_topic"), LaunchConfiguration("tracks_topic")],
         output="screen", condition=_not_empty("record"))
-    return LaunchDescription([*arguments, detector, tracker, recorder, player])
+    return LaunchDescription([*arguments, fastdds_shm, detector, tracker, recorder, player])

@@ -262,3 +262,63 @@ def test_children_do_not_outlive_a_killed_mk_launch(tmp_path):
                 os.kill(child, signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+PRINT_PROFILES = ("import os; print('profiles', os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE'),"
+                  " os.environ.get('FASTDDS_DEFAULT_PROFILES_FILE'))")
+
+
+def _child_profiles(monkeypatch, env: dict, argv: list[str]) -> list[str]:
+    """The two profile variables as each process mk_launch would start sees them."""
+    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"):
+        monkeypatch.delenv(var, raising=False)
+    for var, value in env.items():
+        monkeypatch.setenv(var, value)
+    parser = argparse.ArgumentParser()
+    configure_parser(parser)
+    specs = build_specs(parser.parse_args(argv))
+    assert [s.name for s in specs] == ["detector_node", "tracker_node"]
+    # the same specs (environment included), with a stand-in that prints what it got
+    # (not essential: the launch waits until both have printed and exited)
+    stand_ins = [ProcessSpec(s.name, py(PRINT_PROFILES), essential=False, env=s.env)
+                 for s in specs]
+    out = io.StringIO()
+    assert run_processes(stand_ins, timeout_s=20.0, out=out) == 0, out.getvalue()
+    return [line.split(" profiles ", 1)[1] for line in out.getvalue().splitlines()
+            if " profiles " in line]
+
+
+def test_children_get_the_fastdds_shm_profile_unless_set_or_turned_off(monkeypatch):
+    profile = Path(__file__).resolve().parents[1] / "config" / "fastdds_shm.xml"
+    assert profile.is_file()
+    # default: both variables point at config/fastdds_shm.xml in every child
+    assert _child_profiles(monkeypatch, {}, []) == [f"{profile} {profile}"] * 2
+    # the user's choice wins (either variable set: nothing is added)
+    assert _child_profiles(monkeypatch, {"FASTDDS_DEFAULT_PROFILES_FILE": "/mine.xml"}, []) \
+        == ["None /mine.xml"] * 2
+    assert _child_profiles(monkeypatch, {"FASTRTPS_DEFAULT_PROFILES_FILE": "/old.xml"}, []) \
+        == ["/old.xml None"] * 2
+    # turned off
+    assert _child_profiles(monkeypatch, {}, ["--no-fastdds-shm"]) == ["None None"] * 2
+
+
+def test_launch_file_sets_the_same_profile_variables_by_default():
+    """launch/mk_tracker.launch.py (needs a ROS 2 install to run; checked as source): a
+    ``fastdds_shm`` argument defaulting to true, and SetEnvironmentVariable actions for
+    exactly mk_launch's variables, pointing at the installed config/fastdds_shm.xml."""
+    import ast
+
+    from mk_tracker.ros.launcher import FASTDDS_PROFILE_VARIABLES
+    source = (Path(__file__).resolve().parents[1] / "launch" / "mk_tracker.launch.py").read_text()
+    tree = ast.parse(source)
+    constants = {t.id: ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
+                 for t in n.targets if isinstance(t, ast.Name) and isinstance(n.value, ast.Tuple)}
+    assert constants["FASTDDS_PROFILE_VARIABLES"] == FASTDDS_PROFILE_VARIABLES
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call)]
+    declared = {ast.literal_eval(c.args[0]): {k.arg: k.value for k in c.keywords}
+                for c in calls if getattr(c.func, "id", None) == "DeclareLaunchArgument"
+                and c.args and isinstance(c.args[0], ast.Constant)}
+    assert ast.literal_eval(declared["fastdds_shm"]["default_value"]) == "true"
+    assert any(getattr(c.func, "id", None) == "SetEnvironmentVariable" for c in calls)
+    assert '"fastdds_shm.xml"' in source and "EnvironmentVariable(variable" in source
+    assert "fastdds_shm, detector, tracker" in source      # set before any process starts
