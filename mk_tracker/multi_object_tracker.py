@@ -52,6 +52,7 @@ from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix,
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.multi_kernel import MultiKernelConfig, MultiKernelTracker
 from mk_tracker.parameters import ParameterError, parameter, validate_config
+from mk_tracker.stamps import checked_stamp
 from mk_tracker.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
                               next_state)
 
@@ -451,13 +452,7 @@ class MultiObjectTracker:
 
     @staticmethod
     def _check_stamp(stamp: Any) -> float:
-        try:
-            s = float(stamp)
-        except (TypeError, ValueError) as exc:
-            raise TrackerInputError(f"stamp {stamp!r} is not a number") from exc
-        if not math.isfinite(s):
-            raise TrackerInputError(f"stamp {stamp!r} is not finite")
-        return s
+        return checked_stamp(stamp, TrackerInputError)
 
     def _new_track(self, box: np.ndarray, stamp: float, score: float,
                    state: TrackState) -> Track:

@@ -87,6 +87,7 @@ from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.pixel_clustering import (cluster_support_pixels, describe_pixels, link_groups,
                                          merge_linked)
 from mk_tracker.sparse_factorization import sparse_factorize, zero_factor_threshold
+from mk_tracker.stamps import checked_stamp
 from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
                                       normalization_map, robust_range)
 
@@ -347,12 +348,7 @@ class ThermalDetector:
                 ) -> list[ThermalDetection]:
         """Detections in ``frame`` (raw array as received) taken at ``stamp`` seconds."""
         raw, enc = as_thermal_array(frame, encoding)
-        try:
-            t = float(stamp)
-        except (TypeError, ValueError) as exc:
-            raise ThermalInputError(f"stamp {stamp!r} is not a number") from exc
-        if not math.isfinite(t):
-            raise ThermalInputError(f"stamp {stamp!r} is not finite")
+        t = checked_stamp(stamp, ThermalInputError)
         self.last_reset = False
         self.last_event = None
         if self._shape is not None and (raw.shape != self._shape or enc != self._encoding):

@@ -11,7 +11,6 @@ robust range of each frame, or a fixed range.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +18,7 @@ import cv2
 import numpy as np
 
 from mk_tracker.parameters import parameter, validate_config
+from mk_tracker.stamps import checked_stamp
 from mk_tracker.thermal_detector import ThermalDetection
 from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, normalization_map,
                                       normalize, robust_range)
@@ -56,11 +56,7 @@ class ThresholdDetector:
                 ) -> list[ThermalDetection]:
         """Objects of one raw frame (``stamp`` is only checked, the detector keeps no time)."""
         raw, enc = as_thermal_array(frame, encoding)
-        try:
-            if not math.isfinite(float(stamp)):
-                raise ValueError
-        except (TypeError, ValueError) as exc:
-            raise ThermalInputError(f"stamp {stamp!r} is not a finite number") from exc
+        checked_stamp(stamp, ThermalInputError)
         c = self.config
         if c.normalization == "fixed":
             offset, scale = normalization_map(enc, (c.range_min, c.range_max))
