@@ -69,6 +69,18 @@ def _pyplot():
     return plt
 
 
+def _save(fig, overlap_axis, ylabel: str, xlabel: str, title: str, path: str | Path) -> Path:
+    """Both plots end alike: an overlap panel on [0, 1] at the bottom, the title, a PNG."""
+    overlap_axis.set_ylim(0.0, 1.0)
+    overlap_axis.set_ylabel(ylabel)
+    overlap_axis.set_xlabel(xlabel)
+    fig.suptitle(title)
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out, dpi=90)
+    return out
+
+
 def plot_mot_errors(errors: MotFrameErrors, path: str | Path, title: str = "") -> Path:
     """A PNG with per-frame objects/matches, errors (misses, FP, ID switches) and mean IoU."""
     plt = _pyplot()
@@ -87,16 +99,10 @@ def plot_mot_errors(errors: MotFrameErrors, path: str | Path, title: str = "") -
         axes[1].set_ylabel("errors")
         axes[1].legend(loc="upper right", fontsize=8)
         axes[2].plot(f, errors.mean_iou, ".-", ms=3)
-        axes[2].set_ylim(0.0, 1.0)
-        axes[2].set_ylabel("mean IoU of matches")
-        axes[2].set_xlabel("frame")
-        fig.suptitle(title or "per-frame tracking errors")
-        fig.tight_layout()
-        out = Path(path)
-        fig.savefig(out, dpi=90)
+        return _save(fig, axes[2], "mean IoU of matches", "frame",
+                     title or "per-frame tracking errors", path)
     finally:
         plt.close(fig)
-    return out
 
 
 def plot_single_target_errors(center_errors: Sequence[float], ious: Sequence[float],
@@ -122,13 +128,7 @@ def plot_single_target_errors(center_errors: Sequence[float], ious: Sequence[flo
         axes[0].legend(loc="upper right", fontsize=8)
         axes[1].plot(frames, o, ".-", ms=3)
         axes[1].axhline(0.5, color="gray", ls="--", lw=1)
-        axes[1].set_ylim(0.0, 1.0)
-        axes[1].set_ylabel("IoU")
-        axes[1].set_xlabel("frame (with ground truth)")
-        fig.suptitle(title or "single-target errors per frame")
-        fig.tight_layout()
-        out = Path(path)
-        fig.savefig(out, dpi=90)
+        return _save(fig, axes[1], "IoU", "frame (with ground truth)",
+                     title or "single-target errors per frame", path)
     finally:
         plt.close(fig)
-    return out
