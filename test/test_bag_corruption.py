@@ -265,7 +265,8 @@ def test_bag_player_plays_every_readable_message_of_a_damaged_split_bag(tmp_path
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from std_msgs.msg import String
 
-    from nodes_harness import REPO, Peer, apply_env_to_test_process, ros_env, unique_domain
+    from nodes_harness import REPO, Peer, ros_env
+    from quiet_domain import quiet_domain
 
     bag, written = write_split_bag(tmp_path, storage)
     names = sorted(written)
@@ -274,8 +275,7 @@ def test_bag_player_plays_every_readable_message_of_a_damaged_split_bag(tmp_path
     (bag / names[2]).write_bytes(data[:len(data) // 2])
     readable, problems = read_all(bag, on_error="skip")
     check_skip_result(readable, written, [names[0]])
-    domain = unique_domain()
-    apply_env_to_test_process(monkeypatch, domain)
+    domain = quiet_domain(monkeypatch)
     peer = Peer(domain, "bag_listener")
     got: dict[str, list[bytes]] = {"/chatter": [], "/count": []}
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,

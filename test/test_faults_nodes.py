@@ -40,8 +40,8 @@ from mk_tracker.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.message_types import ros_message_types  # noqa: E402
 from mk_tracker.synthetic import paper_scene  # noqa: E402
 
-from nodes_harness import (NodeProcess, Peer, apply_env_to_test_process,  # noqa: E402
-                           make_stamp, ros_env, stamp_of, unique_domain)
+from nodes_harness import NodeProcess, Peer, make_stamp, ros_env, stamp_of  # noqa: E402
+from quiet_domain import quiet_domain  # noqa: E402
 
 TYPES = ros_message_types()
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
@@ -54,9 +54,7 @@ TRACKER = ("mk_tracker.ros.tracker_node", "tracking /image_raw")
 
 @pytest.fixture
 def domain(monkeypatch):
-    d = unique_domain()
-    apply_env_to_test_process(monkeypatch, d)
-    return d
+    return quiet_domain(monkeypatch)
 
 
 @pytest.fixture
@@ -157,6 +155,7 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
     detector = launch(DETECTOR)
     tracker = launch(TRACKER, "-p", "tracker.use_multi_kernel:=false",
                      "-p", "tracker.lifecycle.max_coast_time:=5.0",
+                     "-p", "tracker.lifecycle.max_undetected_time:=5.0",
                      "-p", "tracker.max_reported_coast_time:=5.0")
     peer = Peer(domain)
     try:
@@ -182,7 +181,10 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
             assert score == 0.0, "a coasting (occluded) track is published with score 0"
     # re-association: after the detector's warm-up the same ids come back, with scores
     ids_after = majority_ids(after[-6:])
-    assert ids_after == ids_before
+    assert ids_after == ids_before, [
+        (f.index, [(t.id, [round(v) for v in t.box], round(t.score, 2)) for t in tracks],
+         len(read_detection_array(stream.detections[round(f.stamp + 1.0, 6)])))
+        for f, tracks in after]
     for frame, tracks in after[-6:]:
         assert all(score > 0 for _, _, score in matches(frame, tracks).values())
     assert tracker.alive() and detector.alive()

@@ -28,8 +28,8 @@ from mk_tracker.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.message_types import ros_message_types  # noqa: E402
 from mk_tracker.synthetic import crowd_scene  # noqa: E402
 
-from nodes_harness import (NodeProcess, Peer, apply_env_to_test_process,  # noqa: E402
-                           make_stamp, ros_env, stamp_of, unique_domain)
+from nodes_harness import NodeProcess, Peer, make_stamp, ros_env, stamp_of  # noqa: E402
+from quiet_domain import quiet_domain  # noqa: E402
 
 TYPES = ros_message_types()
 RATE_HZ = 60.0
@@ -46,9 +46,7 @@ def rss_mib(pid: int) -> float:
 
 @pytest.fixture
 def domain(monkeypatch):
-    d = unique_domain()
-    apply_env_to_test_process(monkeypatch, d)
-    return d
+    return quiet_domain(monkeypatch)
 
 
 @pytest.fixture

@@ -31,8 +31,8 @@ from mk_tracker.parameters import parameter_specs  # noqa: E402
 from mk_tracker.ros import detector_node, tracker_node  # noqa: E402
 from mk_tracker.ros.parameter_bridge import ros_name, to_ros_value  # noqa: E402
 
-from nodes_harness import (NodeProcess, Peer, apply_env_to_test_process,  # noqa: E402
-                           make_stamp, ros_env, unique_domain)
+from nodes_harness import NodeProcess, Peer, make_stamp, ros_env  # noqa: E402
+from quiet_domain import quiet_domain  # noqa: E402
 
 TYPES = ros_message_types()
 NODES = {
@@ -85,8 +85,7 @@ def bad_values(spec) -> list[tuple[str, object]]:
 def running(request, monkeypatch, tmp_path):
     name = request.param
     module, ready, configs, in_topic, encoding, out_topic = NODES[name]
-    domain = unique_domain()
-    apply_env_to_test_process(monkeypatch, domain)
+    domain = quiet_domain(monkeypatch)
     node = NodeProcess(module, [], ros_env(domain),
                        tmp_path / f"{name}.log")
     peer = None
