@@ -44,7 +44,7 @@ METHODS = ("kernel_covariance", "threshold")
 #: ``last_mode`` values of a detector that mean "this frame was not used", with the reason.
 SKIPPED_MODES = {
     "invalid_frame": "too few finite pixels (NaN-filled or empty frame)",
-    "out_of_order": "its stamp is not after the previous frame's (time went backwards?)",
+    "out_of_order": "its stamp equals the previous frame's (a repeated frame)",
 }
 
 
