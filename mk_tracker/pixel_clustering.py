@@ -7,14 +7,15 @@ clusters is decreased by one and K-means re-run, starting from ``Z = M_up`` (the
 on the number of objects).  Each re-run starts from the previous centroids with the closest
 pair replaced by its pixel-weighted mean, so the reductions are cheap.
 
-K-means here is Lloyd's algorithm with deterministic k-means++ seeding (a fixed seed), so a
-frame always gives the same objects.
+K-means is OpenCV's ``cv2.kmeans`` with k-means++ seeding from a fixed seed, so a frame
+always gives the same objects.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 
@@ -29,57 +30,47 @@ def _sq_dists(points: np.ndarray, centroids: np.ndarray) -> np.ndarray:
     return np.maximum(d, 0.0)
 
 
-def kmeans_plus_plus(points: np.ndarray, k: int, seed: int = 0) -> np.ndarray:
-    """k-means++ initial centroids (deterministic for a given seed)."""
-    rng = np.random.default_rng(seed)
-    n = points.shape[0]
-    centroids = [points[rng.integers(n)]]
-    d2 = ((points - centroids[0]) ** 2).sum(axis=1)
-    for _ in range(1, k):
-        total = d2.sum()
-        if total <= 0:
-            break
-        idx = int(np.searchsorted(np.cumsum(d2), rng.random() * total))
-        idx = min(idx, n - 1)
-        centroids.append(points[idx])
-        d2 = np.minimum(d2, ((points - points[idx]) ** 2).sum(axis=1))
-    return np.array(centroids, dtype=np.float64)
-
-
 def kmeans(points: np.ndarray, k: int | None = None, *, init: np.ndarray | None = None,
            max_iter: int = 50, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Lloyd's K-means minimising (3.12).  Returns ``(centroids (Z, d), labels (n,))``.
+    """K-means minimising (3.12), by OpenCV's ``cv2.kmeans``.
 
-    Either ``k`` (k-means++ seeding) or ``init`` centroids.  Empty clusters are dropped, so
-    fewer than ``k`` centroids may come back (never more than distinct points).
+    Either ``k`` (k-means++ seeding; OpenCV's generator is seeded with ``seed`` first, so a
+    frame always gives the same clusters) or ``init`` centroids (each point starts in the
+    cluster of its nearest initial centroid).  Stops after ``max_iter`` Lloyd iterations or
+    when no centroid moves by more than 1e-3 px.  Returns ``(centroids (Z, d), labels
+    (n,))``; clusters left empty are dropped, so fewer than ``k`` centroids may come back.
     """
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[0] == 0:
         raise ClusteringError(f"points must be a non-empty (n, d) array, got shape {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ClusteringError("points contain NaN or infinite coordinates")
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_MAX_ITER, int(max_iter), 1e-3)
+    data = pts.astype(np.float32)
     if init is None:
         if k is None or k < 1:
             raise ClusteringError("give k >= 1 or initial centroids")
-        centroids = kmeans_plus_plus(pts, min(int(k), pts.shape[0]), seed)
+        k = min(int(k), pts.shape[0])
+        cv2.setRNGSeed(int(seed))
+        _, labels, _ = cv2.kmeans(data, k, None, criteria, 1, cv2.KMEANS_PP_CENTERS)
     else:
-        centroids = np.asarray(init, dtype=np.float64).copy()
-    labels = np.full(pts.shape[0], -1)
-    for _ in range(max_iter):
-        new_labels = np.argmin(_sq_dists(pts, centroids), axis=1)
-        counts = np.bincount(new_labels, minlength=centroids.shape[0])
-        keep = counts > 0
-        sums = np.stack([np.bincount(new_labels, weights=pts[:, a],
-                                     minlength=centroids.shape[0])
-                         for a in range(pts.shape[1])], axis=1)
-        if not keep.all():
-            remap = np.cumsum(keep) - 1
-            new_labels = remap[new_labels]
-            sums, counts = sums[keep], counts[keep]
-        new_centroids = sums / counts[:, None]
-        if np.array_equal(new_labels, labels) and new_centroids.shape == centroids.shape:
-            centroids = new_centroids
-            break
-        labels, centroids = new_labels, new_centroids
-    return centroids, labels
+        start = np.asarray(init, dtype=np.float64)
+        if start.ndim != 2 or start.shape[1] != pts.shape[1] or start.shape[0] == 0:
+            raise ClusteringError(f"initial centroids must be (k, {pts.shape[1]}), "
+                                  f"got shape {start.shape}")
+        k = min(start.shape[0], pts.shape[0])
+        first = np.argmin(_sq_dists(pts, start[:k]), axis=1).astype(np.int32).reshape(-1, 1)
+        _, labels, _ = cv2.kmeans(data, k, first, criteria, 1, cv2.KMEANS_USE_INITIAL_LABELS)
+    labels = labels.reshape(-1).astype(np.int64)
+    # centroids in float64 from the final labels; empty clusters are dropped
+    counts = np.bincount(labels, minlength=k)
+    keep = counts > 0
+    remap = np.cumsum(keep) - 1
+    labels = remap[labels]
+    counts = counts[keep]
+    sums = np.stack([np.bincount(labels, weights=pts[:, a], minlength=counts.size)
+                     for a in range(pts.shape[1])], axis=1)
+    return sums / counts[:, None], labels
 
 
 def closest_pair(centroids: np.ndarray) -> tuple[int, int, float]:
