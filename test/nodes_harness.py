@@ -215,10 +215,10 @@ class NodeGroup:
 
 @pytest.fixture
 def domain(monkeypatch: Any) -> int:
-    """A ROS domain of its own for one test, set in the test process too."""
-    d = unique_domain()
-    apply_env_to_test_process(monkeypatch, d)
-    return d
+    """A ROS domain with no other node in it for one test (test/quiet_domain.py: another
+    session's frames of another size would reset the tracker), set in the test process too."""
+    from quiet_domain import quiet_domain      # it imports this module
+    return quiet_domain(monkeypatch)
 
 
 @pytest.fixture

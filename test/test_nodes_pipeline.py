@@ -47,10 +47,14 @@ def test_detector_and_tracker_nodes_track_the_paper_scene(peer, nodes):
     rgb_pub = peer.publisher(Image, "image_raw", RELIABLE)
     detections = peer.collect(Detection2DArray, "thermal/detections", RELIABLE)
     tracks = peer.collect(Detection2DArray, "tracks", RELIABLE)
+    # the tracker must also be subscribed to the detector's output (peer + tracker), or the
+    # first detections go nowhere; the two node processes then need a moment to match
     assert peer.spin_until(lambda: thermal_pub.get_subscription_count() > 0
                            and rgb_pub.get_subscription_count() > 0
                            and peer.node.count_publishers("tracks") > 0
-                           and peer.node.count_publishers("thermal/detections") > 0, 20.0)
+                           and peer.node.count_publishers("thermal/detections") > 0
+                           and peer.node.count_subscribers("thermal/detections") >= 2, 20.0)
+    peer.spin_for(1.5)
     results = []
     for i in range(len(scene)):
         frame = scene.frame(i)
