@@ -16,3 +16,23 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"real data folder {SHARED_DATA} is absent")
     return SHARED_DATA
+
+
+# Tests that start real processes and talk to them over DDS.  On a loaded 2-core machine
+# they occasionally lose a message or a discovery race (seen in about a third of full runs
+# while other jobs shared the machine), so each is re-run up to twice on failure with
+# pytest-rerunfailures; pytest's summary counts every rerun ("R"), so a flake stays
+# visible.  A test that fails three times in a row still fails the run.
+DDS_PROCESS_MODULES = {
+    "test_nodes_detector", "test_nodes_tracker", "test_nodes_pipeline",
+    "test_faults_nodes", "test_load_nodes", "test_parameters_runtime",
+    "test_bag_player", "test_recorder", "test_launcher", "test_demo", "test_colcon_build",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    if not config.pluginmanager.hasplugin("rerunfailures"):
+        return
+    for item in items:
+        if item.module.__name__.rsplit(".", 1)[-1] in DDS_PROCESS_MODULES:
+            item.add_marker(pytest.mark.flaky(reruns=2, reruns_delay=2))
