@@ -129,14 +129,7 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
     env = ros_env(domain)
     args.log_dir.mkdir(parents=True, exist_ok=True)
     load_before = os.getloadavg()
-    nodes = {
-        DETECTOR: NodeProcess(DETECTOR, ["--params-file", str(REPO / "config/detector.yaml"),
-                                         "-p", "report_period:=0.1"], env,
-                              args.log_dir / f"detector_node_{n_people}.log"),
-        TRACKER: NodeProcess(TRACKER, ["--params-file", str(REPO / "config/tracker.yaml"),
-                                       "-p", "report_period:=0.1"], env,
-                             args.log_dir / f"tracker_node_{n_people}.log"),
-    }
+    nodes: dict[str, NodeProcess] = {}
     image_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                            reliability=ReliabilityPolicy.BEST_EFFORT)
     output_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
@@ -147,6 +140,11 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
     spinner = None
     result: dict = {"people": n_people, "domain": domain, "render_s": render_s}
     try:
+        for module, config in ((DETECTOR, "detector"), (TRACKER, "tracker")):
+            nodes[module] = NodeProcess(
+                module, ["--params-file", str(REPO / "config" / f"{config}.yaml"),
+                         "-p", "report_period:=0.1"], env,
+                args.log_dir / f"{config}_node_{n_people}.log")
         for module, node in nodes.items():
             if not node.wait_for_output(READY[module], 60.0):
                 raise RuntimeError(f"{module} did not start:\n{node.output()}")
