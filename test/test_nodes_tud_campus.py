@@ -51,9 +51,12 @@ tracker_node:
       min_detection_score: 20.0
       new_track_max_iou: 0.3
 """
-# 71 frames at 25 fps last 2.84 s; at 0.2x a frame comes every 0.2 s, several times the
-# node's processing time of a 640x480 frame, so its newest-frame-only worker drops none.
-RATE = 0.2
+# 71 frames at 25 fps last 2.84 s; at 0.1x (28 s) a frame comes every 0.4 s, several times
+# the node's processing time of a 640x480 frame, so its newest-frame-only worker drops none
+# and has taken each frame's detections before the next ones arrive.  At 0.2x this held on
+# an idle machine (8 of 8 runs) but not with two busy processes on the 2 cores (the slow
+# first frames let a later detection batch in; online then diverged from offline).
+RATE = 0.1
 
 
 START_NS = 1_000_000_000        # stamp of the first frame (room for the shift below)
@@ -61,7 +64,7 @@ START_NS = 1_000_000_000        # stamp of the first frame (room for the shift b
 #: unchanged.  Imported as is, a frame's detections follow its image within microseconds,
 #: and whether the node's frame worker has already taken the detection buffer when they
 #: arrive is a race (they are used at this frame or at the next one); the offline pipeline
-#: always uses them at the next frame.  Half a frame earlier (0.1 s of wall time at RATE),
+#: always uses them at the next frame.  Half a frame earlier (0.2 s of wall time at RATE),
 #: both use each frame's detections at that frame, so their results can be compared.
 DETECTION_LEAD_NS = 20_000_000
 
@@ -167,8 +170,8 @@ def test_tracker_node_on_tud_campus_matches_the_offline_pipeline(tud_bag, node_g
     # test_pipeline.py's offline TUD-Campus test (same parameters) guards MOTA >= 0.25 and
     # IDF1 >= 0.55 below the figure recorded there (MOTA 0.382 / IDF1 0.673); at this commit
     # the offline pipeline measures MOTA 0.599 / IDF1 0.696 on the imported bag and 0.593 /
-    # 0.692 on this re-timed one, and the node measured the same 0.593 / 0.692 in 4 of 5
-    # runs.  The node runs the same per-frame code, so it must pass the same guards
+    # 0.692 on this re-timed one, and the node measured the same 0.593 / 0.692 at 0.2x.
+    # The node runs the same per-frame code, so it must pass the same guards
     # (published MOT15 trackers reach MOTA 0.5-0.7 here; ungated detections: MOTA -0.38).
     assert m_online["mota"] >= 0.25 and m_online["idf1"] >= 0.55, m_online
 
