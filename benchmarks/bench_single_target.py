@@ -313,7 +313,7 @@ def write_markdown(path: Path, seqs, trackers, results, argv, loads=None) -> Non
     if loads is not None:
         lines += [f"Machine: {os.cpu_count()} cores, load average (1 min) "
                   f"{loads[0][0]:.1f} at the start and {loads[1][0]:.1f} at the end of the run "
-                  "(other jobs were running).", ""]
+                  "(a load above the 2 cores means other jobs were running).", ""]
     missing = [n for n, f in trackers if f is None]
     if missing:
         lines += [f"Not available in this environment (opencv-contrib missing): "
