@@ -7,9 +7,10 @@ PYTHON := .venv/bin/python
 env:
 	bash scripts/setup_env.sh
 
-# pytest's exit code is passed through (5, "no tests collected", counts as failure).
+# pytest's exit code is passed through (5, "no tests collected", counts as failure);
+# -rR names every DDS process test that needed a rerun (see test/conftest.py).
 test: env
-	$(PYTHON) -m pytest -q test
+	$(PYTHON) -m pytest -q -rR test
 
 demo: env
 	.venv/bin/mk_tracker demo
