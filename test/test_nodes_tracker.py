@@ -245,7 +245,16 @@ def test_parameters_rejected_with_reason_and_accepted(peer, start_tracker):
 
 def test_slow_consumer_drops_old_frames_and_reports_them(peer, start_tracker):
     scene = crossing_scene(frames=5)
-    node = start_tracker("-p", "report_period:=0.2", "-p", "publish_debug_image:=true")
+    # The node must be overrun by frames it has really received: a reliable, deep image
+    # queue keeps DDS from discarding the burst before the callback (a depth-1 reader drops
+    # it inside DDS, invisible to the node), and a hand-started track makes every frame cost
+    # a multiple-kernel refinement, so processing is slower than arrival even on an idle
+    # machine (with no track a frame took about as long as its callback and nothing was
+    # overwritten).
+    box = ",".join(repr(float(v)) for v in scene.frame(0).object(1).box_rgb)
+    node = start_tracker("-p", "report_period:=0.2", "-p", "publish_debug_image:=true",
+                         "-p", "image_qos.reliability:=reliable", "-p", "image_qos.depth:=200",
+                         "-p", f"initial_box:=[{box}]")
     player = Player(peer)
     debug = peer.collect(Image, "/tracker_node/debug_image", RELIABLE)
     player.wait_connected()
