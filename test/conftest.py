@@ -31,9 +31,19 @@ DDS_PROCESS_MODULES = {
 }
 
 
+# The fault tests SIGKILL node processes and start new ones in the same domain; a restarted
+# tracker sometimes receives nothing from the detector for a whole attempt (suspected: Fast
+# DDS re-using the killed process's shared-memory port before its lease expires; not yet
+# diagnosed).  In one fresh-clone CI run on an idle machine that test needed two reruns, so
+# this module gets four.
+EXTRA_RERUNS = {"test_faults_nodes": 4}
+
+
 def pytest_collection_modifyitems(config, items):
     if not config.pluginmanager.hasplugin("rerunfailures"):
         return
     for item in items:
-        if item.module.__name__.rsplit(".", 1)[-1] in DDS_PROCESS_MODULES:
-            item.add_marker(pytest.mark.flaky(reruns=2, reruns_delay=2))
+        module = item.module.__name__.rsplit(".", 1)[-1]
+        if module in DDS_PROCESS_MODULES:
+            item.add_marker(pytest.mark.flaky(reruns=EXTRA_RERUNS.get(module, 2),
+                                              reruns_delay=2))
