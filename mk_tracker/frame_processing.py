@@ -11,9 +11,10 @@ identical decisions on the same input.
   :class:`~mk_tracker.detection_messages.Detection` (:func:`detector_outputs`).
 * Tracker side: which image plane a detection message is in, decided by its
   ``header.frame_id`` (:func:`detection_plane`: the RGB image's frame, or the thermal
-  camera's frame whose boxes the tracker maps with its homography), the tracker's input
-  list built from the buffered messages (:func:`tracker_inputs`) and the tracks that are
-  published (:func:`tracks_to_detections`).
+  camera's frame whose boxes the tracker maps with its homography), which buffered
+  detection messages belong to which frame (:class:`DetectionBuffer`), the tracker's input
+  list built from them (:func:`tracker_inputs`) and the tracks that are published
+  (:func:`tracks_to_detections`).
 * Debug images: :func:`tracker_debug_image` and :func:`detector_debug_image` (what the
   nodes publish on ``~/debug_image`` and the pipeline writes into its video).
 
@@ -105,6 +106,91 @@ class DetectionBatch:
     stamp: float
     frame_id: str
     detections: list[Detection]
+
+
+#: Detections count as "expected" (a detector is running) while the last message arrived
+#: at most this long (s, plus the wait itself) before a frame; see :class:`DetectionBuffer`.
+DETECTOR_SILENCE = 1.0
+
+
+class DetectionBuffer:
+    """Detection messages waiting for the RGB frame they belong to (both nodes' and the
+    offline pipeline's pairing rule, so they pair the same way).
+
+    * :meth:`take` hands frame ``T`` every buffered batch stamped at or before ``T``;
+      batches stamped after it stay for a later frame (a detection is never applied to a
+      frame older than itself).  When frame time goes backwards (a bag restarted), batches
+      from the old time line (stamped after the new frame) are discarded and counted.
+    * With ``wait > 0``, :meth:`waiting` tells a frame to wait (at most ``wait`` seconds)
+      until a batch stamped at or after it has arrived -- the detections of its own time, or
+      a later message that proves they will not come -- so that which frame a detection
+      lands on does not depend on whether the detector's answer or the next image arrived
+      first.  Only while detections are arriving at all (one within
+      :data:`DETECTOR_SILENCE` + ``wait`` s): without a detector nothing waits.
+      ``wait = 0`` uses what has arrived (lowest latency; the pairing then follows arrival
+      order).
+    * At most ``capacity`` batches are held; the oldest goes first (:attr:`overflowed`).
+
+    Times passed as ``now`` are any monotonic clock in seconds: the node's
+    ``time.monotonic()``, the pipeline's bag time.  Not thread-safe (the node locks it).
+    """
+
+    def __init__(self, capacity: int, wait: float = 0.0) -> None:
+        if int(capacity) < 1:
+            raise ValueError(f"capacity must be >= 1, got {capacity}")
+        if not (math.isfinite(float(wait)) and float(wait) >= 0.0):
+            raise ValueError(f"wait must be a finite number >= 0, got {wait}")
+        self.capacity = int(capacity)
+        self.wait = float(wait)
+        self._batches: list[DetectionBatch] = []
+        self._newest_stamp: float | None = None
+        self._last_arrival: float | None = None
+        self._last_frame: float | None = None
+        self.overflowed = 0
+        self.discarded = 0
+
+    def __len__(self) -> int:
+        return len(self._batches)
+
+    def add(self, batch: DetectionBatch, now: float) -> bool:
+        """Buffer ``batch`` (arrived at ``now``); True when the oldest one was dropped to make
+        room."""
+        dropped = len(self._batches) >= self.capacity
+        if dropped:
+            self._batches.pop(0)
+            self.overflowed += 1
+        self._batches.append(batch)
+        self._last_arrival = float(now)
+        if self._newest_stamp is None or batch.stamp > self._newest_stamp:
+            self._newest_stamp = batch.stamp
+        return dropped
+
+    def waiting(self, stamp: float, now: float) -> bool:
+        """Whether frame ``stamp`` should still wait for its detections at ``now``."""
+        if self.wait <= 0.0 or self._last_arrival is None:
+            return False
+        if now - self._last_arrival > DETECTOR_SILENCE + self.wait:
+            return False                      # no detector is running: nothing to wait for
+        if self._last_frame is not None and stamp < self._last_frame:
+            return False                      # time went backwards: take() sorts it out
+        return self._newest_stamp is None or self._newest_stamp < stamp
+
+    def take(self, stamp: float) -> list[DetectionBatch]:
+        """Remove and return the batches for frame ``stamp`` (stamped at or before it)."""
+        if self._last_frame is not None and stamp < self._last_frame:
+            old = [b for b in self._batches if b.stamp > stamp]
+            self.discarded += len(old)
+            self._batches = [b for b in self._batches if b.stamp <= stamp]
+            self._newest_stamp = max((b.stamp for b in self._batches), default=None)
+        self._last_frame = stamp
+        now = [b for b in self._batches if b.stamp <= stamp]
+        self._batches = [b for b in self._batches if b.stamp > stamp]
+        return now
+
+    def clear(self) -> None:
+        """Forget every batch (and what arrived when)."""
+        self._batches.clear()
+        self._newest_stamp = self._last_arrival = self._last_frame = None
 
 
 def tracker_input(msg: Any) -> np.ndarray:

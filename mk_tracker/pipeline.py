@@ -7,8 +7,11 @@ the order "scene info, detector inputs and detection messages, ground truth, RGB
 an RGB frame is tracked with the detections of the thermal frame taken at the same instant
 (what the nodes do when the detector answers before the next RGB frame arrives; the demo
 plays slowly enough for that).  As in the tracker node, detection messages are buffered
-(``detection_buffer`` newest) and handed to the tracker at the next RGB frame with their own
-stamps.
+(``detection_buffer`` newest) and each RGB frame gets those stamped at or before it, with
+their own stamps; with ``detection_wait`` > 0 an RGB frame is held until a detection message
+stamped at or after it has been read, or until the bag time has moved ``detection_wait``
+past it (:class:`~mk_tracker.frame_processing.DetectionBuffer`, the node's rule with bag
+time as its clock).
 
 Detection source (``--detections``): ``thermal`` runs the detector node's detector
 (``method`` parameter) on ``/thermal/image_raw``; ``topic:NAME`` uses Detection2DArray
@@ -53,7 +56,8 @@ from mk_tracker.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection_array)
 from mk_tracker.evaluation import (MotRow, center_errors, mot_accumulator, mot_metrics,
                                    overlaps, single_target_metrics, write_mot_file)
-from mk_tracker.frame_processing import (DetectionBatch, build_detector, detector_outputs,
+from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_detector,
+                                         detector_outputs,
                                          kernel_drawings, skipped_reason, thermal_input,
                                          tracker_debug_image, tracker_input, tracker_inputs,
                                          tracks_to_detections)
@@ -78,7 +82,7 @@ DETECTION_TYPE = "vision_msgs/msg/Detection2DArray"
 #: node-level parameters the pipeline uses, with the nodes' defaults (a test keeps these
 #: equal to TrackerNodeConfig / DetectorNodeConfig, which live in rclpy modules)
 TRACKER_NODE_DEFAULTS = {"thermal_frame_id": "thermal_camera", "detection_buffer": 5,
-                         "class_id": "person"}
+                         "detection_wait": 0.0, "class_id": "person"}
 DETECTOR_NODE_DEFAULTS = {"method": "kernel_covariance", "class_id": "person"}
 
 
@@ -164,6 +168,7 @@ class PipelineConfig:
     detector_class_id: str = DETECTOR_NODE_DEFAULTS["class_id"]
     thermal_frame_id: str = TRACKER_NODE_DEFAULTS["thermal_frame_id"]
     detection_buffer: int = TRACKER_NODE_DEFAULTS["detection_buffer"]
+    detection_wait: float = TRACKER_NODE_DEFAULTS["detection_wait"]
     class_id: str = TRACKER_NODE_DEFAULTS["class_id"]
 
 
@@ -188,6 +193,12 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         raise PipelineError(f"detection_buffer: {exc}") from exc
     if buffer < 1:
         raise PipelineError(f"detection_buffer must be >= 1, got {buffer}")
+    try:
+        wait = float(trk_rest.get("detection_wait", TRACKER_NODE_DEFAULTS["detection_wait"]))
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(f"detection_wait: {exc}") from exc
+    if not (math.isfinite(wait) and 0.0 <= wait <= 2.0):
+        raise PipelineError(f"detection_wait must be in [0, 2] s, got {wait}")
     config = PipelineConfig(
         tracker=trk_cfgs["tracker"], detector=det_cfgs["detector"],
         threshold=det_cfgs["threshold"],
@@ -196,6 +207,7 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         thermal_frame_id=str(trk_rest.get("thermal_frame_id",
                                           TRACKER_NODE_DEFAULTS["thermal_frame_id"])),
         detection_buffer=buffer,
+        detection_wait=wait,
         class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])))
     try:
         build_detector(config.method, config.detector, config.threshold)
@@ -339,7 +351,11 @@ class _Run:
         self.tracker: MultiObjectTracker | None = None
         self.tracker_config = config.tracker
         self.detector = None
-        self.batches: deque[DetectionBatch] = deque(maxlen=config.detection_buffer)
+        self.detections = DetectionBuffer(config.detection_buffer, config.detection_wait)
+        #: RGB images held back for their detections: (message or None when undecodable,
+        #: bag time ns, stamp s, bag time s when read)
+        self.pending: deque[tuple[Any, int, float, float]] = deque()
+        self.now = 0.0                   # bag time (s) of the message being handled
         self.truth_by_stamp: dict[int, list[Detection]] = {}
         self.first_truth: dict[int, tuple[int, tuple]] = {}   # gt id -> (stamp, box)
         self.pending_start: tuple | None = options.init_box
@@ -382,7 +398,7 @@ class _Run:
         if self.writer is not None:
             self.writer.write(DETECTIONS_OUT_TOPIC, stamp_to_nanoseconds(msg.header.stamp),
                               make_detection_array(dets, msg.header, self.types))
-        self.batches.append(DetectionBatch(stamp, msg.header.frame_id, dets))
+        self.detections.add(DetectionBatch(stamp, msg.header.frame_id, dets), self.now)
 
     def detection_message(self, msg: Any) -> None:
         try:
@@ -395,7 +411,7 @@ class _Run:
             self.result.problem(f"skipped {skipped} bad detection(s) in a message")
         self.result.detection_frames += 1
         self.result.detections += len(dets)
-        self.batches.append(DetectionBatch(stamp, msg.header.frame_id, dets))
+        self.detections.add(DetectionBatch(stamp, msg.header.frame_id, dets), self.now)
 
     def ground_truth(self, msg: Any) -> None:
         try:
@@ -443,7 +459,29 @@ class _Run:
                 r.gt_rows.append(MotRow(r.frames, int(d.id), d.box))
         return r.frames, truth
 
-    def rgb_image(self, msg: Any, timestamp_ns: int) -> None:
+    def rgb_image(self, msg: Any | None, timestamp_ns: int) -> None:
+        """Queue an RGB image (None: an undecodable one) for tracking, in bag order."""
+        try:
+            stamp = stamp_to_seconds(msg.header.stamp)
+        except (AttributeError, TypeError, ValueError):
+            stamp = timestamp_ns * 1e-9
+        self.pending.append((msg, timestamp_ns, stamp, self.now))
+
+    def release_images(self, final: bool = False) -> None:
+        """Track the queued images whose detections are in (or whose wait is over)."""
+        while self.pending:
+            msg, timestamp_ns, stamp, since = self.pending[0]
+            if (not final and msg is not None and self.now - since < self.detections.wait
+                    and self.detections.waiting(stamp, self.now)):
+                return
+            self.pending.popleft()
+            if msg is None:
+                self.new_frame(timestamp_ns)
+                self.result.bad_frames += 1
+            else:
+                self._track_image(msg, timestamp_ns)
+
+    def _track_image(self, msg: Any, timestamp_ns: int) -> None:
         r = self.result
         try:
             ns = stamp_to_nanoseconds(msg.header.stamp)
@@ -463,9 +501,8 @@ class _Run:
             except TrackerInputError as exc:
                 raise PipelineError(f"tracker configuration rejected: {exc}") from exc
             r.homography = tuple(self.tracker_config.homography)
-        dets, unknown = tracker_inputs(list(self.batches), msg.header.frame_id,
+        dets, unknown = tracker_inputs(self.detections.take(stamp), msg.header.frame_id,
                                        self.config.thermal_frame_id)
-        self.batches.clear()
         for frame_id in unknown:
             r.unknown_frame_batches += 1
             r.problem(f"skipping detections in unknown frame {frame_id!r} (image frame "
@@ -586,8 +623,10 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
             for group in _grouped(reader.messages()):
                 group.sort(key=lambda m: _order(m.topic, options, source))
                 for m in group:
+                    run.now = m.timestamp_ns * 1e-9
                     try:
                         _handle(run, reader, m, source)
+                        run.release_images()
                     except PipelineError:
                         raise
                     except Exception as exc:  # like the nodes' frame workers: log, go on
@@ -595,6 +634,14 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
                                   f"({type(exc).__name__}: {exc}); message skipped")
                 if bar is not None:
                     bar.update(len(group))
+            while run.pending:                # the bag has ended: no detection will come
+                try:
+                    run.release_images(final=True)
+                except PipelineError:
+                    raise
+                except Exception as exc:
+                    r.problem(f"processing an image failed ({type(exc).__name__}: {exc}); "
+                              f"image skipped")
         finally:
             if bar is not None:
                 bar.close()
@@ -629,8 +676,7 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
         msg = reader.deserialize(m)
     except BagError as exc:
         if topic == opts.image_topic:   # no header to read: the bag time is the stamp
-            run.new_frame(m.timestamp_ns)
-            run.result.bad_frames += 1
+            run.rgb_image(None, m.timestamp_ns)
         run.result.problem(f"undecodable message: {exc}")
         return
     if topic == SCENE_INFO_TOPIC:

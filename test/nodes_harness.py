@@ -11,6 +11,8 @@
   stops them all at the end; :data:`READY` is each node's ready line.
 * :func:`reliable_qos`, :func:`latest_at` -- the peer's QoS and the lock-step look-up of the
   answer to one stamp.
+* :func:`start_bag_player`, :func:`stop_process_group` -- our ``bag_player`` playing a bag
+  into the test's domain, and its clean-up.
 * Fixtures ``domain`` (own ROS_DOMAIN_ID, also in the test process) and ``peer``: a test
   module imports them (``from nodes_harness import domain, peer``).
 """
@@ -237,3 +239,33 @@ def node_group(domain: int, tmp_path: Path) -> Any:
         yield group
     finally:
         group.stop_all()
+
+
+def start_bag_player(bag: Path, domain: int, log: Path, rate: float,
+                     topics: Sequence[str]) -> subprocess.Popen:
+    """``bag_player`` playing ``topics`` of ``bag`` at ``rate`` into ``domain`` (it waits up
+    to 20 s for the subscribers of every topic, and for their acknowledgements at the end);
+    its output goes to ``log``."""
+    argv = [sys.executable, "-m", "mk_tracker.ros.bag_player", str(bag),
+            "--rate", str(rate), "--topics", *topics,
+            "--wait-for-subscribers", "20", "--ack-timeout", "3"]
+    return subprocess.Popen(argv, env=ros_env(domain), cwd=str(REPO), stdout=log.open("w"),
+                            stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def stop_process_group(proc: subprocess.Popen) -> None:
+    """SIGINT, then SIGKILL, the process group of ``proc`` if it still runs."""
+    if proc.poll() is None:
+        for sig in (signal.SIGINT, signal.SIGKILL):
+            try:
+                os.killpg(proc.pid, sig)
+                proc.wait(3.0)
+                break
+            except ProcessLookupError:
+                break
+            except subprocess.TimeoutExpired:
+                continue
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass

@@ -9,12 +9,6 @@ Skipped when ``../shared/data/mot/TUD-Campus`` is absent (a user's fresh clone).
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -32,8 +26,8 @@ from mk_tracker.evaluation import MotRow, mot_metrics  # noqa: E402
 from mk_tracker.message_types import stamp_to_nanoseconds  # noqa: E402
 from mk_tracker.pipeline import PipelineOptions, load_pipeline_config, process_bag  # noqa: E402
 
-from nodes_harness import (REPO, domain, node_group, peer, reliable_qos,  # noqa: E402,F401
-                           ros_env)
+from nodes_harness import (domain, node_group, peer, reliable_qos,  # noqa: E402,F401
+                           start_bag_player, stop_process_group)
 
 # The public DPM detections hold many weak and overlapping boxes: gate them and suppress
 # duplicates, as the offline TUD-Campus test does (test_pipeline.py).  Both detections and
@@ -107,31 +101,6 @@ def rows_by_stamp(tracks_by_ns: dict[int, list[tuple[int, tuple]]], frame_of_ns:
             for track_id, box in tracks]
 
 
-def start_player(bag: Path, domain: int, log: Path) -> subprocess.Popen:
-    argv = [sys.executable, "-m", "mk_tracker.ros.bag_player", str(bag),
-            "--rate", str(RATE), "--topics", "/image_raw", "/detections",
-            "--wait-for-subscribers", "20", "--ack-timeout", "3"]
-    return subprocess.Popen(argv, env=ros_env(domain), cwd=str(REPO), stdout=log.open("w"),
-                            stderr=subprocess.STDOUT, start_new_session=True)
-
-
-def stop_process_group(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        for sig in (signal.SIGINT, signal.SIGKILL):
-            try:
-                os.killpg(proc.pid, sig)
-                proc.wait(3.0)
-                break
-            except ProcessLookupError:
-                break
-            except subprocess.TimeoutExpired:
-                continue
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-
-
 def test_tracker_node_on_tud_campus_matches_the_offline_pipeline(tud_bag, node_group, peer,
                                                                  domain, tmp_path):
     sequence, bag = tud_bag
@@ -144,7 +113,7 @@ def test_tracker_node_on_tud_campus_matches_the_offline_pipeline(tud_bag, node_g
     peer.spin_for(1.0)     # let the peer's subscription match the node's publisher
 
     log = tmp_path / "player.log"
-    player = start_player(bag, domain, log)
+    player = start_bag_player(bag, domain, log, RATE, ["/image_raw", "/detections"])
     try:
         # the player waits for the node's subscriptions, then plays ~14 s
         finished = peer.spin_until(lambda: player.poll() is not None, 45.0)

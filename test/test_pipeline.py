@@ -22,6 +22,8 @@ from mk_tracker.pipeline import (DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS,
 from mk_tracker.scene_bag import build_preset, read_scene_info, write_scene_bag
 from mk_tracker.video_output import count_video_frames
 
+from late_detections import detections_bag
+
 FRAMES = 40
 PEOPLE = 3
 
@@ -355,3 +357,34 @@ def test_published_tracks_and_detector_outputs_drop_unusable_boxes():
     dets, errors = detector_outputs(found, "person")
     assert [d.box for d in dets] == [(1.0, 1.0, 2.0, 2.0)] and dets[0].id == ""
     assert len(errors) == 2
+
+
+def test_detection_wait_pairs_late_detections_with_their_own_frame(scene_bag, tmp_path):
+    """tracker_node's ``detection_wait`` offline: detections stored after their image (as a
+    detector's answer arrives) are used on their own frame when the frame waits for them,
+    which gives exactly the tracks of detections that arrived first; without waiting they
+    land one frame late."""
+    with open_bag(scene_bag) as reader:
+        ns = [m.timestamp_ns for m in reader.messages(["/image_raw"])]
+    period = int(np.median(np.diff(ns)))
+    early, late = tmp_path / "early", tmp_path / "late"
+    detections_bag(scene_bag, early, -period // 4)
+    detections_bag(scene_bag, late, period // 4)
+
+    def tracks(bag: Path, wait: float, name: str) -> dict:
+        params = tmp_path / f"{name}.yaml"
+        params.write_text(f"tracker_node:\n  ros__parameters:\n    detection_wait: {wait}\n")
+        config = load_pipeline_config([params])
+        assert config.detection_wait == wait
+        result = process_bag(bag, tmp_path / name, config=config,
+                             options=PipelineOptions(progress=False, write_video=False,
+                                                     write_plots=False))
+        assert result.frames == FRAMES - 1 and result.tracked_frames == FRAMES - 1
+        return result.tracks
+
+    reference = tracks(early, 0.0, "early")
+    assert sum(len(v) for v in reference.values()) > FRAMES          # people were tracked
+    waited = tracks(late, period * 1e-9 / 2, "late_waited")
+    assert waited == reference
+    not_waited = tracks(late, 0.0, "late_not_waited")
+    assert not_waited != reference     # every frame got the detections of the frame before

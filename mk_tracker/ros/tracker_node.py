@@ -12,8 +12,11 @@ Topics (names are parameters):
   QoS, depth 1; only the newest frame is processed, overwritten frames are counted and
   reported (:class:`mk_tracker.ros.latest_frame.LatestFrameWorker`);
 * subscribes ``thermal/detections`` (vision_msgs/Detection2DArray from any publisher);
-  the last ``detection_buffer`` messages are kept and handed to the tracker with their own
-  stamps at the next frame.  A message whose ``header.frame_id`` equals the image's frame is
+  the last ``detection_buffer`` messages are kept, and each frame gets those stamped at or
+  before it, with their own stamps (later ones wait for a later frame); with
+  ``detection_wait`` > 0 a frame first waits (at most that long) for the detections of its
+  own stamp, so the pairing does not depend on arrival order
+  (:class:`mk_tracker.frame_processing.DetectionBuffer`, the offline pipeline's rule too).  A message whose ``header.frame_id`` equals the image's frame is
   in the RGB plane; one equal to ``thermal_frame_id`` is mapped with ``tracker.homography``;
   any other frame is logged and skipped;
 * subscribes ``~/start_track`` (vision_msgs/Detection2D): starts a track on its box by hand
@@ -31,6 +34,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
@@ -43,9 +47,9 @@ from mk_tracker.boxes import InvalidBoxError, transform_box
 from mk_tracker.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection,
                                            read_detection_array)
-from mk_tracker.frame_processing import (detection_plane, kernel_drawings,
-                                         tracker_debug_image, tracker_input, tracker_inputs,
-                                         tracks_to_detections)
+from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, detection_plane,
+                                         kernel_drawings, tracker_debug_image, tracker_input,
+                                         tracker_inputs, tracks_to_detections)
 from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
@@ -80,6 +84,11 @@ class TrackerNodeConfig:
     detection_buffer: int = parameter(
         5, "Detection messages kept between two processed frames (oldest dropped first)",
         minimum=1, maximum=1000, read_only=True)
+    detection_wait: float = parameter(
+        0.0, "Longest time (s) a frame waits for the detection message of its own stamp "
+        "while detections are arriving; 0 = use what has arrived (lowest latency, but which "
+        "frame a late detection lands on then depends on arrival order)",
+        minimum=0.0, maximum=2.0)
     initial_box: tuple = parameter(
         NO_BOX, "[x, y, w, h] (top-left, px) of a track started on the first frame; "
         "w = h = 0 disables", minimum=0.0, read_only=True)
@@ -113,13 +122,6 @@ def check_tracker_config(config: MultiObjectTrackerConfig) -> None:
 
 
 @dataclass
-class _DetectionBatch:
-    stamp: float
-    frame_id: str
-    detections: list[Detection]
-
-
-@dataclass
 class _Counters:
     frames: int = 0
     bad_images: int = 0
@@ -127,6 +129,7 @@ class _Counters:
     bad_detections: int = 0
     unknown_frame: int = 0
     overflowed_detection_messages: int = 0
+    detection_waits_timed_out: int = 0
     report_timer: ReportTimer = field(default_factory=ReportTimer)
     reported_drops: int = 0
 
@@ -138,6 +141,7 @@ class TrackerNode(Node):
         super().__init__("tracker_node", **kwargs)
         self._types = ros_message_types()
         self._buffer_lock = threading.Lock()   # detection buffer and start requests
+        self._detections_arrived = threading.Condition(self._buffer_lock)
         self._tracker_lock = threading.Lock()  # the tracker (worker thread vs parameters)
         self._warn = throttled_ros_log(self.get_logger(), "warning", period=1.0)
         self._error = throttled_ros_log(self.get_logger(), "error", period=1.0)
@@ -153,7 +157,7 @@ class TrackerNode(Node):
         self._bridge.activate()
 
         cfg = self.node_config
-        self._detections: deque[_DetectionBatch] = deque(maxlen=cfg.detection_buffer)
+        self._detections = DetectionBuffer(cfg.detection_buffer, cfg.detection_wait)
         self._start_requests: deque[tuple[str, Detection]] = deque(maxlen=10)
         self._initial_box_pending = tuple(float(v) for v in cfg.initial_box) != NO_BOX
         self._counters = _Counters()
@@ -181,6 +185,8 @@ class TrackerNode(Node):
     # -- parameters ----------------------------------------------------------------------
     def _on_node_config(self, config: TrackerNodeConfig) -> None:
         self.node_config = config
+        with self._buffer_lock:
+            self._detections.wait = config.detection_wait
 
     def _on_tracker_config(self, config: MultiObjectTrackerConfig) -> None:
         # MultiObjectTracker has no way to change its config in place (tracks keep the
@@ -205,9 +211,10 @@ class TrackerNode(Node):
                 f"skipped {skipped} bad detection(s) (NaN or non-positive size, bad score) in "
                 f"a message from frame {msg.header.frame_id!r}")
         with self._buffer_lock:
-            if len(self._detections) == self._detections.maxlen:
+            if self._detections.add(DetectionBatch(stamp, msg.header.frame_id, detections),
+                                    time.monotonic()):
                 self._counters.overflowed_detection_messages += 1
-            self._detections.append(_DetectionBatch(stamp, msg.header.frame_id, detections))
+            self._detections_arrived.notify_all()
 
     def _on_start_track(self, msg: Any) -> None:
         try:
@@ -236,8 +243,14 @@ class TrackerNode(Node):
         stamp = stamp_to_seconds(msg.header.stamp)
         frame = msg.header.frame_id
         with self._buffer_lock:
-            batches = list(self._detections)
-            self._detections.clear()
+            deadline = time.monotonic() + self._detections.wait
+            while self._detections.waiting(stamp, time.monotonic()):
+                left = deadline - time.monotonic()
+                if left <= 0.0:
+                    counters.detection_waits_timed_out += 1
+                    break
+                self._detections_arrived.wait(left)
+            batches = self._detections.take(stamp)
             starts = list(self._start_requests)
             self._start_requests.clear()
         with self._tracker_lock:
@@ -318,7 +331,8 @@ class TrackerNode(Node):
                 f"{c.frames} frames tracked, {dropped} dropped (newer frame arrived first), "
                 f"{c.bad_images} bad images, {c.bad_detection_messages} bad detection "
                 f"messages, {c.bad_detections} bad detections, {c.unknown_frame} detection "
-                f"messages in unknown frames, {c.overflowed_detection_messages} overflowed; "
+                f"messages in unknown frames, {c.overflowed_detection_messages} overflowed, "
+                f"{c.detection_waits_timed_out} frames stopped waiting for detections; "
                 f"tracker: {totals}")
         c.reported_drops = dropped
 
@@ -328,7 +342,8 @@ class TrackerNode(Node):
         return {"frames": c.frames, "dropped": self._worker.dropped,
                 "bad_images": c.bad_images, "unknown_frame": c.unknown_frame,
                 "bad_detection_messages": c.bad_detection_messages,
-                "bad_detections": c.bad_detections}
+                "bad_detections": c.bad_detections,
+                "detection_waits_timed_out": c.detection_waits_timed_out}
 
     def destroy_node(self) -> None:
         self._worker.stop()
