@@ -22,10 +22,29 @@ Comaniciu, Ramesh and Meer 2003:
 
 Everything here works on a small region of interest (ROI) of bin indices; nothing reads
 pixels outside it.
+
+Two paths compute the same numbers.  The reference is numpy: :func:`quantize` (OpenCV's HSV
+conversion, then the bin tables of :func:`bin_lookup_tables`), :func:`evaluate_kernel` for one
+kernel, and :meth:`PaddedBins.evaluate_batch` / :meth:`PaddedBins.evaluate_many`, which
+evaluate all kernels of a target together through precomputed :class:`KernelTemplate` offsets.
+The fast path used by the tracker (:class:`SearchRegion`, :func:`quantize_region`; backend
+``"auto"`` = compiled when numba is installed) does the same arithmetic in numba loops with
+``cache=True`` (compiled on first use, a few seconds once, then loaded from ``__pycache__``):
+
+* :func:`_quantize_loops` reads the strided search region, converts each pixel to HSV exactly
+  as ``cv2.COLOR_BGR2HSV`` does for 8-bit images (checked on all 2^24 colours) and looks up its
+  bin, in one pass without intermediate images;
+* :func:`_kernels_loops` evaluates every kernel in one call: histogram (pass 1), ``q / p~``
+  and ``J_i``, then the mean-shift and scale-ratio sums (pass 2), returning a
+  :class:`KernelBatch` of arrays rather than per-kernel objects.
+
+Tests assert that both paths agree to 1e-9 on random inputs.  ``MK_TRACKER_NO_NUMBA=1`` (or a
+missing numba) selects the numpy path; ``backend="numpy"`` selects it per object.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import cv2
@@ -66,29 +85,59 @@ def number_of_bins(bins: tuple[int, int, int]) -> int:
     return int(bins[0]) * int(bins[1]) * int(bins[2])
 
 
-def quantize(roi_bgr: np.ndarray, colour_space: str, bins: tuple[int, int, int]) -> np.ndarray:
-    """Bin index ``b(z)`` of every pixel of a BGR ROI, int array of the ROI's shape.
+_LUTS: dict = {}
 
-    ``colour_space`` ``"hsv"`` converts with OpenCV (8-bit hue in ``[0, 180)``) and bins
-    ``(hue, saturation, value)``; ``"bgr"`` bins the raw channels.  Float ROIs are taken to be
-    in ``[0, 255]`` and clipped; they must not hold NaN (see :func:`roi_has_nan`).
+
+def bin_lookup_tables(colour_space: str, bins: tuple[int, int, int]) -> np.ndarray:
+    """``(3, 256)`` int32 tables: ``b(z) = T[0, c0] + T[1, c1] + T[2, c2]`` for 8-bit channels.
+
+    Channel 0 (hue, or blue) gets bin ``c0 * b0 // 180`` (``c0 * b0 >> 8`` for BGR), the others
+    ``c * b >> 8``; the tables hold those bins already multiplied out to the flat index
+    ``(bin0 * b1 + bin1) * b2 + bin2``.  Built once per configuration.
     """
     if colour_space not in COLOUR_SPACES:
         raise ValueError(f"colour_space must be one of {COLOUR_SPACES}, got {colour_space!r}")
+    if not all(1 <= int(b) <= 256 for b in bins):
+        raise ValueError(f"bins must lie in [1, 256], got {bins}")
+    b0, b1, b2 = (int(b) for b in bins)
+    key = (colour_space, b0, b1, b2)
+    table = _LUTS.get(key)
+    if table is None:
+        level = np.arange(256, dtype=np.int64)
+        if colour_space == "hsv":
+            c0 = np.minimum(level * b0 // _HUE_RANGE, b0 - 1)
+        else:
+            c0 = level * b0 >> 8
+        table = np.stack([c0 * (b1 * b2), (level * b1 >> 8) * b2, level * b2 >> 8])
+        table = np.ascontiguousarray(table, dtype=np.int32)
+        table.setflags(write=False)
+        _LUTS[key] = table
+    return table
+
+
+def _colour_converted(roi_bgr: np.ndarray, colour_space: str) -> np.ndarray:
+    """The uint8 ``H x W x 3`` channels that are binned: OpenCV HSV or the BGR itself."""
+    if colour_space == "hsv":
+        return cv2.cvtColor(roi_bgr, cv2.COLOR_BGR2HSV)
+    return roi_bgr
+
+
+def quantize(roi_bgr: np.ndarray, colour_space: str, bins: tuple[int, int, int]) -> np.ndarray:
+    """Bin index ``b(z)`` of every pixel of a BGR ROI, int32 array of the ROI's shape.
+
+    ``colour_space`` ``"hsv"`` converts with OpenCV (8-bit hue in ``[0, 180)``) and bins
+    ``(hue, saturation, value)``; ``"bgr"`` bins the raw channels (see
+    :func:`bin_lookup_tables`).  Float ROIs are taken to be in ``[0, 255]`` and clipped; they
+    must not hold NaN (see :func:`roi_has_nan`).
+    """
+    table = bin_lookup_tables(colour_space, bins)
     if roi_bgr.dtype != np.uint8:
         roi_bgr = np.clip(roi_bgr, 0, 255).astype(np.uint8)
-    roi_bgr = np.ascontiguousarray(roi_bgr)
-    b0, b1, b2 = (int(b) for b in bins)
-    if colour_space == "hsv":
-        conv = cv2.cvtColor(roi_bgr, cv2.COLOR_BGR2HSV)
-        c0 = conv[..., 0].astype(np.int32) * b0 // _HUE_RANGE
-        np.minimum(c0, b0 - 1, out=c0)
-    else:
-        conv = roi_bgr
-        c0 = conv[..., 0].astype(np.int32) * b0 >> 8
-    c1 = conv[..., 1].astype(np.int32) * b1 >> 8
-    c2 = conv[..., 2].astype(np.int32) * b2 >> 8
-    return (c0 * b1 + c1) * b2 + c2
+    conv = _colour_converted(np.ascontiguousarray(roi_bgr), colour_space)
+    out = table[0][conv[..., 0]]
+    out += table[1][conv[..., 1]]
+    out += table[2][conv[..., 2]]
+    return out
 
 
 @dataclass
@@ -359,17 +408,48 @@ class PaddedBins:
                       models: np.ndarray, epsilon: float = 0.01, weighting: str = "kl"
                       ) -> list[KernelEvaluation]:
         """Evaluate kernel ``i`` (``templates[i]`` at ``centres[i]`` against ``models[i]``) for
-        all kernels in one pass: the pixels of all kernels are gathered, binned (kernel ``i``
-        uses bins ``i*m ... i*m+m-1``) and summed together, so the number of numpy calls does
-        not grow with the number of kernels.  Each result equals :func:`evaluate_kernel`."""
+        all kernels in one pass; each result equals :func:`evaluate_kernel` and keeps its
+        pixels (:class:`KernelSample`).  :meth:`evaluate_batch` gives the same numbers as
+        arrays without building the per-kernel objects."""
+        batch, (b, k, g, ox, oy, v, w, counts) = self._evaluate_arrays(
+            templates, centres, models, epsilon, weighting)
+        ends = np.cumsum(counts)
+        out = []
+        for i in range(len(templates)):
+            if batch.n_pixels[i] == 0:
+                out.append(KernelEvaluation(np.zeros(self.n_bins), float("inf"), 0.0,
+                                            np.zeros(2), 0))
+                continue
+            a, e = ends[i] - counts[i], ends[i]
+            cx, cy = float(centres[i][0]), float(centres[i][1])
+            sample = KernelSample(bins=b[a:e], k=k[a:e], g=g[a:e], xs=ox[a:e] + cx,
+                                  ys=oy[a:e] + cy, v=v[a:e])
+            out.append(KernelEvaluation(batch.p[i], float(batch.costs[i]),
+                                        float(batch.similarities[i]), batch.mean_shift[i],
+                                        int(counts[i]), sample, w[a:e],
+                                        templates[i].half_axes))
+        return out
+
+    def evaluate_batch(self, templates: list[KernelTemplate], centres: np.ndarray,
+                       models: np.ndarray, epsilon: float = 0.01, weighting: str = "kl"
+                       ) -> "KernelBatch":
+        """:meth:`evaluate_many` as one :class:`KernelBatch` (the numpy reference of the
+        compiled :func:`evaluate_kernels`)."""
+        return self._evaluate_arrays(templates, centres, models, epsilon, weighting)[0]
+
+    def _evaluate_arrays(self, templates, centres, models, epsilon, weighting):
+        """All kernels in one pass: the pixels of all kernels are gathered, binned (kernel
+        ``i`` uses bins ``i*m ... i*m+m-1``) and summed together, so the number of numpy calls
+        does not grow with the number of kernels."""
         if weighting not in PIXEL_WEIGHTINGS:
             raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
         n_k = len(templates)
         m = self.n_bins
         st = self.stride
-        lins, dxs, dys, kid, sizes = [], [], [], [], []
+        lins, dxs, dys = [], [], []
+        sizes = np.empty(n_k, dtype=np.int64)
         gxy = np.empty((n_k, 2))
-        inv_axes = np.empty((n_k, 2))
+        axes = np.empty((n_k, 2))
         for i, t in enumerate(templates):
             if t.reach[0] > self.pad[0] or t.reach[1] > self.pad[1]:
                 raise ValueError(f"kernel reach {t.reach} exceeds the padding {self.pad}")
@@ -382,10 +462,10 @@ class PaddedBins:
             gxy[i] = (self.origin[0] + c * st + 0.5, self.origin[1] + r * st + 0.5)
             dxs.append(t.dx)
             dys.append(t.dy)
-            sizes.append(t.dx.size)
-            inv_axes[i] = 1.0 / t.half_axes
-        sizes_a = np.array(sizes)
-        kid = np.repeat(np.arange(n_k), sizes_a)
+            sizes[i] = t.dx.size
+            axes[i] = t.half_axes
+        inv_axes = 1.0 / axes
+        kid = np.repeat(np.arange(n_k), sizes)
         shift = gxy - np.asarray(centres, dtype=np.float64)       # node minus true centre
         b = self.flat[np.concatenate(lins)]
         ox = np.concatenate(dxs) + shift[kid, 0]                   # offsets from the centre
@@ -396,34 +476,342 @@ class PaddedBins:
         k, g = profile_values(v, templates[0].profile)
         counts = np.bincount(kid, minlength=n_k)
         hist = np.bincount(kid * m + b, weights=k, minlength=n_k * m).reshape(n_k, m)
-        totals = hist.sum(axis=1)
-        safe = np.where(totals > 0, totals, 1.0)
-        p = hist / safe[:, None]
         q = np.asarray(models, dtype=np.float64)
-        ratio = q / ((1.0 - epsilon) * p + epsilon / m)
-        log_ratio = np.zeros_like(ratio)
-        np.log(ratio, out=log_ratio, where=q > 0)
-        costs = np.sum(q * log_ratio, axis=1)
-        if weighting == "bhattacharyya":
-            ratio = np.sqrt(ratio)
+        ratio, costs = _ratio_and_cost(hist, q, epsilon, weighting)
         w = ratio.reshape(-1)[kid * m + b]
         wg = w * g
-        s = np.bincount(kid, weights=wg, minlength=n_k)
-        sx = np.bincount(kid, weights=wg * ox, minlength=n_k)
-        sy = np.bincount(kid, weights=wg * oy, minlength=n_k)
-        ends = np.cumsum(counts)
-        out = []
-        for i in range(n_k):
-            if not (counts[i] > 0 and totals[i] > 0):
-                out.append(KernelEvaluation(np.zeros(m), float("inf"), 0.0, np.zeros(2), 0))
-                continue
-            ms = np.array([sx[i] / s[i], sy[i] / s[i]]) if s[i] > 0 else np.zeros(2)
-            a, e = ends[i] - counts[i], ends[i]
-            cx, cy = float(centres[i][0]), float(centres[i][1])
-            sample = KernelSample(bins=b[a:e], k=k[a:e], g=g[a:e], xs=ox[a:e] + cx,
-                                  ys=oy[a:e] + cy, v=v[a:e])
-            cost = float(costs[i])
-            out.append(KernelEvaluation(p[i], cost, similarity_from_cost(cost), ms,
-                                        int(counts[i]), sample, w[a:e],
-                                        templates[i].half_axes))
+        gv = g * v
+        sums = np.stack([np.bincount(kid, weights=x, minlength=n_k)
+                         for x in (k, wg, wg * ox, wg * oy, w * k, w * gv, gv)], axis=1)
+        batch = _batch_from_sums(hist, counts, costs, sums, axes)
+        return batch, (b, k, g, ox, oy, v, w, counts)
+
+
+def _ratio_and_cost(hist: np.ndarray, q: np.ndarray, epsilon: float, weighting: str
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per-bin pixel weight ``q / p~`` (or its root) and ``J_i`` for kernel histograms
+    ``hist`` (unnormalised, one row per kernel)."""
+    m = hist.shape[1]
+    totals = hist.sum(axis=1)
+    p = hist / np.where(totals > 0, totals, 1.0)[:, None]
+    ratio = q / ((1.0 - epsilon) * p + epsilon / m)
+    log_ratio = np.zeros_like(ratio)
+    np.log(ratio, out=log_ratio, where=q > 0)
+    costs = np.sum(q * log_ratio, axis=1)
+    if weighting == "bhattacharyya":
+        ratio = np.sqrt(ratio)
+    return ratio, costs
+
+
+@dataclass
+class KernelBatch:
+    """Kernels evaluated together: row ``i`` holds kernel ``i``'s results.
+
+    ``p`` candidate histograms ``(N, m)``, ``costs`` ``J_i`` (inf for a kernel with no
+    pixel), ``similarities`` ``exp(-J_i)`` (0 then), ``mean_shift`` ``m(x)`` of (C.3)
+    ``(N, 2)``, ``n_pixels``, ``scale_ratios`` ``r(h)`` of (9)-(10) (0 for an empty kernel).
+    """
+
+    p: np.ndarray
+    costs: np.ndarray
+    similarities: np.ndarray
+    mean_shift: np.ndarray
+    n_pixels: np.ndarray
+    scale_ratios: np.ndarray
+
+
+def _batch_from_sums(hist: np.ndarray, counts: np.ndarray, costs: np.ndarray,
+                     sums: np.ndarray, axes: np.ndarray) -> KernelBatch:
+    """The results from per-kernel sums ``[sum k, sum w g, sum w g dx, sum w g dy, sum w k,
+    sum w g v, sum g v]`` (``dx, dy`` offsets from the kernel centre), shared by both
+    backends."""
+    sk, s, sx, sy, wk, wgv, gv = (sums[:, j] for j in range(7))
+    totals = hist.sum(axis=1)
+    valid = (counts > 0) & (totals > 0)
+    p = np.where(valid[:, None], hist / np.where(valid, totals, 1.0)[:, None], 0.0)
+    costs = np.where(valid, costs, np.inf)
+    sims = np.where(valid, np.exp(-np.maximum(costs, 0.0)), 0.0)
+    moving = valid & (s > 0)
+    safe_s = np.where(moving, s, 1.0)
+    ms = np.where(moving[:, None], np.stack([sx / safe_s, sy / safe_s], axis=1), 0.0)
+    h2 = axes[:, 0] ** 2 + axes[:, 1] ** 2
+    scaled = valid & (wk > 0)
+    ratios = np.where(scaled, 2.0 / h2 * (wgv / np.where(scaled, wk, 1.0)
+                                          - gv / np.where(sk > 0, sk, 1.0)), 0.0)
+    return KernelBatch(p, costs, sims, ms, np.where(valid, counts, 0).astype(np.int64),
+                       ratios)
+
+
+# --------------------------------------------------------------------------------------------
+# Compiled fast path (numba): quantisation of the search region and all kernels in one call
+# --------------------------------------------------------------------------------------------
+
+BACKENDS = ("auto", "numpy", "compiled")
+
+
+class KernelBackendError(ValueError):
+    """A backend name is unknown, or ``"compiled"`` was asked for without numba."""
+
+
+#: Fixed-point reciprocals of OpenCV's 8-bit BGR->HSV conversion (12 fractional bits):
+#: ``255 / v`` for the saturation and ``180 / (6 * diff)`` for the hue.
+_HSV_SHIFT = 12
+_SAT_RECIPROCAL = np.array([0] + [int(np.rint((255 << _HSV_SHIFT) / i)) for i in range(1, 256)],
+                           dtype=np.int64)
+_HUE_RECIPROCAL = np.array([0] + [int(np.rint((_HUE_RANGE << _HSV_SHIFT) / (6.0 * i)))
+                                  for i in range(1, 256)], dtype=np.int64)
+
+
+def _quantize_loops(image, y0, x0, stride, hsv, table, sat_rec, hue_rec, out):
+    """Bin index of pixel ``image[y0 + r * stride, x0 + c * stride]`` into ``out[r, c]``.
+
+    With ``hsv`` the pixel is first converted as ``cv2.COLOR_BGR2HSV`` does for 8-bit images
+    (V = max, S = 255 (V - min) / V, H = 30 (hue sector offset + difference) / (V - min), in
+    fixed point with the reciprocal tables ``sat_rec``, ``hue_rec``); equal to OpenCV on all
+    2^24 colours (tested).  Then ``table`` of :func:`bin_lookup_tables`.
+    """
+    h_out, w_out = out.shape
+    half = 1 << (_HSV_SHIFT - 1)
+    for r in range(h_out):
+        row = image[y0 + r * stride]
+        dst = out[r]
+        for c in range(w_out):
+            x = x0 + c * stride
+            b = np.int64(row[x, 0])
+            g = np.int64(row[x, 1])
+            red = np.int64(row[x, 2])
+            if hsv:
+                v = max(b, g, red)
+                diff = v - min(b, g, red)
+                s = (diff * sat_rec[v] + half) >> _HSV_SHIFT
+                if v == red:
+                    h = g - b
+                elif v == g:
+                    h = b - red + 2 * diff
+                else:
+                    h = red - g + 4 * diff
+                h = (h * hue_rec[diff] + half) >> _HSV_SHIFT
+                if h < 0:
+                    h += _HUE_RANGE
+                dst[c] = table[0, h] + table[1, s] + table[2, v]
+            else:
+                dst[c] = table[0, b] + table[1, g] + table[2, red]
+    return out
+
+
+def _kernels_loops(bins, ox, oy, stride, centres, axes, models, epsilon, sqrt_weights,
+                   gaussian, p, costs, sims, ms, counts, ratios):
+    """Every kernel of :meth:`PaddedBins.evaluate_batch` in two passes over its pixels.
+
+    Kernel ``i`` visits the ROI pixels within ``ceil(a / stride) + 1`` grid steps of the grid
+    node nearest its centre (the reach of :class:`KernelTemplate`, clipped to the ROI) in
+    row-major order, with the arithmetic of the numpy path: pass 1 accumulates the histogram
+    into ``p[i]``, then come ``q / p~`` and ``J_i``; pass 2 accumulates the weighted sums from
+    which :func:`_batch_from_sums` finishes the numpy path, finished here the same way.
+    ``p``, ``costs``, ``sims``, ``ms``, ``counts``, ``ratios`` are the zeroed outputs.
+    """
+    n_k, m = models.shape
+    rh, rw = bins.shape
+    ratio = np.empty(m)
+    for i in range(n_k):
+        cx = centres[i, 0]
+        cy = centres[i, 1]
+        iax = 1.0 / axes[i, 0]
+        iay = 1.0 / axes[i, 1]
+        jx = int(np.ceil(axes[i, 0] / stride)) + 1
+        jy = int(np.ceil(axes[i, 1] / stride)) + 1
+        cn = int(np.rint((cx - 0.5 - ox) / stride))
+        rn = int(np.rint((cy - 0.5 - oy) / stride))
+        cn = min(max(cn, 0), rw - 1)
+        rn = min(max(rn, 0), rh - 1)
+        shx = (ox + cn * stride + 0.5) - cx
+        shy = (oy + rn * stride + 0.5) - cy
+        r0, r1 = max(rn - jy, 0), min(rn + jy, rh - 1)
+        c0, c1 = max(cn - jx, 0), min(cn + jx, rw - 1)
+        hist = p[i]
+        count = 0
+        for r in range(r0, r1 + 1):
+            dy = float((r - rn) * stride) + shy
+            dy2 = (dy * iay) ** 2
+            for c in range(c0, c1 + 1):
+                dx = float((c - cn) * stride) + shx
+                v = (dx * iax) ** 2 + dy2
+                if v < 1.0:
+                    k = np.exp(-2.0 * v) if gaussian else 1.0 - v
+                    hist[bins[r, c]] += k
+                    count += 1
+        total = 0.0
+        for u in range(m):
+            total += hist[u]
+        if count == 0 or not total > 0:
+            hist[:] = 0.0
+            costs[i] = np.inf
+            continue
+        counts[i] = count
+        cost = 0.0
+        for u in range(m):
+            hist[u] /= total
+            q = models[i, u]
+            ratio[u] = q / ((1.0 - epsilon) * hist[u] + epsilon / m)
+            if q > 0:
+                cost += q * np.log(ratio[u])
+            if sqrt_weights:
+                ratio[u] = np.sqrt(ratio[u])
+        costs[i] = cost
+        sims[i] = np.exp(-max(cost, 0.0))
+        sk = 0.0
+        s = 0.0
+        sx = 0.0
+        sy = 0.0
+        wk = 0.0
+        wgv = 0.0
+        sgv = 0.0
+        for r in range(r0, r1 + 1):
+            dy = float((r - rn) * stride) + shy
+            dy2 = (dy * iay) ** 2
+            for c in range(c0, c1 + 1):
+                dx = float((c - cn) * stride) + shx
+                v = (dx * iax) ** 2 + dy2
+                if v < 1.0:
+                    if gaussian:
+                        k = np.exp(-2.0 * v)
+                        g = 2.0 * k
+                    else:
+                        k = 1.0 - v
+                        g = 1.0
+                    w = ratio[bins[r, c]]
+                    wg = w * g
+                    gv = g * v
+                    sk += k
+                    s += wg
+                    sx += wg * dx
+                    sy += wg * dy
+                    wk += w * k
+                    wgv += w * gv
+                    sgv += gv
+        if s > 0:
+            ms[i, 0] = sx / s
+            ms[i, 1] = sy / s
+        if wk > 0 and sk > 0:
+            h2 = axes[i, 0] ** 2 + axes[i, 1] ** 2
+            ratios[i] = 2.0 / h2 * (wgv / wk - sgv / sk)
+    return counts
+
+
+_COMPILED: list = []
+
+
+def compiled_kernels():
+    """``(quantize, kernels)`` compiled with numba (cache on disk, compiled on first
+    use), or ``None`` without numba or with the environment variable ``MK_TRACKER_NO_NUMBA``
+    set."""
+    if not _COMPILED:
+        try:
+            if os.environ.get("MK_TRACKER_NO_NUMBA"):
+                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
+            import numba
+        except ImportError:
+            _COMPILED.append(None)
+        else:
+            _COMPILED.append(tuple(numba.njit(cache=True)(f) for f in
+                                   (_quantize_loops, _kernels_loops)))
+    return _COMPILED[0]
+
+
+def resolve_backend(backend: str) -> str:
+    """``"numpy"`` or ``"compiled"`` for a requested backend (``"auto"``: compiled when numba
+    is available); :class:`KernelBackendError` for an unknown name or a missing numba."""
+    if backend not in BACKENDS:
+        raise KernelBackendError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if backend == "numpy":
+        return "numpy"
+    if compiled_kernels() is None:
+        if backend == "compiled":
+            raise KernelBackendError("the compiled backend needs numba, which is not "
+                                     "installed (or MK_TRACKER_NO_NUMBA is set)")
+        return "numpy"
+    return "compiled"
+
+
+def quantize_region(image: np.ndarray, region: tuple[int, int, int, int], stride: int,
+                    colour_space: str, bins: tuple[int, int, int], backend: str = "auto"
+                    ) -> np.ndarray | None:
+    """:func:`quantize` of ``image[y0:y1:stride, x0:x1:stride]`` for ``region = (x0, y0, x1,
+    y1)``; ``None`` when those pixels hold NaN.  For uint8 images the compiled backend reads,
+    converts and bins the strided pixels in one numba loop (:func:`_quantize_loops`)."""
+    x0, y0, x1, y1 = (int(v) for v in region)
+    st = int(stride)
+    kernels = compiled_kernels() if resolve_backend(backend) == "compiled" else None
+    if kernels is None or image.dtype != np.uint8:
+        roi = image[y0:y1:st, x0:x1:st]
+        if roi_has_nan(roi):
+            return None
+        return quantize(roi, colour_space, bins)
+    h, w = max(-(-(y1 - y0) // st), 0), max(-(-(x1 - x0) // st), 0)
+    return kernels[0](image, y0, x0, st, colour_space == "hsv",
+                      bin_lookup_tables(colour_space, bins), _SAT_RECIPROCAL, _HUE_RECIPROCAL,
+                      np.empty((h, w), np.int32))
+
+
+class SearchRegion:
+    """A quantised search region on which the tracker evaluates its kernels.
+
+    ``bins`` is the ROI of :func:`quantize` sampled every ``stride`` px from image pixel
+    ``origin``.  :meth:`evaluate` gives the :class:`KernelBatch` of kernels with half-axes
+    ``half_axes`` at ``centres``; backend ``"numpy"`` uses :class:`PaddedBins` with
+    :class:`KernelTemplate` (cached per kernel shape), ``"compiled"`` the numba loops of
+    :func:`_kernels_loops`; both give the same numbers (tested to 1e-9).
+    """
+
+    def __init__(self, bins: np.ndarray, origin: tuple[int, int], stride: int, n_bins: int,
+                 profile: str = "roof", backend: str = "auto"):
+        if profile not in PROFILES:
+            raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
+        self.backend = resolve_backend(backend)
+        self.bins = np.ascontiguousarray(bins, dtype=np.int32)
+        self.origin = (int(origin[0]), int(origin[1]))
+        self.stride = int(stride)
+        self.n_bins = int(n_bins)
+        self.profile = profile
+        self._padded: PaddedBins | None = None
+        self._templates: dict = {}
+
+    def evaluate(self, half_axes: np.ndarray, centres: np.ndarray, models: np.ndarray,
+                 epsilon: float = 0.01, weighting: str = "kl") -> KernelBatch:
+        """Kernel ``i`` (half-axes ``half_axes[i]``) at ``centres[i]`` against ``models[i]``."""
+        if weighting not in PIXEL_WEIGHTINGS:
+            raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
+        axes = np.ascontiguousarray(half_axes, dtype=np.float64).reshape(-1, 2)
+        centres = np.ascontiguousarray(centres, dtype=np.float64).reshape(-1, 2)
+        models = np.ascontiguousarray(models, dtype=np.float64).reshape(len(axes), -1)
+        if self.backend == "numpy":
+            templates = [self._template(a) for a in axes]
+            return self._padded_bins(templates).evaluate_batch(templates, centres, models,
+                                                               epsilon, weighting)
+        n_k, m = models.shape
+        out = KernelBatch(np.zeros((n_k, m)), np.zeros(n_k), np.zeros(n_k), np.zeros((n_k, 2)),
+                          np.zeros(n_k, dtype=np.int64), np.zeros(n_k))
+        compiled_kernels()[1](self.bins, self.origin[0], self.origin[1], self.stride, centres,
+                              axes, models, float(epsilon), weighting == "bhattacharyya",
+                              self.profile == "gaussian", out.p, out.costs, out.similarities,
+                              out.mean_shift, out.n_pixels, out.scale_ratios)
         return out
+
+    def _template(self, axes: np.ndarray) -> KernelTemplate:
+        key = axes.tobytes()
+        t = self._templates.get(key)
+        if t is None:
+            t = self._templates[key] = KernelTemplate(axes, self.stride, self.profile)
+        return t
+
+    def _padded_bins(self, templates: list[KernelTemplate]) -> PaddedBins:
+        reach = np.max([t.reach for t in templates], axis=0)
+        padded = self._padded
+        if padded is None or reach[0] > padded.pad[0] or reach[1] > padded.pad[1]:
+            # room for somewhat larger kernels (a scale step) without re-padding
+            pad = tuple(int(np.ceil(r * 1.25)) + 1 for r in reach)
+            if padded is not None:
+                pad = (max(pad[0], padded.pad[0]), max(pad[1], padded.pad[1]))
+            padded = self._padded = PaddedBins(self.bins, self.origin, self.stride,
+                                               self.n_bins, pad)
+        return padded

@@ -31,7 +31,18 @@ span of the constraint gradients (column scaling does not change that span), and
 ``dx_B = -U_r S_r^{-1} V_r^T C`` is the minimum-norm least-squares solution of (A.1); when
 ``C_x`` has full column rank both equal the paper's formulas.  No inverse of a singular
 matrix is ever formed, so there is no ``LinAlgError`` and no NaN; a per-kernel step limit of
-one bandwidth guards against jumps.
+one bandwidth guards against jumps.  After the column scaling every column of (12)-(13)'s
+``C_x`` is ``+-1/sqrt(2)`` on two coordinates, so the scaled matrix is fixed by its sign
+pattern; the SVD factors (projector and pseudo-inverse) of each pattern are computed once and
+cached (a general matrix is factorised directly).
+
+Speed.  :meth:`MultiKernelTracker.refine` quantises only its search region and evaluates all
+kernels of the target per iteration in one call of
+:meth:`mk_tracker.kernel_histograms.SearchRegion.evaluate` (numba-compiled by default, numpy
+with ``backend="numpy"`` or ``MK_TRACKER_NO_NUMBA=1``; both give the same results, tested).
+The iteration of Algorithm 1 is sensitive to rounding: the two backends (or a first box moved
+by 1e-9 px) give the same boxes for tens of frames, then can drift apart by pixels on
+sequences where the iteration does not settle within ``T`` steps.
 
 Constraint thresholds.  The paper sets ``eps_C`` per constraint "in the range 0.05 to 9
 depending on the object size".  Here a single pixel tolerance ``e`` (``constraint_tolerance_px``)
@@ -71,10 +82,10 @@ from itertools import combinations
 import numpy as np
 
 from mk_tracker.boxes import BoxLike, InvalidBoxError, as_box, clip_box
-from mk_tracker.kernel_histograms import (
-    COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES, InvalidImageError, KernelEvaluation,
-    KernelTemplate, PaddedBins, check_image, evaluate_kernel, kernel_histogram, kl_cost, number_of_bins, quantize,
-    roi_has_nan, sample_kernel, similarity_from_cost)
+from mk_tracker.kernel_histograms import (  # noqa: F401  (evaluate_kernel: re-exported)
+    COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES, InvalidImageError, KernelBackendError,
+    KernelBatch, SearchRegion, check_image, evaluate_kernel, number_of_bins, quantize_region,
+    resolve_backend)
 from mk_tracker.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_layout, kernels_bounding_box
 from mk_tracker.parameters import parameter, validate_config
 
@@ -212,34 +223,48 @@ def pair_distances(centres: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, 
     return np.abs(d[:, 0]), np.abs(d[:, 1])
 
 
+def _pair_offsets(centres: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """``(x_i - x_j, y_i - y_j)`` of every pair, shape ``(P, 2)``."""
+    c = np.asarray(centres, dtype=np.float64)
+    return c[pairs[:, 0]] - c[pairs[:, 1]]
+
+
 def constraint_values(centres: np.ndarray, pairs: np.ndarray, lx: np.ndarray, ly: np.ndarray
                       ) -> np.ndarray:
     """``C(x)``, shape ``(2P,)``: for pair ``p`` entry ``2p`` is (12), ``2p+1`` is (13).
 
     ``c_1 = ((x_i - x_j)^2 - L_x^2) / (L_x^2 + 1)``, ``c_2`` likewise in y.
     """
-    c = np.asarray(centres, dtype=np.float64)
-    d = c[pairs[:, 0]] - c[pairs[:, 1]]
-    out = np.empty(2 * len(pairs))
-    out[0::2] = (d[:, 0] ** 2 - lx ** 2) / (lx ** 2 + 1.0)
-    out[1::2] = (d[:, 1] ** 2 - ly ** 2) / (ly ** 2 + 1.0)
-    return out
+    l2 = np.stack([lx, ly], axis=1) ** 2
+    return ((_pair_offsets(centres, pairs) ** 2 - l2) / (l2 + 1.0)).reshape(-1)
+
+
+_JACOBIAN_INDEX: dict = {}
 
 
 def constraint_jacobian(centres: np.ndarray, pairs: np.ndarray, lx: np.ndarray, ly: np.ndarray
                         ) -> np.ndarray:
-    """``C_x``, shape ``(n, m) = (2N, 2P)``: column ``k`` is the gradient of constraint ``k``."""
-    c = np.asarray(centres, dtype=np.float64)
-    n = 2 * c.shape[0]
-    jac = np.zeros((n, 2 * len(pairs)))
-    d = c[pairs[:, 0]] - c[pairs[:, 1]]
-    cols = np.arange(len(pairs))
-    gx = 2.0 * d[:, 0] / (lx ** 2 + 1.0)
-    gy = 2.0 * d[:, 1] / (ly ** 2 + 1.0)
-    jac[2 * pairs[:, 0], 2 * cols] = gx
-    jac[2 * pairs[:, 1], 2 * cols] = -gx
-    jac[2 * pairs[:, 0] + 1, 2 * cols + 1] = gy
-    jac[2 * pairs[:, 1] + 1, 2 * cols + 1] = -gy
+    """``C_x``, shape ``(n, m) = (2N, 2P)``: column ``k`` is the gradient of constraint ``k``.
+
+    Column ``2p`` (``2p+1``) holds ``+-2 (x_i - x_j) / (L_x^2 + 1)`` (y likewise) in the rows
+    of ``x_i`` and ``x_j`` (``y_i``, ``y_j``).
+    """
+    n = 2 * np.shape(centres)[0]
+    key = (n, pairs.tobytes())
+    index = _JACOBIAN_INDEX.get(key)
+    if index is None:
+        within = np.array([0, 1])
+        index = ((2 * pairs[:, 0:1] + within).reshape(-1),
+                 (2 * pairs[:, 1:2] + within).reshape(-1), np.arange(2 * len(pairs)))
+        if len(_JACOBIAN_INDEX) > 64:
+            _JACOBIAN_INDEX.clear()
+        _JACOBIAN_INDEX[key] = index
+    rows_i, rows_j, cols = index
+    grad = (2.0 * _pair_offsets(centres, pairs) /
+            (np.stack([lx, ly], axis=1) ** 2 + 1.0)).reshape(-1)
+    jac = np.zeros((n, cols.size))
+    jac[rows_i, cols] = grad
+    jac[rows_j, cols] = -grad
     return jac
 
 
@@ -270,12 +295,46 @@ def constraint_projector(jac: np.ndarray, values: np.ndarray, rank_tolerance: fl
         return np.zeros((n, n)), np.zeros(n)
     a = jac[:, keep] / norms[keep]
     b = values[keep] / norms[keep]
+    proj, pinv = _scaled_factors(a, rank_tolerance)
+    return proj, -(pinv @ b)
+
+
+_FACTORS: dict = {}
+_FACTORS_LIMIT = 4096
+
+
+def _svd_factors(a: np.ndarray, rank_tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(U_r U_r^T, U_r S_r^{-1} V_r^T)`` of ``a``: the projector on its column span and
+    ``(a^T)^+``, from the SVD with relative tolerance ``rank_tolerance``."""
     u, s, vt = np.linalg.svd(a, full_matrices=False)
     r = s > rank_tolerance * s[0]
     ur = u[:, r]
-    proj = ur @ ur.T
-    dx_b = -(ur @ ((vt[r] @ b) / s[r]))
-    return proj, dx_b
+    return ur @ ur.T, ur @ (vt[r] / s[r][:, None])
+
+
+def _scaled_factors(a: np.ndarray, rank_tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_svd_factors` of the column-scaled ``C_x``, cached.
+
+    Every column of (12)-(13)'s ``C_x`` has two entries ``+-2 d / (L^2 + 1)`` (or one), so
+    after scaling to unit norm it is ``+-1/sqrt(2)`` (or ``+-1``) on two (one) coordinates:
+    the scaled matrix is fixed by its sign pattern, of which a tracker meets only a handful.
+    When ``a`` equals that canonical matrix to rounding, the factors of the canonical matrix
+    (computed once by the same SVD) are returned; any other matrix is factorised directly.
+    """
+    sign = np.sign(a)
+    canonical = sign / np.sqrt(np.count_nonzero(sign, axis=0))
+    if not np.max(np.abs(a - canonical)) <= 1e-14:
+        return _svd_factors(a, rank_tolerance)
+    key = (sign.shape, sign.astype(np.int8).tobytes(), float(rank_tolerance))
+    factors = _FACTORS.get(key)
+    if factors is None:
+        if len(_FACTORS) >= _FACTORS_LIMIT:
+            _FACTORS.clear()
+        factors = _svd_factors(canonical, rank_tolerance)
+        for f in factors:
+            f.setflags(write=False)
+        _FACTORS[key] = factors
+    return factors
 
 
 def projected_gradient_step(jx: np.ndarray, jac: np.ndarray, values: np.ndarray,
@@ -413,13 +472,19 @@ class MultiKernelTracker:
     """The projected-gradient multiple-kernel tracker; holds only its configuration.
 
     Targets are :class:`TargetState` objects created by :meth:`start`, so one tracker serves
-    any number of targets.
+    any number of targets.  ``backend`` selects the kernel evaluation: ``"auto"`` (compiled
+    when numba is available), ``"compiled"`` or ``"numpy"`` (the reference); an unknown or
+    unavailable backend raises :class:`TrackingInputError`.
     """
 
-    def __init__(self, config: MultiKernelConfig | None = None):
+    def __init__(self, config: MultiKernelConfig | None = None, backend: str = "auto"):
         self.config = config if config is not None else MultiKernelConfig()
         validate_config(self.config)
         self.n_bins = number_of_bins(self.config.bins)
+        try:
+            self.backend = resolve_backend(backend)
+        except KernelBackendError as exc:
+            raise TrackingInputError(str(exc)) from exc
 
     # -- helpers ---------------------------------------------------------------------------
     def _stride(self, axes: np.ndarray) -> int:
@@ -427,28 +492,24 @@ class MultiKernelTracker:
         area = float(np.pi * np.max(axes[:, 0] * axes[:, 1]))
         return max(1, int(np.ceil(np.sqrt(area / self.config.max_kernel_pixels))))
 
-    def _bins(self, image: np.ndarray, region: tuple[int, int, int, int], stride: int
-              ) -> tuple[np.ndarray | None, tuple[int, int]]:
-        """Bin indices of the region sampled every ``stride`` px on a grid fixed in the image.
-
-        Returns ``(bins, origin)``; ``bins`` is None when the region holds NaN pixels.
-        """
+    def _search_region(self, image: np.ndarray, region: tuple[int, int, int, int],
+                       stride: int) -> SearchRegion | None:
+        """The region's bin indices sampled every ``stride`` px on a grid fixed in the image,
+        ready for kernel evaluations; None when the region holds NaN pixels."""
+        cfg = self.config
         x0, y0, x1, y1 = region
         x0, y0 = (x0 // stride) * stride, (y0 // stride) * stride
-        roi = image[y0:y1:stride, x0:x1:stride]
-        if roi_has_nan(roi):
-            return None, (x0, y0)
-        return quantize(roi, self.config.colour_space, self.config.bins), (x0, y0)
+        bins = quantize_region(image, (x0, y0, x1, y1), stride, cfg.colour_space, cfg.bins,
+                               self.backend)
+        if bins is None:
+            return None
+        return SearchRegion(bins, (x0, y0), stride, self.n_bins, cfg.profile, self.backend)
 
-    def _templates(self, axes: np.ndarray, stride: int) -> list[KernelTemplate]:
-        return [KernelTemplate(a, stride, self.config.profile) for a in axes]
-
-    def _evaluate(self, padded: PaddedBins, templates: list[KernelTemplate],
-                  centres: np.ndarray, models: np.ndarray) -> list[KernelEvaluation]:
-        """Evaluate every kernel (fast template path; see :class:`KernelTemplate`)."""
+    def _evaluate(self, region: SearchRegion, axes: np.ndarray, centres: np.ndarray,
+                  models: np.ndarray) -> KernelBatch:
         cfg = self.config
-        return padded.evaluate_many(templates, centres, models, cfg.histogram_epsilon,
-                                    cfg.pixel_weighting)
+        return region.evaluate(axes, centres, models, cfg.histogram_epsilon,
+                               cfg.pixel_weighting)
 
     # -- public API ------------------------------------------------------------------------
     def start(self, image_bgr: np.ndarray, box: BoxLike) -> TargetState:
@@ -474,17 +535,16 @@ class MultiKernelTracker:
         if region is None:
             raise TrackingInputError(f"box {b} covers no whole pixel of the image")
         stride = self._stride(axes)
-        bin_roi, origin = self._bins(image, region, stride)
-        if bin_roi is None:
+        search = self._search_region(image, region, stride)
+        if search is None:
             raise TrackingInputError("the target region holds NaN or infinite pixels")
-        models = np.zeros((cfg.num_kernels, self.n_bins))
-        for i in range(cfg.num_kernels):
-            sample = sample_kernel(bin_roi, origin, centres[i], axes[i], cfg.profile, stride)
-            if sample.empty:
-                raise TrackingInputError(
-                    f"kernel {i} of box {b} has no pixel inside the image (box too small or "
-                    f"mostly outside)")
-            models[i] = kernel_histogram(sample, self.n_bins)
+        uniform = np.full((cfg.num_kernels, self.n_bins), 1.0 / self.n_bins)
+        batch = self._evaluate(search, axes, centres, uniform)
+        for i in np.flatnonzero(batch.n_pixels == 0):
+            raise TrackingInputError(
+                f"kernel {i} of box {b} has no pixel inside the image (box too small or "
+                f"mostly outside)")
+        models = batch.p.copy()
         if float(models.mean(axis=0).max()) >= 0.999:
             raise TrackingInputError(
                 "the target has a uniform colour (one histogram bin holds all its mass); a "
@@ -524,8 +584,8 @@ class MultiKernelTracker:
         if region is None:
             return self._lost(state, x, axes, "outside_image")
         stride = self._stride(axes)
-        bin_roi, origin = self._bins(image, region, stride)
-        if bin_roi is None:
+        search = self._search_region(image, region, stride)
+        if search is None:
             return self._lost(state, x, axes, "nan_pixels")
         lo = np.array([region[0], region[1]], dtype=np.float64)
         hi = np.array([region[2], region[3]], dtype=np.float64)
@@ -534,27 +594,21 @@ class MultiKernelTracker:
         eps_c = constraint_thresholds(lx, ly, cfg.constraint_tolerance_px)
         eps_j = cfg.epsilon_j_factor * n_k
         max_step = cfg.max_step_fraction * axes
+        models = state.models
 
-        templates = self._templates(axes, stride)
-        reach = np.max([t.reach for t in templates], axis=0)
-        # room for the templates of a scale step (at most +max_scale_change) as well
-        pad = tuple(int(np.ceil(r * (1.0 + cfg.max_scale_change))) + 1 for r in reach)
-        padded = PaddedBins(bin_roi, origin, stride, self.n_bins, pad)
-        evals = self._evaluate(padded, templates, x, state.models)
+        ev = self._evaluate(search, axes, x, models)
         iterations = 0
         history = []
         for _ in range(cfg.max_iterations):
-            sims = np.array([e.similarity for e in evals])
-            w = adaptive_weights(sims) if cfg.adaptive_weights else np.ones(n_k)
-            costs = np.array([e.cost for e in evals])
-            total = float(np.sum(w * np.where(np.isfinite(costs), costs, 0.0)))
+            w = adaptive_weights(ev.similarities) if cfg.adaptive_weights else np.ones(n_k)
+            total = _weighted_cost(w, ev.costs)
             history.append(total)
             c = constraint_values(x, state.pairs, lx, ly)
             c_ok = bool(np.all(np.abs(c) < eps_c))
             j_ok = total < eps_j
             if c_ok and j_ok:
                 break
-            jx = -np.concatenate([e.mean_shift for e in evals])
+            jx = -ev.mean_shift.reshape(-1)
             jac = constraint_jacobian(x, state.pairs, lx, ly)
             dx_a, dx_b = projected_gradient_step(jx, jac, c, w, cfg.alpha,
                                                  cfg.use_projected_gradient,
@@ -566,17 +620,16 @@ class MultiKernelTracker:
             else:
                 dx = dx_a + dx_b
             step = np.clip(dx.reshape(n_k, 2), -max_step, max_step)
-            step = np.nan_to_num(step, nan=0.0, posinf=0.0, neginf=0.0)
+            step[np.isnan(step)] = 0.0
             x = np.clip(x + step, lo, hi)
             iterations += 1
-            evals = self._evaluate(padded, templates, x, state.models)
+            ev = self._evaluate(search, axes, x, models)
             if float(np.abs(step).max()) < cfg.min_step_px:
                 break
 
-        sims = np.array([e.similarity for e in evals])
+        sims = ev.similarities
         w = adaptive_weights(sims) if cfg.adaptive_weights else np.ones(n_k)
-        costs = np.array([e.cost for e in evals])
-        total = float(np.sum(w * np.where(np.isfinite(costs), costs, 0.0)))
+        total = _weighted_cost(w, ev.costs)
         mean_sim = float(sims.mean())
         if not mean_sim >= cfg.lost_similarity or mean_sim == 0.0:
             result = self._lost(state, x, axes, "low_similarity", sims, w)
@@ -590,12 +643,12 @@ class MultiKernelTracker:
         if mean_sim > cfg.similarity_gate:
             if cfg.model_update_rate > 0:
                 rate = cfg.model_update_rate
-                for i, e in enumerate(evals):
-                    if e.similarity > cfg.similarity_gate and e.n_pixels > 0:
-                        state.models[i] = (1.0 - rate) * state.models[i] + rate * e.p
+                for i in range(n_k):
+                    if sims[i] > cfg.similarity_gate and ev.n_pixels[i] > 0:
+                        state.models[i] = (1.0 - rate) * state.models[i] + rate * ev.p[i]
             scale_sim = mean_sim if cfg.scale_gate_statistic == "mean" else float(sims.min())
             if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
-                self._update_scale(padded, state, w, evals)
+                self._update_scale(search, state, w, ev)
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
         return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
@@ -604,8 +657,8 @@ class MultiKernelTracker:
                                 iterations=iterations, lost=False, cost=total,
                                 scale=state.scale, cost_history=history)
 
-    def _update_scale(self, padded: PaddedBins, state: TargetState, weights: np.ndarray,
-                      evals: list[KernelEvaluation]) -> None:
+    def _update_scale(self, search: SearchRegion, state: TargetState, weights: np.ndarray,
+                      ev: KernelBatch) -> None:
         """Eqs. (9)-(11): ``Delta s = beta r(h)``, ``s_t = s_{t-1}(1 + Delta s)``.
 
         ``r`` is the W-weighted mean of the kernels' ratios.  The kernels' offsets from the
@@ -614,7 +667,7 @@ class MultiKernelTracker:
         rescaled kernels is not higher than at the old scale.
         """
         cfg = self.config
-        r = float(np.sum(weights * np.array([e.scale_ratio for e in evals]))) / len(evals)
+        r = float(np.sum(weights * ev.scale_ratios)) / len(ev.scale_ratios)
         ds = float(np.clip(cfg.beta * r, -cfg.max_scale_change, cfg.max_scale_change))
         new_scale = float(np.clip(state.scale * (1.0 + ds), cfg.min_scale, cfg.max_scale))
         if not np.isfinite(new_scale) or new_scale == state.scale:
@@ -623,11 +676,10 @@ class MultiKernelTracker:
         centroid = state.center
         centres = centroid + (state.centres - centroid) * ratio
         if cfg.verify_scale_step:
-            trial = self._evaluate(
-                padded, self._templates(state.base_half_axes * new_scale, padded.stride),
-                centres, state.models)
-            old_cost = float(np.sum(weights * [e.cost for e in evals]))
-            new_cost = float(np.sum(weights * [e.cost for e in trial]))
+            trial = self._evaluate(search, state.base_half_axes * new_scale, centres,
+                                   state.models)
+            old_cost = float(np.sum(weights * ev.costs))
+            new_cost = float(np.sum(weights * trial.costs))
             if not new_cost <= old_cost:
                 return
         state.centres = centres
@@ -666,20 +718,16 @@ class MultiKernelTracker:
             return 0.0
         centres, axes = kernel_layout(b, state.num_kernels)
         stride = self._stride(axes)
-        bin_roi, origin = self._bins(image, region, stride)
-        if bin_roi is None:
+        search = self._search_region(image, region, stride)
+        if search is None:
             return 0.0
-        sims = []
-        for i in range(state.num_kernels):
-            sample = sample_kernel(bin_roi, origin, centres[i], axes[i], self.config.profile,
-                                   stride)
-            if sample.empty:
-                sims.append(0.0)
-                continue
-            p = kernel_histogram(sample, self.n_bins)
-            sims.append(similarity_from_cost(kl_cost(state.models[i], p,
-                                                     self.config.histogram_epsilon)))
+        sims = self._evaluate(search, axes, centres, state.models).similarities
         return float(np.clip(np.mean(sims), 0.0, 1.0))
+
+
+def _weighted_cost(weights: np.ndarray, costs: np.ndarray) -> float:
+    """``J = sum_i W_i J_i`` of (7); a kernel without pixels (infinite cost) adds nothing."""
+    return float(np.sum(weights * np.where(np.isfinite(costs), costs, 0.0)))
 
 
 def with_overrides(config: MultiKernelConfig, **changes) -> MultiKernelConfig:

@@ -200,3 +200,150 @@ def test_batched_evaluation_equals_one_kernel_at_a_time():
         assert np.allclose(batch[i].mean_shift, direct.mean_shift)
         assert batch[i].scale_ratio == pytest.approx(direct.scale_ratio, abs=1e-12)
     assert batch[2].n_pixels == 0 and batch[2].similarity == 0.0
+
+
+# -- compiled fast path (numba) against the numpy reference --------------------------------
+
+from mk_tracker.kernel_histograms import (KernelBackendError, SearchRegion,  # noqa: E402
+                                          bin_lookup_tables, compiled_kernels,
+                                          quantize_region, resolve_backend)
+
+needs_numba = pytest.mark.skipif(compiled_kernels() is None,
+                                 reason="numba not installed or MK_TRACKER_NO_NUMBA set")
+
+
+def test_lookup_tables_give_the_hsv_bins_of_opencv():
+    import cv2
+    rng = np.random.default_rng(8)
+    img = rng.integers(0, 256, size=(64, 64, 3)).astype(np.uint8)
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV).astype(np.int64)
+    h_bin = np.minimum(hsv[..., 0] * 16 // 180, 15)
+    expected = (h_bin * 8 + (hsv[..., 1] * 8 >> 8)) * 4 + (hsv[..., 2] * 4 >> 8)
+    assert np.array_equal(quantize(img, "hsv", BINS), expected)
+    assert bin_lookup_tables("bgr", (4, 4, 4))[0, 255] == 3 * 16
+    with pytest.raises(ValueError):
+        bin_lookup_tables("lab", BINS)
+
+
+def test_backend_names_are_checked():
+    assert resolve_backend("numpy") == "numpy"
+    assert resolve_backend("auto") in ("numpy", "compiled")
+    with pytest.raises(KernelBackendError):
+        resolve_backend("gpu")
+    assert issubclass(KernelBackendError, ValueError)
+
+
+def test_without_numba_auto_falls_back_and_compiled_is_refused():
+    import os
+    import subprocess
+    import sys
+    code = ("from mk_tracker.kernel_histograms import *\n"
+            "assert compiled_kernels() is None and resolve_backend('auto') == 'numpy'\n"
+            "try:\n    resolve_backend('compiled')\nexcept KernelBackendError:\n    print('refused')\n")
+    env = dict(os.environ, MK_TRACKER_NO_NUMBA="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "refused"
+
+
+@needs_numba
+def test_compiled_hsv_bins_equal_opencv_on_every_colour():
+    import cv2
+    level = np.arange(256, dtype=np.uint8)
+    img = np.empty((256, 256, 256, 3), np.uint8)
+    img[..., 0] = level[:, None, None]
+    img[..., 1] = level[None, :, None]
+    img[..., 2] = level[None, None, :]
+    img = img.reshape(4096, 4096, 3)
+    # one bin per HSV level: the bin index spells out the converted pixel
+    fast = quantize_region(img, (0, 0, 4096, 4096), 1, "hsv", (180, 256, 256), "compiled")
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    for channel, shift in ((0, 16), (1, 8), (2, 0)):
+        assert np.array_equal((fast >> shift) & 255, hsv[..., channel])
+
+
+@needs_numba
+@pytest.mark.parametrize("stride", [1, 2, 3])
+def test_compiled_quantisation_equals_numpy(stride):
+    rng = np.random.default_rng(stride)
+    img = rng.integers(0, 256, size=(90, 130, 3)).astype(np.uint8)
+    for region in [(0, 0, 130, 90), (stride * 3, stride * 2, 101, 77), (5, 7, 6, 8)]:
+        for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2))]:
+            a = quantize_region(img, region, stride, cs, bins, "compiled")
+            b = quantize_region(img, region, stride, cs, bins, "numpy")
+            assert a.dtype == np.int32 and np.array_equal(a, b)
+            x0, y0, x1, y1 = region
+            assert np.array_equal(b, quantize(img[y0:y1:stride, x0:x1:stride], cs, bins))
+    bad = img.astype(np.float32)
+    bad[10, 10] = np.nan
+    for backend in ("compiled", "numpy"):
+        assert quantize_region(bad, (0, 0, 130, 90), 1, "hsv", BINS, backend) is None
+        assert np.array_equal(quantize_region(img.astype(np.float64), (0, 0, 130, 90), 2,
+                                              "hsv", BINS, backend),
+                              quantize_region(img, (0, 0, 130, 90), 2, "hsv", BINS, "numpy"))
+
+
+def _random_case(rng, trial):
+    stride = int(rng.integers(1, 4))
+    img = rng.integers(0, 256, size=(150, 200, 3)).astype(np.uint8)
+    img[40:100, 60:120] = rng.integers(0, 256, 3)          # a blob so histograms differ
+    x0 = int(rng.integers(0, 30)) // stride * stride
+    y0 = int(rng.integers(0, 30)) // stride * stride
+    bins = quantize_region(img, (x0, y0, 200, 150), stride, "hsv", BINS, "numpy")
+    n_k = int(rng.integers(1, 6))
+    axes = rng.uniform(2.0, 35.0, size=(n_k, 2))
+    centres = rng.uniform(-20.0, 220.0, size=(n_k, 2))     # some kernels partly or all outside
+    models = rng.random((n_k, M)) * (rng.random((n_k, M)) < 0.3)
+    models /= models.sum(axis=1, keepdims=True)
+    profile = PROFILES_[trial % 2]
+    weighting = WEIGHTINGS_[(trial // 2) % 2]
+    return bins, (x0, y0), stride, axes, centres, models, profile, weighting
+
+
+PROFILES_ = ("roof", "gaussian")
+WEIGHTINGS_ = ("kl", "bhattacharyya")
+
+
+@needs_numba
+def test_compiled_kernel_evaluation_equals_the_numpy_reference():
+    rng = np.random.default_rng(12)
+    seen_empty = seen_full = 0
+    for trial in range(60):
+        bins, origin, stride, axes, centres, models, profile, weighting = \
+            _random_case(rng, trial)
+        results = [SearchRegion(bins, origin, stride, M, profile, backend).evaluate(
+            axes, centres, models, 0.01, weighting) for backend in ("compiled", "numpy")]
+        a, b = results
+        assert np.array_equal(a.n_pixels, b.n_pixels)
+        assert np.array_equal(np.isinf(a.costs), a.n_pixels == 0)
+        assert np.array_equal(np.isinf(b.costs), b.n_pixels == 0)
+        seen_empty += int(np.sum(a.n_pixels == 0))
+        seen_full += int(np.sum(a.n_pixels > 0))
+        for name in ("p", "similarities", "mean_shift", "scale_ratios"):
+            assert np.allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-9), name
+        fin = np.isfinite(b.costs)
+        assert np.allclose(a.costs[fin], b.costs[fin], rtol=0, atol=1e-9)
+    assert seen_empty > 0 and seen_full > 50      # both cases were exercised
+
+
+def test_search_region_equals_the_direct_per_kernel_evaluation():
+    from mk_tracker.kernel_histograms import evaluate_kernel
+    rng = np.random.default_rng(13)
+    for trial in range(12):
+        bins, origin, stride, axes, centres, models, profile, weighting = \
+            _random_case(rng, trial)
+        centres = rng.uniform(40.0, 160.0, size=centres.shape)   # inside the ROI
+        for backend in ("numpy", "auto"):
+            batch = SearchRegion(bins, origin, stride, M, profile, backend).evaluate(
+                axes, centres, models, 0.01, weighting)
+            for i in range(len(axes)):
+                d = evaluate_kernel(bins, origin, centres[i], axes[i], models[i],
+                                    profile=profile, weighting=weighting, stride=stride)
+                assert batch.n_pixels[i] == d.n_pixels
+                if d.n_pixels == 0:                  # a thin kernel between grid nodes
+                    assert batch.similarities[i] == 0.0 and np.isinf(batch.costs[i])
+                    continue
+                assert batch.costs[i] == pytest.approx(d.cost, abs=1e-9)
+                assert np.allclose(batch.p[i], d.p, atol=1e-12)
+                assert np.allclose(batch.mean_shift[i], d.mean_shift, atol=1e-9)
+                assert batch.scale_ratios[i] == pytest.approx(d.scale_ratio, abs=1e-9)

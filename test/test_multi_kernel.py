@@ -284,3 +284,83 @@ def test_config_is_validated_and_baseline_is_single_kernel():
     assert base.num_kernels == 1 and base.pixel_weighting == "bhattacharyya"
     assert MultiKernelConfig().max_iterations == 5 and MultiKernelConfig().beta == 9e3
     assert paper_config().epsilon_j_factor == 0.7
+
+
+# ---- the fast paths agree with their references -------------------------------------------
+
+def _scaled_svd_reference(jac, values, tol=1e-6):
+    """The projector and dx_B written out from numpy's pinv, independently of the module."""
+    norms = np.linalg.norm(jac, axis=0)
+    keep = norms > 1e-12 * max(norms.max(), 1.0)
+    a = jac[:, keep] / norms[keep]
+    b = values[keep] / norms[keep]
+    pinv_t = np.linalg.pinv(a.T, rcond=tol)
+    return a @ np.linalg.pinv(a, rcond=tol), -pinv_t @ b
+
+
+@pytest.mark.parametrize("n_kernels", [2, 3, 4, 6])
+def test_cached_projector_factors_equal_a_fresh_pseudo_inverse(n_kernels):
+    rng = np.random.default_rng(20 + n_kernels)
+    for trial in range(40):
+        x, pairs, lx, ly = _random_problem(rng, n_kernels)
+        if trial % 4 == 0:
+            x[:, 0] = x[0, 0]                       # all stacked: zero x-gradients
+        if trial % 4 == 1:
+            x[1] = x[0]                             # two kernels on top of each other
+        jac = constraint_jacobian(x, pairs, lx, ly)
+        c = constraint_values(x, pairs, lx, ly)
+        for _ in range(2):                          # the second call hits the cache
+            proj, dx_b = constraint_projector(jac, c)
+            ref_proj, ref_dx_b = _scaled_svd_reference(jac, c)
+            assert np.allclose(proj, ref_proj, atol=1e-12)
+            assert np.allclose(dx_b, ref_dx_b, atol=1e-10 * (1 + np.abs(ref_dx_b).max()))
+
+
+def test_projector_of_a_general_matrix_is_not_taken_from_the_cache():
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        jac = rng.normal(size=(6, 4))
+        jac[:, 1] *= 1e-3
+        c = rng.normal(size=4)
+        proj, dx_b = constraint_projector(jac, c)
+        ref_proj, ref_dx_b = _scaled_svd_reference(jac, c)
+        assert np.allclose(proj, ref_proj, atol=1e-10) and np.allclose(dx_b, ref_dx_b)
+
+
+def test_constraint_values_and_jacobian_follow_their_formulas():
+    centres = np.array([[10.0, 20.0], [13.0, 60.0], [4.0, 41.0]])
+    pairs = kernel_pairs(3)
+    lx, ly = np.array([2.0, 5.0, 9.0]), np.array([30.0, 20.0, 19.0])
+    c = constraint_values(centres, pairs, lx, ly)
+    jac = constraint_jacobian(centres, pairs, lx, ly)
+    # pair (0, 2): dx = 6, dy = -21
+    assert c[2] == pytest.approx((36 - 25) / 26) and c[3] == pytest.approx((441 - 400) / 401)
+    assert jac[0, 2] == pytest.approx(12 / 26) and jac[4, 2] == pytest.approx(-12 / 26)
+    assert jac[1, 3] == pytest.approx(-42 / 401) and jac[5, 3] == pytest.approx(42 / 401)
+    assert np.count_nonzero(jac) == 12
+
+
+def _tracks(backend, n_kernels, frames):
+    tracker = MultiKernelTracker(MultiKernelConfig(num_kernels=n_kernels), backend=backend)
+    state = tracker.start(_smooth_scene(), (140, 70, 40, 100))
+    out = []
+    for k in range(1, frames + 1):
+        res = tracker.refine(_smooth_scene((3 * k, k)), state)
+        out.append(np.r_[res.box, res.similarity, res.cost, state.scale, res.iterations])
+    return np.array(out), tracker.appearance_similarity(_smooth_scene((3 * frames, frames)),
+                                                        state, (150, 75, 40, 100))
+
+
+@pytest.mark.skipif(__import__("mk_tracker.kernel_histograms", fromlist=["x"]
+                               ).compiled_kernels() is None, reason="numba not available")
+@pytest.mark.parametrize("n_kernels", [1, 2, 4])
+def test_compiled_and_numpy_trackers_give_the_same_results(n_kernels):
+    a, sim_a = _tracks("compiled", n_kernels, 4)
+    b, sim_b = _tracks("numpy", n_kernels, 4)
+    assert np.allclose(a, b, rtol=0, atol=1e-6)
+    assert sim_a == pytest.approx(sim_b, abs=1e-9) and sim_a > 0.5
+
+
+def test_unknown_backend_is_a_tracking_input_error():
+    with pytest.raises(TrackingInputError, match="backend"):
+        MultiKernelTracker(backend="opencl")
