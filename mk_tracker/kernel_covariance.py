@@ -196,38 +196,91 @@ def kernel_table(max_level: int, scale: float, sigma2: float) -> np.ndarray:
     return np.exp(-(d * d) / (2.0 * _check_sigma2(sigma2)))
 
 
-def _levels_covariance_loops(levels, table, out):
-    n_blocks, n_frames, p = levels.shape
+def _levels_block_covariance(x, table, same, cross, o):
+    """(3.5) of one block of integer levels ``x`` ``(F, p)`` into ``o`` ``(p, p)``.
+
+    ``same`` and ``cross`` are ``(p, p)`` scratch arrays.  Plain Python, compiled with numba
+    (see :func:`compiled_level_kernels`); the batch function and the detector's fused
+    per-block loop both call it, so there is one implementation.
+    """
+    n_frames, p = x.shape
     inv_f = 1.0 / n_frames
     inv_f2 = inv_f * inv_f
+    same[:, :] = 0.0
+    cross[:, :] = 0.0
+    for a in range(n_frames):
+        for i in range(p):
+            xi = x[a, i]
+            for j in range(i + 1, p):
+                same[i, j] += table[abs(xi - x[a, j])]
+        for c in range(a + 1, n_frames):
+            for i in range(p):
+                xi = x[a, i]
+                for j in range(p):
+                    cross[i, j] += table[abs(xi - x[c, j])]
+    for i in range(p):
+        # diagonal: same-frame kernel is 1 for each of the F frames
+        o[i, i] = (n_frames * (inv_f - inv_f2)) - (cross[i, i] + cross[i, i]) * inv_f2
+        for j in range(i + 1, p):
+            v = same[i, j] * (inv_f - inv_f2) - (cross[i, j] + cross[j, i]) * inv_f2
+            o[i, j] = v
+            o[j, i] = v
+
+
+def _levels_block_variance(x, table, out):
+    """Diagonal of (3.5) of one block of integer levels ``x`` ``(F, p)`` into ``out`` ``(p,)``:
+    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])``."""
+    n_frames, p = x.shape
+    scale = 2.0 / (n_frames * n_frames)
+    for i in range(p):
+        acc = 0.0
+        for a in range(n_frames):
+            xa = x[a, i]
+            for c in range(a + 1, n_frames):
+                acc += 1.0 - table[abs(xa - x[c, i])]
+        out[i] = acc * scale
+
+
+def _levels_covariance_loops(levels, table, out):
+    n_blocks, n_frames, p = levels.shape
     same = np.zeros((p, p))
     cross = np.zeros((p, p))
     for b in range(n_blocks):
-        x = levels[b]
-        same[:, :] = 0.0
-        cross[:, :] = 0.0
-        for a in range(n_frames):
-            for i in range(p):
-                xi = x[a, i]
-                for j in range(i + 1, p):
-                    same[i, j] += table[abs(xi - x[a, j])]
-            for c in range(a + 1, n_frames):
-                for i in range(p):
-                    xi = x[a, i]
-                    for j in range(p):
-                        cross[i, j] += table[abs(xi - x[c, j])]
-        o = out[b]
-        for i in range(p):
-            # diagonal: same-frame kernel is 1 for each of the F frames
-            o[i, i] = (n_frames * (inv_f - inv_f2)) - (cross[i, i] + cross[i, i]) * inv_f2
-            for j in range(i + 1, p):
-                v = same[i, j] * (inv_f - inv_f2) - (cross[i, j] + cross[j, i]) * inv_f2
-                o[i, j] = v
-                o[j, i] = v
+        _levels_block_covariance(levels[b], table, same, cross, out[b])
     return out
 
 
-_LEVELS_KERNEL: list = []
+def _levels_variance_loops(levels, table, out):
+    for b in range(levels.shape[0]):
+        _levels_block_variance(levels[b], table, out[b])
+    return out
+
+
+_LEVEL_KERNELS: list = []
+
+
+def compiled_level_kernels() -> dict | None:
+    """The numba-compiled level kernels (``block_covariance``, ``block_variance``,
+    ``covariance``, ``variance``), or ``None`` without numba or with the environment variable
+    ``MK_TRACKER_NO_NUMBA`` set.  Compiled once per process, cached on disk."""
+    if _LEVEL_KERNELS:
+        return _LEVEL_KERNELS[0]
+    try:
+        if os.environ.get("MK_TRACKER_NO_NUMBA"):
+            raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
+        import numba
+    except ImportError:
+        _LEVEL_KERNELS.append(None)
+        return None
+    global _levels_block_covariance, _levels_block_variance
+    _levels_block_covariance = numba.njit(cache=True)(_levels_block_covariance)
+    _levels_block_variance = numba.njit(cache=True)(_levels_block_variance)
+    kernels = {"block_covariance": _levels_block_covariance,
+               "block_variance": _levels_block_variance,
+               "covariance": numba.njit(cache=True)(_levels_covariance_loops),
+               "variance": numba.njit(cache=True)(_levels_variance_loops)}
+    _LEVEL_KERNELS.append(kernels)
+    return kernels
 
 
 def block_kernel_covariance_levels(levels: np.ndarray, table: np.ndarray) -> np.ndarray:
@@ -242,39 +295,13 @@ def block_kernel_covariance_levels(levels: np.ndarray, table: np.ndarray) -> np.
     tab = np.ascontiguousarray(table, dtype=np.float64)
     if lv.size and int(lv.max()) - int(lv.min()) >= tab.size:
         raise KernelCovarianceError("level differences exceed the kernel table")
-    if not _LEVELS_KERNEL:
-        try:
-            if os.environ.get("MK_TRACKER_NO_NUMBA"):
-                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-            import numba
-            _LEVELS_KERNEL.append(numba.njit(cache=True)(_levels_covariance_loops))
-        except ImportError:
-            _LEVELS_KERNEL.append(None)
+    kernels = compiled_level_kernels()
     out = np.empty((lv.shape[0], lv.shape[2], lv.shape[2]))
-    kernel = _LEVELS_KERNEL[0]
-    if kernel is None:      # numpy fallback: the generic path on the scaled values
+    if kernels is None:      # numpy fallback: the generic path on the scaled values
         scale = float(np.sqrt(-2.0 * np.log(tab[1]))) if tab.size > 1 and tab[1] < 1 else 1.0
         # table[1] = exp(-s^2 / 2 sigma^2) -> rebuild values in units where sigma^2 = 1
         return block_kernel_covariance(lv * scale, 1.0, dtype=np.float64)
-    return kernel(lv, tab, out)
-
-
-def _levels_variance_loops(levels, table, out):
-    n_blocks, n_frames, p = levels.shape
-    scale = 2.0 / (n_frames * n_frames)
-    for b in range(n_blocks):
-        x = levels[b]
-        for i in range(p):
-            acc = 0.0
-            for a in range(n_frames):
-                xa = x[a, i]
-                for c in range(a + 1, n_frames):
-                    acc += 1.0 - table[abs(xa - x[c, i])]
-            out[b, i] = acc * scale
-    return out
-
-
-_LEVELS_VARIANCE: list = []
+    return kernels["covariance"](lv, tab, out)
 
 
 def block_variance_levels(levels: np.ndarray, table: np.ndarray) -> np.ndarray:
@@ -289,20 +316,12 @@ def block_variance_levels(levels: np.ndarray, table: np.ndarray) -> np.ndarray:
     tab = np.ascontiguousarray(table, dtype=np.float64)
     if lv.size and int(lv.max()) - int(lv.min()) >= tab.size:
         raise KernelCovarianceError("level differences exceed the kernel table")
-    if not _LEVELS_VARIANCE:
-        try:
-            if os.environ.get("MK_TRACKER_NO_NUMBA"):
-                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-            import numba
-            _LEVELS_VARIANCE.append(numba.njit(cache=True)(_levels_variance_loops))
-        except ImportError:
-            _LEVELS_VARIANCE.append(None)
+    kernels = compiled_level_kernels()
     out = np.zeros((lv.shape[0], lv.shape[2]))
-    kernel = _LEVELS_VARIANCE[0]
-    if kernel is None:
+    if kernels is None:
         n_frames = lv.shape[1]
         for a in range(n_frames):
             for c in range(a + 1, n_frames):
                 out += 1.0 - tab[np.abs(lv[:, a, :] - lv[:, c, :])]
         return out * (2.0 / (n_frames * n_frames))
-    return kernel(lv, tab, out)
+    return kernels["variance"](lv, tab, out)

@@ -290,6 +290,57 @@ def _minimizer_scalar(c1, c2, lam):
     return 0.0
 
 
+def _factorize_block(sb, m, prev, norms, gram, lam, n_cols, max_cycles, tol):
+    """Algorithm 1 on one block: ``sb`` ``(p, p)``, factor ``m`` ``(p, R)`` (zeros on entry,
+    the result on exit); ``prev``, ``norms``, ``gram`` are scratch arrays.  Returns
+    ``(cycles, converged)``.  The detector's fused per-block loop calls it as well."""
+    p = sb.shape[0]
+    cycles = 0
+    for cycle in range(1, max_cycles + 1):
+        prev[:, :] = m
+        for r in range(n_cols):
+            for r2 in range(n_cols):
+                acc = 0.0
+                for mu in range(p):
+                    acc += m[mu, r] * m[mu, r2]
+                gram[r, r2] = acc
+            norms[r] = gram[r, r]
+        for j in range(p):
+            for r in range(n_cols):
+                old = m[j, r]
+                rjj = sb[j, j]
+                cross = 0.0
+                for mu in range(p):
+                    cross += sb[j, mu] * m[mu, r]
+                cross -= sb[j, j] * old
+                for r2 in range(n_cols):
+                    if r2 != r:
+                        mj2 = m[j, r2]
+                        rjj -= mj2 * mj2
+                        cross -= mj2 * (gram[r2, r] - mj2 * old)
+                c1 = 2.0 * (norms[r] - old * old) - 2.0 * rjj
+                c2 = -4.0 * cross
+                new = _minimizer_scalar(c1, c2, lam)
+                if new != old:
+                    m[j, r] = new
+                    norms[r] += new * new - old * old
+                    gram[r, r] = norms[r]
+                    for r2 in range(n_cols):
+                        if r2 != r:
+                            upd = (new - old) * m[j, r2]
+                            gram[r, r2] += upd
+                            gram[r2, r] += upd
+        change = 0.0
+        for mu in range(p):
+            for r in range(n_cols):
+                d = m[mu, r] - prev[mu, r]
+                change += d * d
+        cycles = cycle
+        if np.sqrt(change) <= tol:
+            return cycles, True
+    return cycles, False
+
+
 def _factorize_loops(s, lam, n_cols, max_cycles, tol):
     n_blocks, p, _ = s.shape
     out = np.zeros((n_blocks, p, n_cols))
@@ -299,51 +350,8 @@ def _factorize_loops(s, lam, n_cols, max_cycles, tol):
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
     for b in range(n_blocks):
-        m = out[b]
-        sb = s[b]
-        for cycle in range(1, max_cycles + 1):
-            prev[:, :] = m
-            for r in range(n_cols):
-                for r2 in range(n_cols):
-                    acc = 0.0
-                    for mu in range(p):
-                        acc += m[mu, r] * m[mu, r2]
-                    gram[r, r2] = acc
-                norms[r] = gram[r, r]
-            for j in range(p):
-                for r in range(n_cols):
-                    old = m[j, r]
-                    rjj = sb[j, j]
-                    cross = 0.0
-                    for mu in range(p):
-                        cross += sb[j, mu] * m[mu, r]
-                    cross -= sb[j, j] * old
-                    for r2 in range(n_cols):
-                        if r2 != r:
-                            mj2 = m[j, r2]
-                            rjj -= mj2 * mj2
-                            cross -= mj2 * (gram[r2, r] - mj2 * old)
-                    c1 = 2.0 * (norms[r] - old * old) - 2.0 * rjj
-                    c2 = -4.0 * cross
-                    new = _minimizer_scalar(c1, c2, lam)
-                    if new != old:
-                        m[j, r] = new
-                        norms[r] += new * new - old * old
-                        gram[r, r] = norms[r]
-                        for r2 in range(n_cols):
-                            if r2 != r:
-                                upd = (new - old) * m[j, r2]
-                                gram[r, r2] += upd
-                                gram[r2, r] += upd
-            change = 0.0
-            for mu in range(p):
-                for r in range(n_cols):
-                    d = m[mu, r] - prev[mu, r]
-                    change += d * d
-            cycles[b] = cycle
-            if np.sqrt(change) <= tol:
-                converged[b] = True
-                break
+        cycles[b], converged[b] = _factorize_block(s[b], out[b], prev, norms, gram, lam,
+                                                   n_cols, max_cycles, tol)
     return out, cycles, converged
 
 
@@ -362,9 +370,16 @@ def _compiled_kernel():
     except ImportError:
         _COMPILED.append(None)
         return None
-    global _root_scalar, _minimizer_scalar
+    global _root_scalar, _minimizer_scalar, _factorize_block
     _root_scalar = numba.njit(cache=True)(_root_scalar)
     _minimizer_scalar = numba.njit(cache=True)(_minimizer_scalar)
+    _factorize_block = numba.njit(cache=True)(_factorize_block)
     kernel = numba.njit(cache=True)(_factorize_loops)
     _COMPILED.append(kernel)
     return kernel
+
+
+def compiled_block_factorizer():
+    """The numba-compiled :func:`_factorize_block` (one block, scratch arrays passed in), or
+    ``None`` when the compiled backend is unavailable."""
+    return _factorize_block if _compiled_kernel() is not None else None

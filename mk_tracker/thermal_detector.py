@@ -70,6 +70,7 @@ from __future__ import annotations
 
 import collections
 import math
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -79,14 +80,17 @@ import numpy as np
 from mk_tracker.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
-from mk_tracker.kernel_covariance import (block_kernel_covariance,
+from mk_tracker.kernel_covariance import (_levels_block_covariance, _levels_block_variance,
+                                          block_kernel_covariance,
                                           block_kernel_covariance_levels,
-                                          block_variance_levels, kernel_table,
-                                          pixel_kernel_variance, range_for_variance)
+                                          block_variance_levels, compiled_level_kernels,
+                                          kernel_table, pixel_kernel_variance,
+                                          range_for_variance)
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.pixel_clustering import (cluster_support_pixels, describe_pixels, link_groups,
                                          merge_linked)
-from mk_tracker.sparse_factorization import sparse_factorize, zero_factor_threshold
+from mk_tracker.sparse_factorization import (_factorize_block, compiled_block_factorizer,
+                                             sparse_factorize, zero_factor_threshold)
 from mk_tracker.stamps import checked_stamp
 from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
                                       normalization_map, robust_range)
@@ -171,7 +175,7 @@ class SupportResult:
     """Support of the stacked factors (5.1) of one region and the kernel variance per pixel."""
 
     support: np.ndarray      # (h, w) bool
-    variance: np.ndarray     # (h, w) float32, Sigma(j, j) where computed, else 0
+    variance: np.ndarray     # (h, w) float32, Sigma(j, j) in the factored blocks, else 0
     blocks_total: int
     blocks_factored: int
 
@@ -193,7 +197,7 @@ TABLE_LEVELS = 4096
 
 def support_in_frame(window: np.ndarray, config: ThermalDetectorConfig, scale: float = 1.0,
                      integer_levels: bool = False, block_mask: np.ndarray | None = None,
-                     chunk: int = 512) -> SupportResult:
+                     chunk: int = 512, backend: str = "auto") -> SupportResult:
     """Support of the stacked sparse factors (5.1) of a ``(F, h, w)`` window.
 
     The window is padded to multiples of ``rho`` (with zeros, which never enter a support)
@@ -205,17 +209,71 @@ def support_in_frame(window: np.ndarray, config: ThermalDetectorConfig, scale: f
     the kernel variance in window units is ``sigma^2 / scale^2``.  With ``integer_levels``
     (mono8/mono16 frames, integer offset) (3.5) is evaluated with a table of (3.6) over
     level differences instead of exponentials (same values).
+
+    ``backend``: ``"numpy"`` (blocks gathered into batches: variance, then kernel covariance
+    and Algorithm 1 of the active ones -- the reference), ``"compiled"`` (integer levels
+    only: one numba loop that does the same per block, without gathering; needs numba) or
+    ``"auto"`` (compiled when it applies and numba is available).
     """
+    win = np.asarray(window)
+    if win.ndim != 3:
+        raise ThermalInputError(f"window must be (F, h, w), got shape {win.shape}")
+    return _support(win, np.arange(win.shape[0]), 0.0, config, scale, integer_levels,
+                    block_mask, chunk, backend)
+
+
+def _block_list(nby: int, nbx: int, block_mask: np.ndarray | None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    if block_mask is None:
+        by, bx = np.divmod(np.arange(nby * nbx), nbx)
+        return by, bx
+    return np.nonzero(block_mask)
+
+
+def _support(frames: np.ndarray, order: np.ndarray, offset: float,
+             config: ThermalDetectorConfig, scale: float, integer_levels: bool,
+             block_mask: np.ndarray | None, chunk: int = 512,
+             backend: str = "auto") -> SupportResult:
+    """:func:`support_in_frame` of the window ``frames[order] - offset`` (``frames`` may be
+    the detector's ring buffer: the compiled path reads it in place)."""
+    if backend not in ("auto", "numpy", "compiled"):
+        raise ThermalInputError(f"unknown backend {backend!r}")
     rho = config.block_size
+    _, h, w = frames.shape
+    nby, nbx = -(-h // rho), -(-w // rho)
     sigma2 = config.sigma2 / (scale * scale)
     threshold = zero_factor_threshold(config.lam)
+    fused = _fused_kernel() if backend != "numpy" else None
+    if backend == "compiled" and (fused is None or not integer_levels):
+        raise ThermalInputError("the compiled support path needs numba and integer levels")
+    if fused is not None and integer_levels:
+        off = np.float32(offset)
+        sub = frames[order] if order.size != frames.shape[0] else frames
+        lo, hi = float(sub.min()) - float(off), float(sub.max()) - float(off)
+        # padding is level 0; every level difference must be inside the table
+        if max(hi, 0.0) - min(lo, 0.0) < TABLE_LEVELS:
+            by, bx = _block_list(nby, nbx, block_mask)
+            support = np.zeros((h, w), dtype=bool)
+            variance = np.zeros((h, w), dtype=np.float32)
+            factored = fused(frames, np.ascontiguousarray(order, dtype=np.int64), off,
+                             by.astype(np.int64), bx.astype(np.int64), rho,
+                             _kernel_table(sigma2), threshold,
+                             range_for_variance(threshold, sigma2), config.lam,
+                             config.columns, config.max_cycles, config.tol, support, variance)
+            return SupportResult(support, variance, int(by.size), int(factored))
+    window = frames[order] - np.float32(offset)
+    return _support_numpy(window, config, sigma2, threshold, integer_levels, block_mask, chunk)
+
+
+def _support_numpy(window: np.ndarray, config: ThermalDetectorConfig, sigma2: float,
+                   threshold: float, integer_levels: bool, block_mask: np.ndarray | None,
+                   chunk: int) -> SupportResult:
+    """Reference path: gather the blocks, batch the variance, factor the active blocks."""
+    rho = config.block_size
     n_frames, h, w = window.shape
     padded = _pad_to(window, rho)
     nby, nbx = padded.shape[1] // rho, padded.shape[2] // rho
-    if block_mask is None:
-        by, bx = np.divmod(np.arange(nby * nbx), nbx)
-    else:
-        by, bx = np.nonzero(block_mask)
+    by, bx = _block_list(nby, nbx, block_mask)
     p = rho * rho
     blocks = (padded.reshape(n_frames, nby, rho, nbx, rho)[:, by, :, bx, :]
               .reshape(by.size, n_frames, p))
@@ -232,7 +290,9 @@ def support_in_frame(window: np.ndarray, config: ThermalDetectorConfig, scale: f
         variance = np.zeros((by.size, p), dtype=np.float32)
         if candidates.any():
             variance = pixel_kernel_variance(blocks.transpose(1, 0, 2), sigma2, mask=candidates)
-    active = np.flatnonzero((variance > np.float32(threshold)).any(axis=1))
+    is_active = (variance > np.float32(threshold)).any(axis=1)
+    variance[~is_active] = 0.0
+    active = np.flatnonzero(is_active)
     supports = np.zeros((by.size, p), dtype=bool)
     work = blocks[active]
     for start in range(0, active.size, chunk):
@@ -252,6 +312,129 @@ def support_in_frame(window: np.ndarray, config: ThermalDetectorConfig, scale: f
     sup_img = sup.reshape(nby, nbx, rho, rho).transpose(0, 2, 1, 3).reshape(nby * rho, nbx * rho)
     var_img = var.reshape(nby, nbx, rho, rho).transpose(0, 2, 1, 3).reshape(nby * rho, nbx * rho)
     return SupportResult(sup_img[:h, :w], var_img[:h, :w], by.size, int(active.size))
+
+
+def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_range, lam,
+                   n_cols, max_cycles, tol, support, variance):
+    """Compiled per-block loop of :func:`_support_numpy` on integer levels, same arithmetic.
+
+    For each listed block: its levels ``frames[order[t]] - offset`` (0 outside the frame,
+    like the zero padding); blocks where no pixel's temporal range exceeds ``max_range``
+    are skipped (their variance is provably <= ``threshold``); the others get the diagonal
+    of (3.5), and if some pixel's variance exceeds ``threshold`` the kernel covariance (3.5)
+    and Algorithm 1.  Writes ``support``/``variance`` (frame-sized) of the factored blocks
+    and returns their number.
+    """
+    n_frames = order.shape[0]
+    h, w = support.shape
+    p = rho * rho
+    x = np.zeros((n_frames, p), dtype=np.int32)
+    var = np.zeros(p)
+    sigma = np.zeros((p, p))
+    same = np.zeros((p, p))
+    cross = np.zeros((p, p))
+    m = np.zeros((p, n_cols))
+    prev = np.zeros((p, n_cols))
+    norms = np.zeros(n_cols)
+    gram = np.zeros((n_cols, n_cols))
+    factored = 0
+    for b in range(by.shape[0]):
+        y0 = by[b] * rho
+        x0 = bx[b] * rho
+        moving = False
+        for i in range(p):
+            yy = y0 + i // rho
+            xx = x0 + i % rho
+            if yy < h and xx < w:
+                lo = hi = np.int32(frames[order[0], yy, xx] - offset)
+                x[0, i] = lo
+                for t in range(1, n_frames):
+                    v = np.int32(frames[order[t], yy, xx] - offset)
+                    x[t, i] = v
+                    if v < lo:
+                        lo = v
+                    elif v > hi:
+                        hi = v
+                if hi - lo > max_range:
+                    moving = True
+            else:
+                for t in range(n_frames):
+                    x[t, i] = 0
+        if not moving:
+            continue
+        _levels_block_variance(x, table, var)
+        active = False
+        for i in range(p):
+            if var[i] > threshold:
+                active = True
+                break
+        if not active:
+            continue
+        factored += 1
+        _levels_block_covariance(x, table, same, cross, sigma)
+        m[:, :] = 0.0
+        _factorize_block(sigma, m, prev, norms, gram, lam, n_cols, max_cycles, tol)
+        for i in range(p):
+            yy = y0 + i // rho
+            xx = x0 + i % rho
+            if yy < h and xx < w:
+                variance[yy, xx] = var[i]
+                on = False
+                for r in range(n_cols):
+                    if m[i, r] != 0.0:
+                        on = True
+                support[yy, xx] = on
+    return factored
+
+
+_FUSED: list = []
+
+
+def _fused_kernel():
+    """:func:`_support_loops` compiled with numba (with the compiled level kernels and block
+    factorizer it calls), or ``None`` without numba / with ``MK_TRACKER_NO_NUMBA`` set."""
+    if _FUSED:
+        return _FUSED[0]
+    level = compiled_level_kernels()
+    block = compiled_block_factorizer()
+    if level is None or block is None:
+        _FUSED.append(None)
+        return None
+    import numba
+    global _levels_block_variance, _levels_block_covariance, _factorize_block
+    _levels_block_variance = level["block_variance"]
+    _levels_block_covariance = level["block_covariance"]
+    _factorize_block = block
+    kernel = numba.njit(cache=True)(_support_loops)
+    _drop_stale_cache(kernel)
+    _FUSED.append(kernel)
+    return _FUSED[0]
+
+
+def _drop_stale_cache(kernel: Any) -> None:
+    """numba's disk cache of a function is keyed on its own source file only, but the
+    compiled :func:`_support_loops` contains the level kernels and the block factorizer of
+    two other modules: when their source changes, drop its cache (recompiled on first use)."""
+    import hashlib
+    from mk_tracker import kernel_covariance, sparse_factorization
+    digest = hashlib.sha256()
+    for module in (kernel_covariance, sparse_factorization):
+        with open(module.__file__, "rb") as fh:
+            digest.update(fh.read())
+    try:
+        path = os.path.join(kernel._cache.cache_path, "thermal_detector._support_loops.deps")
+        with open(path, encoding="ascii") as fh:
+            known = fh.read().strip()
+    except (OSError, AttributeError):
+        known = None
+    if known == digest.hexdigest():
+        return
+    try:
+        kernel._cache.flush()
+        with open(path, "w", encoding="ascii") as fh:
+            fh.write(digest.hexdigest())
+    except (OSError, AttributeError, NameError):
+        pass           # an unwritable cache: numba compiles in memory anyway
 
 
 _TABLES: dict[float, np.ndarray] = {}
@@ -287,6 +470,142 @@ class _Candidate:
     pixel_count: int
 
 
+#: "not computed yet" marker for a footprint (``None`` means "computed: nothing there")
+_UNSET: Any = object()
+
+
+class _VoronoiCell:
+    """Pixels whose centre is at least as close to prediction ``k`` as to every other one
+    (the (5.2) windows of neighbours overlap; each pixel goes to the nearest prediction)."""
+
+    def __init__(self, centres: np.ndarray, k: int) -> None:
+        self.centres = centres
+        self.k = k
+
+    def __call__(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
+        """Bool mask of the cell over rows ``y0:y1``, columns ``x0:x1``."""
+        gx = np.arange(x0, x1) + 0.5
+        gy = (np.arange(y0, y1) + 0.5)[:, None]
+        cx, cy = self.centres[self.k]
+        d_own = (gx - cx) ** 2 + (gy - cy) ** 2
+        allowed = np.ones(d_own.shape, dtype=bool)
+        # a prediction farther from the patch than the patch's farthest corner is from the
+        # own prediction can win no pixel of it (exact skip)
+        reach = max(abs(x0 - cx), abs(x1 - cx)) ** 2 + max(abs(y0 - cy), abs(y1 - cy)) ** 2
+        for j, (ox, oy) in enumerate(self.centres):
+            if j == self.k:
+                continue
+            dx = max(x0 - ox, 0.0, ox - x1)
+            dy = max(y0 - oy, 0.0, oy - y1)
+            if dx * dx + dy * dy > reach:
+                continue
+            allowed &= d_own <= (gx - ox) ** 2 + (gy - oy) ** 2
+        return allowed
+
+
+_NO_CENTRES = np.zeros((0, 2))
+
+
+def _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, state):
+    """Compiled footprint of :meth:`ThermalDetector._footprint` over the patch of ``state``
+    (``(ph, pw)`` int8 zeros at ``(y0, x0)``): the polarity from the support pixels
+    ``(rows, cols)``, then a flood fill (8-connectivity) from them through the pixels with
+    ``polarity * (newest - level) > radius`` that lie in the Voronoi cell of ``centres[k]``
+    (``k < 0``: no cell).  Same arithmetic as the numpy path.  Marks the object's pixels 1
+    (others visited 2) and returns their number (0: no footprint)."""
+    n_seeds = rows.shape[0]
+    valid = 0
+    warmer = 0
+    for s in range(n_seeds):
+        d = newest[rows[s], cols[s]] - level
+        if abs(d) > radius:
+            valid += 1
+            if d > 0:
+                warmer += 1
+    if valid == 0:
+        return 0
+    polarity = np.float32(1.0) if 2 * warmer >= valid else np.float32(-1.0)
+    ph, pw = state.shape
+    stack = np.empty(ph * pw, dtype=np.int64)     # every pixel is pushed at most once
+    top = 0
+    count = 0
+    for s in range(n_seeds):
+        r0 = rows[s] - y0
+        c0 = cols[s] - x0
+        if state[r0, c0] != 0:
+            continue
+        if not _in_footprint(newest, r0 + y0, c0 + x0, level, polarity, radius, centres, k):
+            state[r0, c0] = 2
+            continue
+        state[r0, c0] = 1
+        count += 1
+        stack[0] = r0 * pw + c0
+        top = 1
+        while top > 0:
+            top -= 1
+            r = stack[top] // pw
+            c = stack[top] % pw
+            for rr in range(max(r - 1, 0), min(r + 2, ph)):
+                for cc in range(max(c - 1, 0), min(c + 2, pw)):
+                    if state[rr, cc] != 0:
+                        continue
+                    if _in_footprint(newest, rr + y0, cc + x0, level, polarity, radius,
+                                     centres, k):
+                        state[rr, cc] = 1
+                        count += 1
+                        stack[top] = rr * pw + cc
+                        top += 1
+                    else:
+                        state[rr, cc] = 2
+    return count
+
+
+def _in_footprint(newest, y, x, level, polarity, radius, centres, k):
+    """Pixel test of :func:`_footprint_loops`: dissimilar to the background on the object's
+    side, and in the Voronoi cell of ``centres[k]`` (ties included) when ``k >= 0``."""
+    if not (newest[y, x] - level) * polarity > radius:
+        return False
+    if k < 0:
+        return True
+    gx = x + 0.5
+    gy = y + 0.5
+    d_own = (gx - centres[k, 0]) ** 2 + (gy - centres[k, 1]) ** 2
+    for j in range(centres.shape[0]):
+        if j != k and d_own > (gx - centres[j, 0]) ** 2 + (gy - centres[j, 1]) ** 2:
+            return False
+    return True
+
+
+_FOOTPRINT: list = []
+
+
+def _footprint_kernel():
+    """:func:`_footprint_loops` compiled with numba, or ``None`` (no numba, or
+    ``MK_TRACKER_NO_NUMBA`` set)."""
+    if not _FOOTPRINT:
+        try:
+            if os.environ.get("MK_TRACKER_NO_NUMBA"):
+                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
+            import numba
+            global _in_footprint
+            _in_footprint = numba.njit(cache=True)(_in_footprint)
+            _FOOTPRINT.append(numba.njit(cache=True)(_footprint_loops))
+        except ImportError:
+            _FOOTPRINT.append(None)
+    return _FOOTPRINT[0]
+
+
+def _median(values: np.ndarray) -> np.float32:
+    """``np.median`` of a 1-D float32 array (same value: the middle element, or the float32
+    mean of the two middle ones), by one partition without numpy's generic reduction."""
+    n = values.size
+    half = n // 2
+    if n % 2:
+        return np.float32(np.partition(values, half)[half])
+    part = np.partition(values, (half - 1, half))
+    return np.float32((part[half - 1] + part[half]) / np.float32(2.0))
+
+
 def _similarity_radius(sigma2: float) -> float:
     """``|a - b|`` at which the kernel (3.6) equals 1/2: ``sigma sqrt(2 ln 2)``."""
     return math.sqrt(2.0 * sigma2 * math.log(2.0))
@@ -309,6 +628,8 @@ class ThermalDetector:
         c = self.config
         if c.normalization == "fixed" and not c.range_max > c.range_min:
             raise ThermalInputError("range_max must be above range_min for fixed normalisation")
+        # (ring slot, stamp) of the frames in the window, oldest first; the frames themselves
+        # live in the ring buffer self._ring (one array, no per-frame stacking)
         self._buffer: collections.deque = collections.deque(
             maxlen=max(c.window_frames, c.startup_frames))
         self.resets = 0
@@ -332,6 +653,8 @@ class ThermalDetector:
         self._since_full: int | None = None
         self._map: tuple[float, float] | None = None
         self._integer = False
+        self._ring: np.ndarray | None = None
+        self._frames_seen = 0
 
     def reset(self) -> None:
         """Forget every frame and object (counters are kept)."""
@@ -378,7 +701,13 @@ class ThermalDetector:
         filled, _ = fill_missing(raw, self._last_filled)
         self._last_filled = filled
         self._shape, self._encoding, self._last_stamp = raw.shape, enc, t
-        self._buffer.append((filled, t))
+        n_slots = self._buffer.maxlen
+        if self._ring is None or self._ring.shape[1:] != filled.shape:
+            self._ring = np.empty((n_slots,) + filled.shape, dtype=np.float32)
+        slot = self._frames_seen % n_slots
+        self._frames_seen += 1
+        self._ring[slot] = filled
+        self._buffer.append((slot, t))
         c = self.config
         if self._since_full is None:
             if len(self._buffer) < c.startup_frames:
@@ -411,13 +740,13 @@ class ThermalDetector:
         self._map = (offset, scale)
         self._integer = integer and float(offset).is_integer()
 
-    def _window(self, n_frames: int, y0: int = 0, y1: int | None = None, x0: int = 0,
-                x1: int | None = None) -> np.ndarray:
-        """``(raw - offset)`` of the last ``n_frames`` frames over a region, float32."""
-        frames = [f for f, _ in list(self._buffer)[-n_frames:]]
-        stack = np.stack([f[y0:y1, x0:x1] for f in frames])
-        stack -= np.float32(self._map[0])
-        return stack
+    def _order(self, n_frames: int) -> np.ndarray:
+        """Ring slots of the last ``n_frames`` frames, oldest first."""
+        return np.array([slot for slot, _ in list(self._buffer)[-n_frames:]], dtype=np.int64)
+
+    def _newest(self) -> np.ndarray:
+        """``(raw - offset)`` of the newest frame, float32 (window units)."""
+        return self._ring[self._buffer[-1][0]] - np.float32(self._map[0])
 
     # -- passes ----------------------------------------------------------------------------
     def _full_pass(self) -> list[ThermalDetection]:
@@ -425,10 +754,11 @@ class ThermalDetector:
         c = self.config
         self.full_passes += 1
         self._since_full = 0
-        frames = [f for f, _ in list(self._buffer)[-c.startup_frames:]]
-        self._update_map(frames)
-        window = self._window(c.startup_frames)
-        result = support_in_frame(window, c, self._map[1], self._integer)
+        order = self._order(c.startup_frames)
+        self._update_map([self._ring[i] for i in order])
+        result = _support(self._ring, order, self._map[0], c, self._map[1], self._integer, None)
+        newest = self._newest()
+        bounds = (0, newest.shape[0], 0, newest.shape[1])
         rows, cols = np.nonzero(result.support)
         candidates: list[_Candidate] = []
         if rows.size:
@@ -439,19 +769,26 @@ class ThermalDetector:
                 labels = merge_linked(labels, link_groups(result.support, c.link_gap)[rows, cols])
             groups = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)]
             groups = [g for g in groups if g.size >= c.min_object_pixels]
+            footprints: list[Any] = [_UNSET] * len(groups)
             if c.current_frame_refinement and c.merge_by_footprint and len(groups) > 1:
-                groups = self._merge_by_footprint(window, result, rows, cols, groups)
-            for g in groups:
-                cand = self._candidate(window, result, rows[g], cols[g], 0, 0)
+                groups, footprints = self._merge_by_footprint(newest, result.support, rows,
+                                                              cols, groups, bounds)
+            for g, fp in zip(groups, footprints):
+                cand = self._candidate(newest, result, rows[g], cols[g], bounds, footprint=fp)
                 if cand is not None:
                     candidates.append(cand)
         return self._reassociate(candidates)
 
-    def _merge_by_footprint(self, window: np.ndarray, result: SupportResult, rows: np.ndarray,
-                            cols: np.ndarray, groups: list[np.ndarray]) -> list[np.ndarray]:
+    def _merge_by_footprint(self, newest: np.ndarray, support: np.ndarray, rows: np.ndarray,
+                            cols: np.ndarray, groups: list[np.ndarray],
+                            bounds: tuple[int, int, int, int]
+                            ) -> tuple[list[np.ndarray], list[Any]]:
         """Clusters whose newest-frame footprints share pixels are one object (a large
-        object's swept support can fall apart into bands; its footprint does not)."""
-        owner = np.full(window.shape[1:], -1, dtype=np.int64)
+        object's swept support can fall apart into bands; its footprint does not).
+
+        Returns the merged groups and, for each, its footprint when it was computed here
+        (a group left alone) or ``_UNSET`` (a merged group: recomputed by the caller)."""
+        owner = np.full(newest.shape, -1, dtype=np.int64)
         parent = list(range(len(groups)))
 
         def find(a: int) -> int:
@@ -460,8 +797,10 @@ class ThermalDetector:
                 a = parent[a]
             return a
 
+        prints = []
         for k, g in enumerate(groups):
-            fp = self._footprint(window, result, rows[g], cols[g])
+            fp = self._footprint(newest, support, rows[g], cols[g], bounds)
+            prints.append(fp)
             if fp is None:
                 continue
             (y0, x0), mask = fp
@@ -469,40 +808,55 @@ class ThermalDetector:
             for other in np.unique(region[mask & (region >= 0)]):
                 parent[find(int(other))] = find(k)
             region[mask] = k
-        merged: dict[int, list[np.ndarray]] = {}
-        for k, g in enumerate(groups):
-            merged.setdefault(find(k), []).append(g)
-        return [np.concatenate(v) for v in merged.values()]
+        merged: dict[int, list[int]] = {}
+        for k in range(len(groups)):
+            merged.setdefault(find(k), []).append(k)
+        out_groups = [np.concatenate([groups[k] for k in v]) for v in merged.values()]
+        out_prints = [prints[v[0]] if len(v) == 1 else _UNSET for v in merged.values()]
+        return out_groups, out_prints
 
-    def _footprint(self, window: np.ndarray, result: SupportResult, rows: np.ndarray,
-                   cols: np.ndarray, allowed: np.ndarray | None = None
+    def _footprint(self, newest: np.ndarray, support: np.ndarray, rows: np.ndarray,
+                   cols: np.ndarray, bounds: tuple[int, int, int, int],
+                   cell: _VoronoiCell | None = None
                    ) -> tuple[tuple[int, int], np.ndarray] | None:
-        """Newest-frame pixels of the object whose support is ``(rows, cols)``.
+        """Newest-frame pixels of the object whose support is ``(rows, cols)`` (frame
+        coordinates), searched inside ``bounds`` ``(y0, y1, x0, x1)`` (its (5.2) window, or
+        the frame).
 
         Inside the support's bounding box grown by ``window_margin`` plus half its larger
         side (parts of the object that did not move have no support), the pixels dissimilar
         to the local background (kernel (3.6) below 1/2; background = median of the
         non-support pixels there) and on the same side of it as most of the support (warmer or
         colder) form connected components; those touching the support are the object.
-        ``allowed`` (window-sized bool) restricts them.  Returns
-        ``((y0, x0), mask)`` or ``None`` when there is nothing.
+        ``cell`` (the object's :class:`_VoronoiCell`), when given, restricts them.
+        Returns ``((y0, x0), mask)`` in frame coordinates, or ``None`` when there is nothing.
+
+        The thresholding and the components are one compiled flood fill from the support
+        pixels (:func:`_footprint_loops`) when numba is available, else numpy and
+        ``cv2.connectedComponents`` (the reference; a test checks they agree).
         """
         c = self.config
-        newest = window[-1]
-        h, w = newest.shape
+        by0, by1, bx0, bx1 = bounds
         r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
         m = c.window_margin + max(r1 - r0, c1 - c0) // 2       # room for parts that stood still
-        y0, y1 = max(r0 - m, 0), min(r1 + m, h)
-        x0, x1 = max(c0 - m, 0), min(c1 + m, w)
+        y0, y1 = max(r0 - m, by0), min(r1 + m, by1)
+        x0, x1 = max(c0 - m, bx0), min(c1 + m, bx1)
         patch = newest[y0:y1, x0:x1]
-        background = patch[~result.support[y0:y1, x0:x1]]
+        background = patch[~support[y0:y1, x0:x1]]
         if background.size == 0:
-            background = newest[~result.support]
+            background = newest[by0:by1, bx0:bx1][~support[by0:by1, bx0:bx1]]
         if background.size == 0:
             return None
         step = max(1, background.size // 2048)     # a stride sample is enough for a median
-        level = np.float32(np.median(background[::step]))
+        level = _median(background[::step])
         radius = np.float32(_similarity_radius(c.sigma2) / self._map[1])   # window units
+        compiled = _footprint_kernel()
+        if compiled is not None:
+            state = np.zeros((y1 - y0, x1 - x0), dtype=np.int8)
+            centres, k = (cell.centres, cell.k) if cell is not None else (_NO_CENTRES, -1)
+            if compiled(newest, y0, x0, level, radius, rows, cols, centres, k, state) == 0:
+                return None
+            return (y0, x0), state == 1
         diff = patch - level
         at_support = diff[rows - y0, cols - x0]
         at_support = at_support[np.abs(at_support) > radius]
@@ -512,8 +866,8 @@ class ThermalDetector:
         polarity = np.float32(1.0 if 2 * np.count_nonzero(at_support > 0) >= at_support.size
                               else -1.0)
         fg = (diff * polarity > radius).astype(np.uint8)
-        if allowed is not None:
-            fg &= allowed[y0:y1, x0:x1].astype(np.uint8)
+        if cell is not None:
+            fg &= cell(y0, y1, x0, x1).astype(np.uint8)
         n, labels = cv2.connectedComponents(fg, connectivity=8)
         if n <= 1:
             return None
@@ -524,23 +878,27 @@ class ThermalDetector:
             return None
         return (y0, x0), lut[labels]
 
-    def _candidate(self, window: np.ndarray, result: SupportResult, rows: np.ndarray,
-                   cols: np.ndarray, oy: int, ox: int,
-                   allowed: np.ndarray | None = None) -> _Candidate | None:
-        """Detection from support pixels ``(rows, cols)`` of a window at offset (oy, ox)."""
+    def _candidate(self, newest: np.ndarray, result: SupportResult, rows: np.ndarray,
+                   cols: np.ndarray, bounds: tuple[int, int, int, int],
+                   cell: _VoronoiCell | None = None, footprint: Any = _UNSET
+                   ) -> _Candidate | None:
+        """Detection from support pixels ``(rows, cols)`` (frame coordinates); ``footprint``
+        is reused when the caller has it already (``_UNSET``: compute it)."""
         c = self.config
         score = float(min(1.0, result.variance[rows, cols].mean() / 0.5))
         if not c.current_frame_refinement:
-            swept = describe_pixels(cols + ox, rows + oy)
+            swept = describe_pixels(cols, rows)
             return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
-        fp = self._footprint(window, result, rows, cols, allowed)
+        fp = footprint
+        if fp is _UNSET:
+            fp = self._footprint(newest, result.support, rows, cols, bounds, cell)
         if fp is None:
             return None          # support the object has left: a trailing "ghost", no object
         (y0, x0), mask = fp
         fr, fc = np.nonzero(mask)
         if fr.size < c.min_object_pixels:
             return None
-        now = describe_pixels(fc + x0 + ox, fr + y0 + oy)
+        now = describe_pixels(fc + x0, fr + y0)
         return _Candidate(now.centroid, now.box, score, now.pixel_count)
 
     def _reassociate(self, candidates: list[_Candidate]) -> list[ThermalDetection]:
@@ -607,7 +965,9 @@ class ThermalDetector:
         """Algorithm 2, lines 3-6: each object searched in its (5.2) window, F frames.
 
         The windows are snapped to the global ``rho`` grid so that overlapping windows share
-        blocks, and the union of their blocks is factored once.
+        blocks, and the union of their blocks is factored once.  Support pixels and
+        footprint pixels belong to the object whose predicted centroid is nearest (ties to
+        both); the distances of the support pixels to all predictions are computed once.
         """
         c = self.config
         if not self._tracks:
@@ -621,7 +981,8 @@ class ThermalDetector:
         mask = np.zeros((nby, nbx), dtype=bool)
         regions, preds = [], []
         for tr in self._tracks:
-            state, _ = tr.kf.predicted(stamp - tr.stamp)
+            state = tr.kf.predict(stamp - tr.stamp)          # (4.2)-(4.3)
+            tr.stamp = stamp
             preds.append(state)
             reach = c.window_margin + math.hypot(state[2], state[3]) * span
             # (5.2): a w_s x h_s window around the prediction, w_s >= w_s^0, mod(w_s, rho) = 0
@@ -634,41 +995,29 @@ class ThermalDetector:
                 continue
             mask[by0:by1, bx0:bx1] = True
             regions.append((by0 * rho, min(by1 * rho, h), bx0 * rho, min(bx1 * rho, w)))
-        window = self._window(c.window_frames)
-        result = support_in_frame(window, c, self._map[1], self._integer, block_mask=mask)
+        result = _support(self._ring, self._order(c.window_frames), self._map[0], c,
+                          self._map[1], self._integer, mask)
+        rows, cols = np.nonzero(result.support)
+        centres = np.array([(s[0], s[1]) for s in preds])
+        if rows.size:
+            px = cols + 0.5
+            py = rows + 0.5
+            dist = (px[:, None] - centres[None, :, 0]) ** 2 + (py[:, None] - centres[None, :, 1]) ** 2
+            nearest = dist.min(axis=1)
+        newest = self._newest() if c.current_frame_refinement and rows.size else None
         detections: list[ThermalDetection] = []
         kept: list[_Track] = []
-        for tr, state, region in zip(self._tracks, preds, regions):
-            dt = stamp - tr.stamp
+        for k, (tr, state, region) in enumerate(zip(self._tracks, preds, regions)):
             cand = None
-            if region is not None:
+            if region is not None and rows.size:
                 y0, y1, x0, x1 = region
-                sub = SupportResult(result.support[y0:y1, x0:x1], result.variance[y0:y1, x0:x1],
-                                    0, 0)
-                rows, cols = np.nonzero(sub.support)
-                if rows.size >= c.min_object_pixels:
-                    # support pixels belong to the object whose predicted centroid is nearest
-                    px = cols + 0.5 + x0
-                    py = rows + 0.5 + y0
-                    own = (px - state[0]) ** 2 + (py - state[1]) ** 2
-                    mine = np.ones(rows.size, dtype=bool)
-                    for other in preds:
-                        if other is not state:
-                            mine &= own <= (px - other[0]) ** 2 + (py - other[1]) ** 2
+                inside = (rows >= y0) & (rows < y1) & (cols >= x0) & (cols < x1)
+                if np.count_nonzero(inside) >= c.min_object_pixels:
+                    mine = inside & (dist[:, k] <= nearest)
                     if np.count_nonzero(mine) >= c.min_object_pixels:
-                        allowed = None
-                        if len(preds) > 1:
-                            gx = np.arange(x0, x1) + 0.5
-                            gy = (np.arange(y0, y1) + 0.5)[:, None]
-                            d_own = (gx - state[0]) ** 2 + (gy - state[1]) ** 2
-                            allowed = np.ones(d_own.shape, dtype=bool)
-                            for other in preds:
-                                if other is not state:
-                                    allowed &= d_own <= (gx - other[0]) ** 2 + (gy - other[1]) ** 2
-                        cand = self._candidate(window[:, y0:y1, x0:x1], sub, rows[mine],
-                                               cols[mine], y0, x0, allowed)
-            tr.kf.predict(dt)
-            tr.stamp = stamp
+                        cell = _VoronoiCell(centres, k) if len(preds) > 1 else None
+                        cand = self._candidate(newest, result, rows[mine], cols[mine], region,
+                                               cell)
             if cand is None:
                 tr.missed += 1
                 if tr.missed <= c.max_missed:
