@@ -84,8 +84,8 @@ import numpy as np
 from mk_tracker.boxes import BoxLike, InvalidBoxError, as_box, clip_box
 from mk_tracker.kernel_histograms import (  # noqa: F401  (evaluate_kernel: re-exported)
     COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES, InvalidImageError, KernelBackendError,
-    KernelBatch, SearchRegion, check_image, evaluate_kernel, number_of_bins, quantize_region,
-    resolve_backend)
+    KernelBatch, SearchRegion, check_image, compiled_kernels, evaluate_kernel, number_of_bins,
+    quantize_region, resolve_backend)
 from mk_tracker.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_layout, kernels_bounding_box
 from mk_tracker.parameters import parameter, validate_config
 
@@ -359,6 +359,133 @@ def projected_gradient_step(jx: np.ndarray, jac: np.ndarray, values: np.ndarray,
     return dx_a, dx_b
 
 
+def _constrained_step_loops(x, pairs, lx, ly, jx, weights, alpha, use_projected_gradient,
+                            values, dx_a, dx_b):
+    """``C(x)``, ``dx_A`` and ``dx_B`` of (8) for the constraints (12)-(13) in closed form
+    (compiled with numba; :func:`projected_gradient_step` on :func:`constraint_jacobian` is
+    the reference and the two agree to rounding, tested).
+
+    The scaled ``C_x`` of :func:`constraint_projector` has, per coordinate axis, one column
+    ``+-(e_i - e_j)/sqrt(2)`` for every pair whose gradient is kept: the incidence matrix of a
+    graph on the kernels.  The projector on its span is ``I`` minus the averaging over each
+    connected component, so ``dx_A = -alpha`` times the component mean of ``W J_x`` (the
+    kernels of a component move together); ``dx_B``, the
+    minimum-norm least-squares solution of (A.1), solves the graph Laplacian system
+    ``L dx = B t`` with per-pair Newton steps ``t = -c / c'`` and zero mean per component
+    (``(L + sum_C 1_C 1_C^T) dx = B t``, Cholesky).  Singular values of such a matrix are 0 or
+    at least 0.2 times the largest for up to 6 kernels, so ``rank_tolerance <= 0.1`` cuts
+    exactly the zero ones, as the SVD does.
+    """
+    n_k = x.shape[0]
+    n_p = pairs.shape[0]
+    grad = np.zeros((n_p, 2))
+    largest = 0.0
+    for p in range(n_p):
+        i = pairs[p, 0]
+        j = pairs[p, 1]
+        for a in range(2):
+            length = lx[p] if a == 0 else ly[p]
+            l2 = length * length
+            d = x[i, a] - x[j, a]
+            values[2 * p + a] = (d * d - l2) / (l2 + 1.0)
+            g = 2.0 * d / (l2 + 1.0)
+            grad[p, a] = g
+            largest = max(largest, np.sqrt(g * g + g * g))
+    threshold = 1e-12 * max(largest, 1.0)
+    label = np.empty(n_k, dtype=np.int64)
+    size = np.empty(n_k)
+    mean = np.empty(n_k)
+    mat = np.empty((n_k, n_k))
+    rhs = np.empty(n_k)
+    for a in range(2):
+        # connected components of the kept pairs (labels by repeated relaxation)
+        for i in range(n_k):
+            label[i] = i
+        changed = True
+        while changed:
+            changed = False
+            for p in range(n_p):
+                g = grad[p, a]
+                if not np.sqrt(g * g + g * g) > threshold:
+                    continue
+                i = pairs[p, 0]
+                j = pairs[p, 1]
+                lo = min(label[i], label[j])
+                if label[i] != lo or label[j] != lo:
+                    label[i] = lo
+                    label[j] = lo
+                    changed = True
+        for i in range(n_k):
+            size[i] = 0.0
+            mean[i] = 0.0
+        for i in range(n_k):
+            size[label[i]] += 1.0
+            mean[label[i]] += weights[i] * jx[2 * i + a]
+        for i in range(n_k):
+            wj = weights[i] * jx[2 * i + a]
+            if use_projected_gradient:       # the common translation of the component
+                dx_a[2 * i + a] = -alpha * (mean[label[i]] / size[label[i]])
+            else:
+                dx_a[2 * i + a] = -alpha * wj
+        # (L + sum_C 1_C 1_C^T) dx = B t
+        for i in range(n_k):
+            rhs[i] = 0.0
+            for j in range(n_k):
+                mat[i, j] = 1.0 if label[i] == label[j] else 0.0
+        for p in range(n_p):
+            g = grad[p, a]
+            if not np.sqrt(g * g + g * g) > threshold:
+                continue
+            i = pairs[p, 0]
+            j = pairs[p, 1]
+            t = -values[2 * p + a] / g
+            mat[i, i] += 1.0
+            mat[j, j] += 1.0
+            mat[i, j] -= 1.0
+            mat[j, i] -= 1.0
+            rhs[i] += t
+            rhs[j] -= t
+        # Cholesky of the symmetric positive definite matrix, in place (lower triangle)
+        for j in range(n_k):
+            acc = mat[j, j]
+            for k in range(j):
+                acc -= mat[j, k] * mat[j, k]
+            mat[j, j] = np.sqrt(acc)
+            for i in range(j + 1, n_k):
+                acc = mat[i, j]
+                for k in range(j):
+                    acc -= mat[i, k] * mat[j, k]
+                mat[i, j] = acc / mat[j, j]
+        for i in range(n_k):
+            acc = rhs[i]
+            for k in range(i):
+                acc -= mat[i, k] * rhs[k]
+            rhs[i] = acc / mat[i, i]
+        for i in range(n_k - 1, -1, -1):
+            acc = rhs[i]
+            for k in range(i + 1, n_k):
+                acc -= mat[k, i] * rhs[k]
+            rhs[i] = acc / mat[i, i]
+        for i in range(n_k):
+            dx_b[2 * i + a] = rhs[i]
+    return values
+
+
+_COMPILED_STEP: list = []
+
+
+def _compiled_step():
+    """:func:`_constrained_step_loops` compiled with numba, or None (no numba, or
+    ``MK_TRACKER_NO_NUMBA``; the same switch as :mod:`mk_tracker.kernel_histograms`)."""
+    if not _COMPILED_STEP:
+        if compiled_kernels() is None:
+            _COMPILED_STEP.append(None)
+        else:
+            import numba
+            _COMPILED_STEP.append(numba.njit(cache=True)(_constrained_step_loops))
+    return _COMPILED_STEP[0]
+
+
 def adaptive_weights(similarities: np.ndarray) -> np.ndarray:
     """``W_i ~ sim_i`` normalised to sum ``N`` (7)-(8); uniform when every sim is 0."""
     s = np.asarray(similarities, dtype=np.float64)
@@ -596,6 +723,11 @@ class MultiKernelTracker:
         max_step = cfg.max_step_fraction * axes
         models = state.models
 
+        # the compiled closed-form step (same results as the numpy functions, tested)
+        step_loops = _compiled_step() if self.backend == "compiled" else None
+        if step_loops is not None:
+            c = np.empty(2 * len(state.pairs))
+            dx_a, dx_b = np.empty(2 * n_k), np.empty(2 * n_k)
         ev = self._evaluate(search, axes, x, models)
         iterations = 0
         history = []
@@ -603,16 +735,21 @@ class MultiKernelTracker:
             w = adaptive_weights(ev.similarities) if cfg.adaptive_weights else np.ones(n_k)
             total = _weighted_cost(w, ev.costs)
             history.append(total)
-            c = constraint_values(x, state.pairs, lx, ly)
+            jx = -ev.mean_shift.reshape(-1)
+            if step_loops is not None:
+                step_loops(x, state.pairs, lx, ly, jx, w, cfg.alpha,
+                           cfg.use_projected_gradient, c, dx_a, dx_b)
+            else:
+                c = constraint_values(x, state.pairs, lx, ly)
             c_ok = bool(np.all(np.abs(c) < eps_c))
             j_ok = total < eps_j
             if c_ok and j_ok:
                 break
-            jx = -ev.mean_shift.reshape(-1)
-            jac = constraint_jacobian(x, state.pairs, lx, ly)
-            dx_a, dx_b = projected_gradient_step(jx, jac, c, w, cfg.alpha,
-                                                 cfg.use_projected_gradient,
-                                                 cfg.rank_tolerance)
+            if step_loops is None:
+                jac = constraint_jacobian(x, state.pairs, lx, ly)
+                dx_a, dx_b = projected_gradient_step(jx, jac, c, w, cfg.alpha,
+                                                     cfg.use_projected_gradient,
+                                                     cfg.rank_tolerance)
             if c_ok:
                 dx = dx_a
             elif j_ok:

@@ -364,3 +364,35 @@ def test_compiled_and_numpy_trackers_give_the_same_results(n_kernels):
 def test_unknown_backend_is_a_tracking_input_error():
     with pytest.raises(TrackingInputError, match="backend"):
         MultiKernelTracker(backend="opencl")
+
+
+@pytest.mark.skipif(__import__("mk_tracker.multi_kernel", fromlist=["x"])._compiled_step()
+                    is None, reason="numba not available")
+@pytest.mark.parametrize("n_kernels", [2, 3, 4, 5, 6])
+def test_compiled_closed_form_step_equals_the_svd_step(n_kernels):
+    from mk_tracker.multi_kernel import _compiled_step
+    step = _compiled_step()
+    rng = np.random.default_rng(30 + n_kernels)
+    pairs = kernel_pairs(n_kernels)
+    for trial in range(60):
+        start = rng.uniform(0, 100, size=(n_kernels, 2))
+        if trial % 5 == 0:
+            start[:, 0] = start[0, 0]                # stacked: L_x = 0 for every pair
+        if trial % 7 == 0:
+            start[1] = start[0]                      # two kernels with the same centre
+        lx, ly = pair_distances(start, pairs)
+        x = start + rng.normal(0, 3, size=start.shape) * (trial % 3 != 0)
+        if trial % 11 == 0:
+            x[:, 1] = x[0, 1]                        # every y-gradient zero
+        jx = rng.normal(size=2 * n_kernels)
+        w = adaptive_weights(rng.uniform(0.1, 1, n_kernels))
+        for use_pg in (True, False):
+            jac = constraint_jacobian(x, pairs, lx, ly)
+            c = constraint_values(x, pairs, lx, ly)
+            ref_a, ref_b = projected_gradient_step(jx, jac, c, w, 0.7, use_pg)
+            values = np.empty(2 * len(pairs))
+            dx_a, dx_b = np.empty(2 * n_kernels), np.empty(2 * n_kernels)
+            step(np.ascontiguousarray(x), pairs, lx, ly, jx, w, 0.7, use_pg, values, dx_a, dx_b)
+            assert np.allclose(values, c, rtol=0, atol=1e-12)
+            assert np.allclose(dx_a, ref_a, rtol=0, atol=1e-9)
+            assert np.allclose(dx_b, ref_b, rtol=0, atol=1e-9 * (1 + np.abs(ref_b).max()))
