@@ -481,8 +481,13 @@ class PaddedBins:
         w = ratio.reshape(-1)[kid * m + b]
         wg = w * g
         gv = g * v
-        sums = np.stack([np.bincount(kid, weights=x, minlength=n_k)
-                         for x in (k, wg, wg * ox, wg * oy, w * k, w * gv, gv)], axis=1)
+        # per-kernel sums: the pixels of kernel i are the contiguous run ends[i]-counts[i]..
+        per_pixel = np.stack([k, wg, wg * ox, wg * oy, w * k, w * gv, gv])
+        starts = np.cumsum(counts) - counts
+        sums = np.zeros((n_k, 7))
+        filled = counts > 0
+        if per_pixel.shape[1]:
+            sums[filled] = np.add.reduceat(per_pixel, starts[filled], axis=1).T
         batch = _batch_from_sums(hist, counts, costs, sums, axes)
         return batch, (b, k, g, ox, oy, v, w, counts)
 
@@ -528,13 +533,17 @@ def _batch_from_sums(hist: np.ndarray, counts: np.ndarray, costs: np.ndarray,
     sk, s, sx, sy, wk, wgv, gv = (sums[:, j] for j in range(7))
     totals = hist.sum(axis=1)
     valid = (counts > 0) & (totals > 0)
+    h2 = axes[:, 0] ** 2 + axes[:, 1] ** 2
+    if valid.all() and (s > 0).all() and (wk > 0).all():      # the common case, fewer calls
+        return KernelBatch(hist / totals[:, None], costs, np.exp(-np.maximum(costs, 0.0)),
+                           np.stack([sx / s, sy / s], axis=1), counts.astype(np.int64),
+                           2.0 / h2 * (wgv / wk - gv / sk))
     p = np.where(valid[:, None], hist / np.where(valid, totals, 1.0)[:, None], 0.0)
     costs = np.where(valid, costs, np.inf)
     sims = np.where(valid, np.exp(-np.maximum(costs, 0.0)), 0.0)
     moving = valid & (s > 0)
     safe_s = np.where(moving, s, 1.0)
     ms = np.where(moving[:, None], np.stack([sx / safe_s, sy / safe_s], axis=1), 0.0)
-    h2 = axes[:, 0] ** 2 + axes[:, 1] ** 2
     scaled = valid & (wk > 0)
     ratios = np.where(scaled, 2.0 / h2 * (wgv / np.where(scaled, wk, 1.0)
                                           - gv / np.where(sk > 0, sk, 1.0)), 0.0)
