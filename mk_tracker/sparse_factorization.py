@@ -91,13 +91,18 @@ def coordinate_minimizer(c1: np.ndarray, c2: np.ndarray, lam: float) -> np.ndarr
       a minimum: the roots of a depressed cubic sum to zero, so the smallest is <= 0, and the
       middle one is a maximum.
 
-    The root is kept if it beats ``J(0) = 0`` (ties go to 0).
+    The root is kept if it beats ``J(0) = 0`` (ties go to 0).  Most coordinates stay 0, and
+    that is decided without the root: on ``y > 0``, ``J(y) = y (y^3 + c1 y + lambda - a)``
+    and ``y^3 + c1 y`` has its minimum ``-2 t^(3/2)`` at ``y = sqrt(t)``, ``t = max(-c1/3, 0)``,
+    so ``J >= 0`` there iff ``lambda - a >= 2 t^(3/2)``.
     """
     c1 = np.asarray(c1, dtype=np.float64)
     c2 = np.asarray(c2, dtype=np.float64)
     a = np.abs(c2)
+    t = np.maximum(-c1 / 3.0, 0.0)
+    zero = lam - a >= 2.0 * t * np.sqrt(t)
     y = largest_real_root(0.5 * c1, 0.25 * (lam - a))
-    y = np.where(y > 0, y, 0.0)
+    y = np.where((y > 0) & ~zero, y, 0.0)
     y2 = y * y
     cost = y2 * y2 + c1 * y2 - a * y + lam * y
     tiny = -1e-15 * (1.0 + np.abs(c1) + a)
@@ -280,6 +285,9 @@ def _root_scalar(p, q):
 
 def _minimizer_scalar(c1, c2, lam):
     a = abs(c2)
+    t = max(-c1 / 3.0, 0.0)
+    if lam - a >= 2.0 * t * np.sqrt(t):      # J >= 0 = J(0) on y > 0: no root needed
+        return 0.0
     y = _root_scalar(0.5 * c1, 0.25 * (lam - a))
     if y <= 0:
         return 0.0
@@ -290,12 +298,17 @@ def _minimizer_scalar(c1, c2, lam):
     return 0.0
 
 
-def _factorize_block(sb, m, prev, norms, gram, lam, n_cols, max_cycles, tol):
+def _factorize_block(sb, m, prev, sv, norms, gram, lam, n_cols, max_cycles, tol):
     """Algorithm 1 on one block: ``sb`` ``(p, p)``, factor ``m`` ``(p, R)`` (zeros on entry,
-    the result on exit); ``prev``, ``norms``, ``gram`` are scratch arrays.  Returns
-    ``(cycles, converged)``.  The detector's fused per-block loop calls it as well."""
+    the result on exit); ``prev``, ``sv`` (``(p, R)``), ``norms``, ``gram`` are scratch
+    arrays.  Returns ``(cycles, converged)``.  The detector's fused per-block loop calls it
+    as well.
+
+    ``sv = Sigma M`` is kept up to date (a column update when an entry changes; most stay
+    0), so the sum ``sum_mu Sigma(j, mu) M(mu, r)`` of (3.9) is read, not recomputed."""
     p = sb.shape[0]
     cycles = 0
+    sv[:, :] = 0.0
     for cycle in range(1, max_cycles + 1):
         prev[:, :] = m
         for r in range(n_cols):
@@ -309,10 +322,7 @@ def _factorize_block(sb, m, prev, norms, gram, lam, n_cols, max_cycles, tol):
             for r in range(n_cols):
                 old = m[j, r]
                 rjj = sb[j, j]
-                cross = 0.0
-                for mu in range(p):
-                    cross += sb[j, mu] * m[mu, r]
-                cross -= sb[j, j] * old
+                cross = sv[j, r] - sb[j, j] * old
                 for r2 in range(n_cols):
                     if r2 != r:
                         mj2 = m[j, r2]
@@ -323,6 +333,9 @@ def _factorize_block(sb, m, prev, norms, gram, lam, n_cols, max_cycles, tol):
                 new = _minimizer_scalar(c1, c2, lam)
                 if new != old:
                     m[j, r] = new
+                    delta = new - old
+                    for mu in range(p):
+                        sv[mu, r] += sb[mu, j] * delta
                     norms[r] += new * new - old * old
                     gram[r, r] = norms[r]
                     for r2 in range(n_cols):
@@ -347,10 +360,11 @@ def _factorize_loops(s, lam, n_cols, max_cycles, tol):
     cycles = np.zeros(n_blocks, dtype=np.int64)
     converged = np.zeros(n_blocks, dtype=np.bool_)
     prev = np.zeros((p, n_cols))
+    sv = np.zeros((p, n_cols))
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
     for b in range(n_blocks):
-        cycles[b], converged[b] = _factorize_block(s[b], out[b], prev, norms, gram, lam,
+        cycles[b], converged[b] = _factorize_block(s[b], out[b], prev, sv, norms, gram, lam,
                                                    n_cols, max_cycles, tol)
     return out, cycles, converged
 

@@ -87,8 +87,8 @@ from mk_tracker.kernel_covariance import (_levels_block_covariance, _levels_bloc
                                           kernel_table, pixel_kernel_variance,
                                           range_for_variance)
 from mk_tracker.parameters import parameter, validate_config
-from mk_tracker.pixel_clustering import (cluster_support_pixels, describe_pixels, link_groups,
-                                         merge_linked)
+from mk_tracker.pixel_clustering import (PixelObject, cluster_support_pixels, describe_pixels,
+                                         link_groups, merge_linked)
 from mk_tracker.sparse_factorization import (_factorize_block, compiled_block_factorizer,
                                              sparse_factorize, zero_factor_threshold)
 from mk_tracker.stamps import checked_stamp
@@ -247,20 +247,17 @@ def _support(frames: np.ndarray, order: np.ndarray, offset: float,
     if backend == "compiled" and (fused is None or not integer_levels):
         raise ThermalInputError("the compiled support path needs numba and integer levels")
     if fused is not None and integer_levels:
-        off = np.float32(offset)
-        sub = frames[order] if order.size != frames.shape[0] else frames
-        lo, hi = float(sub.min()) - float(off), float(sub.max()) - float(off)
-        # padding is level 0; every level difference must be inside the table
-        if max(hi, 0.0) - min(lo, 0.0) < TABLE_LEVELS:
-            by, bx = _block_list(nby, nbx, block_mask)
-            support = np.zeros((h, w), dtype=bool)
-            variance = np.zeros((h, w), dtype=np.float32)
-            factored = fused(frames, np.ascontiguousarray(order, dtype=np.int64), off,
-                             by.astype(np.int64), bx.astype(np.int64), rho,
-                             _kernel_table(sigma2), threshold,
-                             range_for_variance(threshold, sigma2), config.lam,
-                             config.columns, config.max_cycles, config.tol, support, variance)
+        by, bx = _block_list(nby, nbx, block_mask)
+        support = np.zeros((h, w), dtype=bool)
+        variance = np.zeros((h, w), dtype=np.float32)
+        factored = fused(frames, np.ascontiguousarray(order, dtype=np.int64), np.float32(offset),
+                         by.astype(np.int64), bx.astype(np.int64), rho,
+                         _kernel_table(sigma2), threshold,
+                         range_for_variance(threshold, sigma2), config.lam,
+                         config.columns, config.max_cycles, config.tol, support, variance)
+        if factored >= 0:
             return SupportResult(support, variance, int(by.size), int(factored))
+        # a block's levels span more than the table: the exponential path
     window = frames[order] - np.float32(offset)
     return _support_numpy(window, config, sigma2, threshold, integer_levels, block_mask, chunk)
 
@@ -323,11 +320,12 @@ def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_ran
     are skipped (their variance is provably <= ``threshold``); the others get the diagonal
     of (3.5), and if some pixel's variance exceeds ``threshold`` the kernel covariance (3.5)
     and Algorithm 1.  Writes ``support``/``variance`` (frame-sized) of the factored blocks
-    and returns their number.
+    and returns their number, or -1 if a block's levels span more than the ``table``.
     """
     n_frames = order.shape[0]
     h, w = support.shape
     p = rho * rho
+    n_levels = table.shape[0]
     x = np.zeros((n_frames, p), dtype=np.int32)
     var = np.zeros(p)
     sigma = np.zeros((p, p))
@@ -335,31 +333,46 @@ def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_ran
     cross = np.zeros((p, p))
     m = np.zeros((p, n_cols))
     prev = np.zeros((p, n_cols))
+    sv = np.zeros((p, n_cols))
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
     factored = 0
     for b in range(by.shape[0]):
         y0 = by[b] * rho
         x0 = bx[b] * rho
+        inside = y0 + rho <= h and x0 + rho <= w
+        if not inside:
+            x[:, :] = 0                              # the zero padding at the frame edge
         moving = False
+        block_lo = 0 if not inside else n_levels
+        block_hi = 0 if not inside else -n_levels
+        for t in range(n_frames):
+            f = frames[order[t]]
+            for dy in range(rho):
+                if y0 + dy >= h:
+                    break
+                row = f[y0 + dy]
+                for dx in range(rho):
+                    if x0 + dx >= w:
+                        break
+                    x[t, dy * rho + dx] = np.int32(row[x0 + dx] - offset)
         for i in range(p):
-            yy = y0 + i // rho
-            xx = x0 + i % rho
-            if yy < h and xx < w:
-                lo = hi = np.int32(frames[order[0], yy, xx] - offset)
-                x[0, i] = lo
-                for t in range(1, n_frames):
-                    v = np.int32(frames[order[t], yy, xx] - offset)
-                    x[t, i] = v
-                    if v < lo:
-                        lo = v
-                    elif v > hi:
-                        hi = v
-                if hi - lo > max_range:
-                    moving = True
-            else:
-                for t in range(n_frames):
-                    x[t, i] = 0
+            lo = x[0, i]
+            hi = lo
+            for t in range(1, n_frames):
+                v = x[t, i]
+                if v < lo:
+                    lo = v
+                elif v > hi:
+                    hi = v
+            if hi - lo > max_range:
+                moving = True
+            if lo < block_lo:
+                block_lo = lo
+            if hi > block_hi:
+                block_hi = hi
+        if block_hi - block_lo >= n_levels:
+            return -1
         if not moving:
             continue
         _levels_block_variance(x, table, var)
@@ -373,17 +386,20 @@ def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_ran
         factored += 1
         _levels_block_covariance(x, table, same, cross, sigma)
         m[:, :] = 0.0
-        _factorize_block(sigma, m, prev, norms, gram, lam, n_cols, max_cycles, tol)
-        for i in range(p):
-            yy = y0 + i // rho
-            xx = x0 + i % rho
-            if yy < h and xx < w:
-                variance[yy, xx] = var[i]
+        _factorize_block(sigma, m, prev, sv, norms, gram, lam, n_cols, max_cycles, tol)
+        for dy in range(rho):
+            if y0 + dy >= h:
+                break
+            for dx in range(rho):
+                if x0 + dx >= w:
+                    break
+                i = dy * rho + dx
+                variance[y0 + dy, x0 + dx] = var[i]
                 on = False
                 for r in range(n_cols):
                     if m[i, r] != 0.0:
                         on = True
-                support[yy, xx] = on
+                support[y0 + dy, x0 + dx] = on
     return factored
 
 
@@ -560,6 +576,73 @@ def _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, stat
     return count
 
 
+def _background_level(newest, support, y0, y1, x0, x1, buf):
+    """Median (as :func:`_median`) of a stride sample of at most ~2048 of the non-support
+    pixels of ``newest[y0:y1, x0:x1]`` in row-major order, like the numpy path's
+    ``patch[~support][::step]``; NaN when there is none."""
+    n = 0
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            if not support[y, x]:
+                buf[n] = newest[y, x]
+                n += 1
+    if n == 0:
+        return np.float32(np.nan)
+    step = max(1, n // 2048)
+    sample = buf[0:n:step].copy()
+    half = sample.shape[0] // 2
+    part = np.partition(sample, half)
+    if sample.shape[0] % 2:
+        return part[half]
+    below = part[0]
+    for i in range(1, half):
+        if part[i] > below:
+            below = part[i]
+    return np.float32((below + part[half]) / np.float32(2.0))
+
+
+def _footprint_compiled(newest, support, by0, by1, bx0, bx1, rows, cols, margin, radius,
+                        centres, k):
+    """All of :meth:`ThermalDetector._footprint` in one compiled call: the patch, the
+    background level, the flood fill (:func:`_footprint_loops`) and the footprint's pixel
+    statistics.  Returns ``(y0, x0, state, count, sum_x, sum_y, x_min, x_max, y_min,
+    y_max)`` (frame coordinates; ``count`` 0: no footprint)."""
+    r0 = rows.min()
+    r1 = rows.max() + 1
+    c0 = cols.min()
+    c1 = cols.max() + 1
+    m = margin + max(r1 - r0, c1 - c0) // 2
+    y0 = max(r0 - m, by0)
+    y1 = min(r1 + m, by1)
+    x0 = max(c0 - m, bx0)
+    x1 = min(c1 + m, bx1)
+    state = np.zeros((y1 - y0, x1 - x0), dtype=np.int8)
+    buf = np.empty((by1 - by0) * (bx1 - bx0), dtype=newest.dtype)
+    level = _background_level(newest, support, y0, y1, x0, x1, buf)
+    if np.isnan(level):
+        level = _background_level(newest, support, by0, by1, bx0, bx1, buf)
+    if np.isnan(level):
+        return y0, x0, state, 0, 0, 0, 0, 0, 0, 0
+    count = _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, state)
+    sx = 0
+    sy = 0
+    xmin = x1
+    xmax = -1
+    ymin = y1
+    ymax = -1
+    if count > 0:
+        for r in range(y1 - y0):
+            for c in range(x1 - x0):
+                if state[r, c] == 1:
+                    sx += c + x0
+                    sy += r + y0
+                    xmin = min(xmin, c + x0)
+                    xmax = max(xmax, c + x0)
+                    ymin = min(ymin, r + y0)
+                    ymax = max(ymax, r + y0)
+    return y0, x0, state, count, sx, sy, xmin, xmax, ymin, ymax
+
+
 def _in_footprint(newest, y, x, level, polarity, radius, centres, k):
     """Pixel test of :func:`_footprint_loops`: dissimilar to the background on the object's
     side, and in the Voronoi cell of ``centres[k]`` (ties included) when ``k >= 0``."""
@@ -580,16 +663,18 @@ _FOOTPRINT: list = []
 
 
 def _footprint_kernel():
-    """:func:`_footprint_loops` compiled with numba, or ``None`` (no numba, or
+    """:func:`_footprint_compiled` compiled with numba, or ``None`` (no numba, or
     ``MK_TRACKER_NO_NUMBA`` set)."""
     if not _FOOTPRINT:
         try:
             if os.environ.get("MK_TRACKER_NO_NUMBA"):
                 raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
             import numba
-            global _in_footprint
+            global _in_footprint, _footprint_loops, _background_level
             _in_footprint = numba.njit(cache=True)(_in_footprint)
-            _FOOTPRINT.append(numba.njit(cache=True)(_footprint_loops))
+            _footprint_loops = numba.njit(cache=True)(_footprint_loops)
+            _background_level = numba.njit(cache=True)(_background_level)
+            _FOOTPRINT.append(numba.njit(cache=True)(_footprint_compiled))
         except ImportError:
             _FOOTPRINT.append(None)
     return _FOOTPRINT[0]
@@ -836,6 +921,11 @@ class ThermalDetector:
         ``cv2.connectedComponents`` (the reference; a test checks they agree).
         """
         c = self.config
+        stats = self._footprint_stats(newest, support, rows, cols, bounds, cell)
+        if stats is not _UNSET:
+            if stats is None:
+                return None
+            return stats[0], stats[1] == 1
         by0, by1, bx0, bx1 = bounds
         r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
         m = c.window_margin + max(r1 - r0, c1 - c0) // 2       # room for parts that stood still
@@ -850,13 +940,6 @@ class ThermalDetector:
         step = max(1, background.size // 2048)     # a stride sample is enough for a median
         level = _median(background[::step])
         radius = np.float32(_similarity_radius(c.sigma2) / self._map[1])   # window units
-        compiled = _footprint_kernel()
-        if compiled is not None:
-            state = np.zeros((y1 - y0, x1 - x0), dtype=np.int8)
-            centres, k = (cell.centres, cell.k) if cell is not None else (_NO_CENTRES, -1)
-            if compiled(newest, y0, x0, level, radius, rows, cols, centres, k, state) == 0:
-                return None
-            return (y0, x0), state == 1
         diff = patch - level
         at_support = diff[rows - y0, cols - x0]
         at_support = at_support[np.abs(at_support) > radius]
@@ -878,6 +961,27 @@ class ThermalDetector:
             return None
         return (y0, x0), lut[labels]
 
+    def _footprint_stats(self, newest: np.ndarray, support: np.ndarray, rows: np.ndarray,
+                         cols: np.ndarray, bounds: tuple[int, int, int, int],
+                         cell: _VoronoiCell | None) -> Any:
+        """The compiled footprint: ``((y0, x0), state, PixelObject)`` or ``None`` (nothing);
+        ``_UNSET`` when numba is not available."""
+        compiled = _footprint_kernel()
+        if compiled is None:
+            return _UNSET
+        centres, k = (cell.centres, cell.k) if cell is not None else (_NO_CENTRES, -1)
+        radius = np.float32(_similarity_radius(self.config.sigma2) / self._map[1])
+        y0, x0, state, n, sx, sy, xmin, xmax, ymin, ymax = compiled(
+            newest, support, bounds[0], bounds[1], bounds[2], bounds[3], rows, cols,
+            self.config.window_margin, radius, centres, k)
+        if n == 0:
+            return None
+        # describe_pixels of the footprint: continuous centroid, box, count
+        obj = PixelObject(centroid=(sx / n + 0.5, sy / n + 0.5),
+                          box=(float(xmin), float(ymin), float(xmax + 1 - xmin),
+                               float(ymax + 1 - ymin)), pixel_count=int(n))
+        return (y0, x0), state, obj
+
     def _candidate(self, newest: np.ndarray, result: SupportResult, rows: np.ndarray,
                    cols: np.ndarray, bounds: tuple[int, int, int, int],
                    cell: _VoronoiCell | None = None, footprint: Any = _UNSET
@@ -891,6 +995,12 @@ class ThermalDetector:
             return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
         fp = footprint
         if fp is _UNSET:
+            stats = self._footprint_stats(newest, result.support, rows, cols, bounds, cell)
+            if stats is not _UNSET:
+                if stats is None or stats[2].pixel_count < c.min_object_pixels:
+                    return None
+                now = stats[2]
+                return _Candidate(now.centroid, now.box, score, now.pixel_count)
             fp = self._footprint(newest, result.support, rows, cols, bounds, cell)
         if fp is None:
             return None          # support the object has left: a trailing "ghost", no object
