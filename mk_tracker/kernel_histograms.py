@@ -722,9 +722,23 @@ def compiled_kernels():
         except ImportError:
             _COMPILED.append(None)
         else:
-            _COMPILED.append(tuple(numba.njit(cache=True)(f) for f in
-                                   (_quantize_loops, _kernels_loops)))
+            kernels = tuple(numba.njit(cache=True)(f) for f in (_quantize_loops, _kernels_loops))
+            _warm_up(*kernels)
+            _COMPILED.append(kernels)
     return _COMPILED[0]
+
+
+def _warm_up(quantize_loops, kernels_loops) -> None:
+    """Compile (or load from numba's disk cache) the loops for the argument types the
+    tracker passes, so the first frame of a node is not the one that pays for it."""
+    quantize_loops(np.zeros((2, 2, 3), np.uint8), 0, 0, 1, True,
+                   bin_lookup_tables("hsv", (2, 2, 2)), _SAT_RECIPROCAL, _HUE_RECIPROCAL,
+                   np.empty((2, 2), np.int32))
+    m = 8
+    kernels_loops(np.zeros((4, 4), np.int32), 0, 0, 1, np.full((1, 2), 2.0),
+                  np.ones((1, 2)), np.full((1, m), 1.0 / m), 0.01, False, False,
+                  np.zeros((1, m)), np.zeros(1), np.zeros(1), np.zeros((1, 2)),
+                  np.zeros(1, dtype=np.int64), np.zeros(1))
 
 
 def resolve_backend(backend: str) -> str:
@@ -757,6 +771,11 @@ def quantize_region(image: np.ndarray, region: tuple[int, int, int, int], stride
             return None
         return quantize(roi, colour_space, bins)
     h, w = max(-(-(y1 - y0) // st), 0), max(-(-(x1 - x0) // st), 0)
+    if not (image.flags.c_contiguous and image.flags.writeable):
+        # one argument type for numba (a read-only message buffer or a padded row stride
+        # would compile another version): copy the region's rows, cheap next to the rest
+        image = np.array(image[y0:y1, x0:x1], order="C", copy=True)
+        x0, y0 = 0, 0
     return kernels[0](image, y0, x0, st, colour_space == "hsv",
                       bin_lookup_tables(colour_space, bins), _SAT_RECIPROCAL, _HUE_RECIPROCAL,
                       np.empty((h, w), np.int32))

@@ -482,7 +482,11 @@ def _compiled_step():
             _COMPILED_STEP.append(None)
         else:
             import numba
-            _COMPILED_STEP.append(numba.njit(cache=True)(_constrained_step_loops))
+            step = numba.njit(cache=True)(_constrained_step_loops)
+            # compile (or load from the disk cache) now rather than on a node's first frame
+            step(np.array([[0.0, 0.0], [1.0, 2.0]]), kernel_pairs(2), np.ones(1), np.ones(1),
+                 np.zeros(4), np.ones(2), 1.0, True, np.zeros(2), np.zeros(4), np.zeros(4))
+            _COMPILED_STEP.append(step)
     return _COMPILED_STEP[0]
 
 
@@ -612,6 +616,8 @@ class MultiKernelTracker:
             self.backend = resolve_backend(backend)
         except KernelBackendError as exc:
             raise TrackingInputError(str(exc)) from exc
+        if self.backend == "compiled":
+            _compiled_step()        # compiled (or loaded) with the tracker, not on a frame
 
     # -- helpers ---------------------------------------------------------------------------
     def _stride(self, axes: np.ndarray) -> int:

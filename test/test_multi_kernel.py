@@ -396,3 +396,27 @@ def test_compiled_closed_form_step_equals_the_svd_step(n_kernels):
             assert np.allclose(values, c, rtol=0, atol=1e-12)
             assert np.allclose(dx_a, ref_a, rtol=0, atol=1e-9)
             assert np.allclose(dx_b, ref_b, rtol=0, atol=1e-9 * (1 + np.abs(ref_b).max()))
+
+
+@pytest.mark.skipif(__import__("mk_tracker.multi_kernel", fromlist=["x"])._compiled_step()
+                    is None, reason="numba not available")
+def test_no_frame_compiles_code_read_only_or_padded_images_included():
+    from mk_tracker.kernel_histograms import compiled_kernels
+    from mk_tracker.multi_kernel import _compiled_step
+    tracker = MultiKernelTracker(MultiKernelConfig(num_kernels=4), backend="compiled")
+    dispatchers = [*compiled_kernels(), _compiled_step()]
+    before = [len(d.signatures) for d in dispatchers]
+    assert all(n >= 1 for n in before)               # compiled with the tracker
+    img = _smooth_scene()
+    wide = np.zeros((240, 336, 3), np.uint8)
+    wide[:, :320] = img
+    padded = wide[:, :320]                            # rows with a padded stride
+    read_only = img.copy()
+    read_only.setflags(write=False)                   # like a ROS message buffer
+    results = []
+    for image in (img, padded, read_only):
+        state = tracker.start(image, (140, 70, 40, 100))
+        results.append(tracker.refine(_smooth_scene((3, 1)), state).box)
+        results.append(tracker.refine(image, state).box)
+    assert [len(d.signatures) for d in dispatchers] == before
+    assert results[0::2] == [results[0]] * 3 and results[1::2] == [results[1]] * 3
