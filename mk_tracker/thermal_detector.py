@@ -522,18 +522,18 @@ class _VoronoiCell:
 _NO_CENTRES = np.zeros((0, 2))
 
 
-def _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, state):
+def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, k, state):
     """Compiled footprint of :meth:`ThermalDetector._footprint` over the patch of ``state``
-    (``(ph, pw)`` int8 zeros at ``(y0, x0)``): the polarity from the support pixels
-    ``(rows, cols)``, then a flood fill (8-connectivity) from them through the pixels with
-    ``polarity * (newest - level) > radius`` that lie in the Voronoi cell of ``centres[k]``
-    (``k < 0``: no cell).  Same arithmetic as the numpy path.  Marks the object's pixels 1
-    (others visited 2) and returns their number (0: no footprint)."""
+    (``(ph, pw)`` int8 zeros at ``(y0, x0)``; values ``frame - offset``): the polarity from
+    the support pixels ``(rows, cols)``, then a flood fill (8-connectivity) from them
+    through the pixels with ``polarity * (frame - offset - level) > radius`` that lie in the
+    Voronoi cell of ``centres[k]`` (``k < 0``: no cell).  Same arithmetic as the numpy path.
+    Marks the object's pixels 1 (others visited 2) and returns their number (0: none)."""
     n_seeds = rows.shape[0]
     valid = 0
     warmer = 0
     for s in range(n_seeds):
-        d = newest[rows[s], cols[s]] - level
+        d = (frame[rows[s], cols[s]] - offset) - level
         if abs(d) > radius:
             valid += 1
             if d > 0:
@@ -550,7 +550,8 @@ def _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, stat
         c0 = cols[s] - x0
         if state[r0, c0] != 0:
             continue
-        if not _in_footprint(newest, r0 + y0, c0 + x0, level, polarity, radius, centres, k):
+        if not _in_footprint(frame, offset, r0 + y0, c0 + x0, level, polarity, radius,
+                             centres, k):
             state[r0, c0] = 2
             continue
         state[r0, c0] = 1
@@ -565,8 +566,8 @@ def _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, stat
                 for cc in range(max(c - 1, 0), min(c + 2, pw)):
                     if state[rr, cc] != 0:
                         continue
-                    if _in_footprint(newest, rr + y0, cc + x0, level, polarity, radius,
-                                     centres, k):
+                    if _in_footprint(frame, offset, rr + y0, cc + x0, level, polarity,
+                                     radius, centres, k):
                         state[rr, cc] = 1
                         count += 1
                         stack[top] = rr * pw + cc
@@ -576,15 +577,15 @@ def _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, stat
     return count
 
 
-def _background_level(newest, support, y0, y1, x0, x1, buf):
+def _background_level(frame, offset, support, y0, y1, x0, x1, buf):
     """Median (as :func:`_median`) of a stride sample of at most ~2048 of the non-support
-    pixels of ``newest[y0:y1, x0:x1]`` in row-major order, like the numpy path's
+    pixels of ``frame[y0:y1, x0:x1] - offset`` in row-major order, like the numpy path's
     ``patch[~support][::step]``; NaN when there is none."""
     n = 0
     for y in range(y0, y1):
         for x in range(x0, x1):
             if not support[y, x]:
-                buf[n] = newest[y, x]
+                buf[n] = frame[y, x] - offset
                 n += 1
     if n == 0:
         return np.float32(np.nan)
@@ -601,7 +602,7 @@ def _background_level(newest, support, y0, y1, x0, x1, buf):
     return np.float32((below + part[half]) / np.float32(2.0))
 
 
-def _footprint_compiled(newest, support, by0, by1, bx0, bx1, rows, cols, margin, radius,
+def _footprint_compiled(frame, offset, support, by0, by1, bx0, bx1, rows, cols, margin, radius,
                         centres, k):
     """All of :meth:`ThermalDetector._footprint` in one compiled call: the patch, the
     background level, the flood fill (:func:`_footprint_loops`) and the footprint's pixel
@@ -617,13 +618,14 @@ def _footprint_compiled(newest, support, by0, by1, bx0, bx1, rows, cols, margin,
     x0 = max(c0 - m, bx0)
     x1 = min(c1 + m, bx1)
     state = np.zeros((y1 - y0, x1 - x0), dtype=np.int8)
-    buf = np.empty((by1 - by0) * (bx1 - bx0), dtype=newest.dtype)
-    level = _background_level(newest, support, y0, y1, x0, x1, buf)
+    buf = np.empty((by1 - by0) * (bx1 - bx0), dtype=frame.dtype)
+    level = _background_level(frame, offset, support, y0, y1, x0, x1, buf)
     if np.isnan(level):
-        level = _background_level(newest, support, by0, by1, bx0, bx1, buf)
+        level = _background_level(frame, offset, support, by0, by1, bx0, bx1, buf)
     if np.isnan(level):
         return y0, x0, state, 0, 0, 0, 0, 0, 0, 0
-    count = _footprint_loops(newest, y0, x0, level, radius, rows, cols, centres, k, state)
+    count = _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, k,
+                             state)
     sx = 0
     sy = 0
     xmin = x1
@@ -643,10 +645,10 @@ def _footprint_compiled(newest, support, by0, by1, bx0, bx1, rows, cols, margin,
     return y0, x0, state, count, sx, sy, xmin, xmax, ymin, ymax
 
 
-def _in_footprint(newest, y, x, level, polarity, radius, centres, k):
+def _in_footprint(frame, offset, y, x, level, polarity, radius, centres, k):
     """Pixel test of :func:`_footprint_loops`: dissimilar to the background on the object's
     side, and in the Voronoi cell of ``centres[k]`` (ties included) when ``k >= 0``."""
-    if not (newest[y, x] - level) * polarity > radius:
+    if not ((frame[y, x] - offset) - level) * polarity > radius:
         return False
     if k < 0:
         return True
@@ -830,8 +832,8 @@ class ThermalDetector:
         return np.array([slot for slot, _ in list(self._buffer)[-n_frames:]], dtype=np.int64)
 
     def _newest(self) -> np.ndarray:
-        """``(raw - offset)`` of the newest frame, float32 (window units)."""
-        return self._ring[self._buffer[-1][0]] - np.float32(self._map[0])
+        """The newest frame as stored (raw, float32; window units are ``raw - offset``)."""
+        return self._ring[self._buffer[-1][0]]
 
     # -- passes ----------------------------------------------------------------------------
     def _full_pass(self) -> list[ThermalDetection]:
@@ -842,8 +844,8 @@ class ThermalDetector:
         order = self._order(c.startup_frames)
         self._update_map([self._ring[i] for i in order])
         result = _support(self._ring, order, self._map[0], c, self._map[1], self._integer, None)
-        newest = self._newest()
-        bounds = (0, newest.shape[0], 0, newest.shape[1])
+        frame = self._newest()
+        bounds = (0, frame.shape[0], 0, frame.shape[1])
         rows, cols = np.nonzero(result.support)
         candidates: list[_Candidate] = []
         if rows.size:
@@ -856,15 +858,15 @@ class ThermalDetector:
             groups = [g for g in groups if g.size >= c.min_object_pixels]
             footprints: list[Any] = [_UNSET] * len(groups)
             if c.current_frame_refinement and c.merge_by_footprint and len(groups) > 1:
-                groups, footprints = self._merge_by_footprint(newest, result.support, rows,
+                groups, footprints = self._merge_by_footprint(frame, result.support, rows,
                                                               cols, groups, bounds)
             for g, fp in zip(groups, footprints):
-                cand = self._candidate(newest, result, rows[g], cols[g], bounds, footprint=fp)
+                cand = self._candidate(frame, result, rows[g], cols[g], bounds, footprint=fp)
                 if cand is not None:
                     candidates.append(cand)
         return self._reassociate(candidates)
 
-    def _merge_by_footprint(self, newest: np.ndarray, support: np.ndarray, rows: np.ndarray,
+    def _merge_by_footprint(self, frame: np.ndarray, support: np.ndarray, rows: np.ndarray,
                             cols: np.ndarray, groups: list[np.ndarray],
                             bounds: tuple[int, int, int, int]
                             ) -> tuple[list[np.ndarray], list[Any]]:
@@ -873,7 +875,7 @@ class ThermalDetector:
 
         Returns the merged groups and, for each, its footprint when it was computed here
         (a group left alone) or ``_UNSET`` (a merged group: recomputed by the caller)."""
-        owner = np.full(newest.shape, -1, dtype=np.int64)
+        owner = np.full(frame.shape, -1, dtype=np.int64)
         parent = list(range(len(groups)))
 
         def find(a: int) -> int:
@@ -884,7 +886,7 @@ class ThermalDetector:
 
         prints = []
         for k, g in enumerate(groups):
-            fp = self._footprint(newest, support, rows[g], cols[g], bounds)
+            fp = self._footprint(frame, support, rows[g], cols[g], bounds)
             prints.append(fp)
             if fp is None:
                 continue
@@ -900,13 +902,14 @@ class ThermalDetector:
         out_prints = [prints[v[0]] if len(v) == 1 else _UNSET for v in merged.values()]
         return out_groups, out_prints
 
-    def _footprint(self, newest: np.ndarray, support: np.ndarray, rows: np.ndarray,
+    def _footprint(self, frame: np.ndarray, support: np.ndarray, rows: np.ndarray,
                    cols: np.ndarray, bounds: tuple[int, int, int, int],
                    cell: _VoronoiCell | None = None
                    ) -> tuple[tuple[int, int], np.ndarray] | None:
         """Newest-frame pixels of the object whose support is ``(rows, cols)`` (frame
-        coordinates), searched inside ``bounds`` ``(y0, y1, x0, x1)`` (its (5.2) window, or
-        the frame).
+        coordinates; ``frame`` is the newest frame as stored, window units are
+        ``frame - offset``), searched inside ``bounds`` ``(y0, y1, x0, x1)`` (its (5.2)
+        window, or the frame).
 
         Inside the support's bounding box grown by ``window_margin`` plus half its larger
         side (parts of the object that did not move have no support), the pixels dissimilar
@@ -921,7 +924,7 @@ class ThermalDetector:
         ``cv2.connectedComponents`` (the reference; a test checks they agree).
         """
         c = self.config
-        stats = self._footprint_stats(newest, support, rows, cols, bounds, cell)
+        stats = self._footprint_stats(frame, support, rows, cols, bounds, cell)
         if stats is not _UNSET:
             if stats is None:
                 return None
@@ -931,10 +934,11 @@ class ThermalDetector:
         m = c.window_margin + max(r1 - r0, c1 - c0) // 2       # room for parts that stood still
         y0, y1 = max(r0 - m, by0), min(r1 + m, by1)
         x0, x1 = max(c0 - m, bx0), min(c1 + m, bx1)
-        patch = newest[y0:y1, x0:x1]
+        offset = np.float32(self._map[0])
+        patch = frame[y0:y1, x0:x1] - offset                 # window units
         background = patch[~support[y0:y1, x0:x1]]
         if background.size == 0:
-            background = newest[by0:by1, bx0:bx1][~support[by0:by1, bx0:bx1]]
+            background = (frame[by0:by1, bx0:bx1] - offset)[~support[by0:by1, bx0:bx1]]
         if background.size == 0:
             return None
         step = max(1, background.size // 2048)     # a stride sample is enough for a median
@@ -961,7 +965,7 @@ class ThermalDetector:
             return None
         return (y0, x0), lut[labels]
 
-    def _footprint_stats(self, newest: np.ndarray, support: np.ndarray, rows: np.ndarray,
+    def _footprint_stats(self, frame: np.ndarray, support: np.ndarray, rows: np.ndarray,
                          cols: np.ndarray, bounds: tuple[int, int, int, int],
                          cell: _VoronoiCell | None) -> Any:
         """The compiled footprint: ``((y0, x0), state, PixelObject)`` or ``None`` (nothing);
@@ -972,7 +976,8 @@ class ThermalDetector:
         centres, k = (cell.centres, cell.k) if cell is not None else (_NO_CENTRES, -1)
         radius = np.float32(_similarity_radius(self.config.sigma2) / self._map[1])
         y0, x0, state, n, sx, sy, xmin, xmax, ymin, ymax = compiled(
-            newest, support, bounds[0], bounds[1], bounds[2], bounds[3], rows, cols,
+            frame, np.float32(self._map[0]), support, bounds[0], bounds[1], bounds[2],
+            bounds[3], rows, cols,
             self.config.window_margin, radius, centres, k)
         if n == 0:
             return None
@@ -982,7 +987,7 @@ class ThermalDetector:
                                float(ymax + 1 - ymin)), pixel_count=int(n))
         return (y0, x0), state, obj
 
-    def _candidate(self, newest: np.ndarray, result: SupportResult, rows: np.ndarray,
+    def _candidate(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
                    cols: np.ndarray, bounds: tuple[int, int, int, int],
                    cell: _VoronoiCell | None = None, footprint: Any = _UNSET
                    ) -> _Candidate | None:
@@ -995,13 +1000,13 @@ class ThermalDetector:
             return _Candidate(swept.centroid, swept.box, score, swept.pixel_count)
         fp = footprint
         if fp is _UNSET:
-            stats = self._footprint_stats(newest, result.support, rows, cols, bounds, cell)
+            stats = self._footprint_stats(frame, result.support, rows, cols, bounds, cell)
             if stats is not _UNSET:
                 if stats is None or stats[2].pixel_count < c.min_object_pixels:
                     return None
                 now = stats[2]
                 return _Candidate(now.centroid, now.box, score, now.pixel_count)
-            fp = self._footprint(newest, result.support, rows, cols, bounds, cell)
+            fp = self._footprint(frame, result.support, rows, cols, bounds, cell)
         if fp is None:
             return None          # support the object has left: a trailing "ghost", no object
         (y0, x0), mask = fp
@@ -1107,27 +1112,39 @@ class ThermalDetector:
             regions.append((by0 * rho, min(by1 * rho, h), bx0 * rho, min(bx1 * rho, w)))
         result = _support(self._ring, self._order(c.window_frames), self._map[0], c,
                           self._map[1], self._integer, mask)
-        rows, cols = np.nonzero(result.support)
+        # support pixels in frame row-major order (the union of the windows bounds them)
+        live = [r for r in regions if r is not None]
         centres = np.array([(s[0], s[1]) for s in preds])
+        rows = cols = np.zeros(0, dtype=np.int64)
+        if live:
+            uy0, uy1 = min(r[0] for r in live), max(r[1] for r in live)
+            ux0, ux1 = min(r[2] for r in live), max(r[3] for r in live)
+            rows, cols = np.nonzero(result.support[uy0:uy1, ux0:ux1])
+            rows += uy0
+            cols += ux0
         if rows.size:
+            # owners: objects whose window holds the pixel and whose prediction is nearest
             px = cols + 0.5
             py = rows + 0.5
-            dist = (px[:, None] - centres[None, :, 0]) ** 2 + (py[:, None] - centres[None, :, 1]) ** 2
-            nearest = dist.min(axis=1)
-        newest = self._newest() if c.current_frame_refinement and rows.size else None
+            dist = (px[:, None] - centres[None, :, 0]) ** 2 + \
+                (py[:, None] - centres[None, :, 1]) ** 2
+            bounds = np.array([r if r is not None else (0, 0, 0, 0) for r in regions])
+            r, cl = rows[:, None], cols[:, None]
+            inside = ((r >= bounds[None, :, 0]) & (r < bounds[None, :, 1])
+                      & (cl >= bounds[None, :, 2]) & (cl < bounds[None, :, 3]))
+            mine = inside & (dist <= dist.min(axis=1)[:, None])
+            n_inside = np.count_nonzero(inside, axis=0)
+            n_mine = np.count_nonzero(mine, axis=0)
+        frame = self._newest()
         detections: list[ThermalDetection] = []
         kept: list[_Track] = []
-        for k, (tr, state, region) in enumerate(zip(self._tracks, preds, regions)):
+        for k, (tr, region) in enumerate(zip(self._tracks, regions)):
             cand = None
-            if region is not None and rows.size:
-                y0, y1, x0, x1 = region
-                inside = (rows >= y0) & (rows < y1) & (cols >= x0) & (cols < x1)
-                if np.count_nonzero(inside) >= c.min_object_pixels:
-                    mine = inside & (dist[:, k] <= nearest)
-                    if np.count_nonzero(mine) >= c.min_object_pixels:
-                        cell = _VoronoiCell(centres, k) if len(preds) > 1 else None
-                        cand = self._candidate(newest, result, rows[mine], cols[mine], region,
-                                               cell)
+            if region is not None and rows.size and n_inside[k] >= c.min_object_pixels \
+                    and n_mine[k] >= c.min_object_pixels:
+                own = mine[:, k]
+                cell = _VoronoiCell(centres, k) if len(preds) > 1 else None
+                cand = self._candidate(frame, result, rows[own], cols[own], region, cell)
             if cand is None:
                 tr.missed += 1
                 if tr.missed <= c.max_missed:
