@@ -490,6 +490,89 @@ class _Candidate:
 _UNSET: Any = object()
 
 
+def _owned_support(support: np.ndarray, regions: list, centres: np.ndarray
+                   ) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """For each object ``k``: the number of support pixels in its (5.2) window
+    ``regions[k]`` (``(y0, y1, x0, x1)`` or ``None``) and the rows/columns (frame
+    row-major order) of those whose centre is at least as close to its prediction
+    ``centres[k]`` as to every other one (ties: to both).  Compiled (one scan of each
+    window) when numba is available, else numpy over all support pixels (the reference)."""
+    empty = np.zeros(0, dtype=np.int64)
+    compiled = _owner_kernel()
+    if compiled is not None:
+        out = []
+        for k, region in enumerate(regions):
+            if region is None:
+                out.append((0, empty, empty))
+                continue
+            y0, y1, x0, x1 = region
+            rows = np.empty((y1 - y0) * (x1 - x0), dtype=np.int64)
+            cols = np.empty_like(rows)
+            n_inside, n_mine = compiled(support, y0, y1, x0, x1, centres, k, rows, cols)
+            out.append((int(n_inside), rows[:n_mine], cols[:n_mine]))
+        return out
+    live = [r for r in regions if r is not None]
+    if not live:
+        return [(0, empty, empty) for _ in regions]
+    uy0, uy1 = min(r[0] for r in live), max(r[1] for r in live)
+    ux0, ux1 = min(r[2] for r in live), max(r[3] for r in live)
+    rows, cols = np.nonzero(support[uy0:uy1, ux0:ux1])
+    rows += uy0
+    cols += ux0
+    px = cols + 0.5
+    py = rows + 0.5
+    dist = (px[:, None] - centres[None, :, 0]) ** 2 + (py[:, None] - centres[None, :, 1]) ** 2
+    bounds = np.array([r if r is not None else (0, 0, 0, 0) for r in regions])
+    r, cl = rows[:, None], cols[:, None]
+    inside = ((r >= bounds[None, :, 0]) & (r < bounds[None, :, 1])
+              & (cl >= bounds[None, :, 2]) & (cl < bounds[None, :, 3]))
+    mine = inside & (dist <= dist.min(axis=1)[:, None])
+    n_inside = np.count_nonzero(inside, axis=0)
+    return [(int(n_inside[k]), rows[mine[:, k]], cols[mine[:, k]]) for k in range(len(regions))]
+
+
+def _owned_loops(support, y0, y1, x0, x1, centres, k, rows, cols):
+    """Compiled :func:`_owned_support` of one window: same distances, same order.
+    Returns ``(support pixels in the window, owned pixels written to rows/cols)``."""
+    n_inside = 0
+    n_mine = 0
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            if not support[y, x]:
+                continue
+            n_inside += 1
+            px = x + 0.5
+            py = y + 0.5
+            own = (px - centres[k, 0]) ** 2 + (py - centres[k, 1]) ** 2
+            nearest = True
+            for j in range(centres.shape[0]):
+                if j != k and (px - centres[j, 0]) ** 2 + (py - centres[j, 1]) ** 2 < own:
+                    nearest = False
+                    break
+            if nearest:
+                rows[n_mine] = y
+                cols[n_mine] = x
+                n_mine += 1
+    return n_inside, n_mine
+
+
+_OWNER: list = []
+
+
+def _owner_kernel():
+    """:func:`_owned_loops` compiled with numba, or ``None`` (no numba, or
+    ``MK_TRACKER_NO_NUMBA`` set)."""
+    if not _OWNER:
+        try:
+            if os.environ.get("MK_TRACKER_NO_NUMBA"):
+                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
+            import numba
+            _OWNER.append(numba.njit(cache=True)(_owned_loops))
+        except ImportError:
+            _OWNER.append(None)
+    return _OWNER[0]
+
+
 class _VoronoiCell:
     """Pixels whose centre is at least as close to prediction ``k`` as to every other one
     (the (5.2) windows of neighbours overlap; each pixel goes to the nearest prediction)."""
@@ -1112,39 +1195,17 @@ class ThermalDetector:
             regions.append((by0 * rho, min(by1 * rho, h), bx0 * rho, min(bx1 * rho, w)))
         result = _support(self._ring, self._order(c.window_frames), self._map[0], c,
                           self._map[1], self._integer, mask)
-        # support pixels in frame row-major order (the union of the windows bounds them)
-        live = [r for r in regions if r is not None]
         centres = np.array([(s[0], s[1]) for s in preds])
-        rows = cols = np.zeros(0, dtype=np.int64)
-        if live:
-            uy0, uy1 = min(r[0] for r in live), max(r[1] for r in live)
-            ux0, ux1 = min(r[2] for r in live), max(r[3] for r in live)
-            rows, cols = np.nonzero(result.support[uy0:uy1, ux0:ux1])
-            rows += uy0
-            cols += ux0
-        if rows.size:
-            # owners: objects whose window holds the pixel and whose prediction is nearest
-            px = cols + 0.5
-            py = rows + 0.5
-            dist = (px[:, None] - centres[None, :, 0]) ** 2 + \
-                (py[:, None] - centres[None, :, 1]) ** 2
-            bounds = np.array([r if r is not None else (0, 0, 0, 0) for r in regions])
-            r, cl = rows[:, None], cols[:, None]
-            inside = ((r >= bounds[None, :, 0]) & (r < bounds[None, :, 1])
-                      & (cl >= bounds[None, :, 2]) & (cl < bounds[None, :, 3]))
-            mine = inside & (dist <= dist.min(axis=1)[:, None])
-            n_inside = np.count_nonzero(inside, axis=0)
-            n_mine = np.count_nonzero(mine, axis=0)
+        owned = _owned_support(result.support, regions, centres)
         frame = self._newest()
         detections: list[ThermalDetection] = []
         kept: list[_Track] = []
         for k, (tr, region) in enumerate(zip(self._tracks, regions)):
             cand = None
-            if region is not None and rows.size and n_inside[k] >= c.min_object_pixels \
-                    and n_mine[k] >= c.min_object_pixels:
-                own = mine[:, k]
+            n_inside, rows, cols = owned[k]
+            if n_inside >= c.min_object_pixels and rows.size >= c.min_object_pixels:
                 cell = _VoronoiCell(centres, k) if len(preds) > 1 else None
-                cand = self._candidate(frame, result, rows[own], cols[own], region, cell)
+                cand = self._candidate(frame, result, rows, cols, region, cell)
             if cand is None:
                 tr.missed += 1
                 if tr.missed <= c.max_missed:

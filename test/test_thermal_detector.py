@@ -301,13 +301,15 @@ def test_compiled_support_equals_the_numpy_reference(h, w, offset):
 
 
 def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
-    """Whole detector, 5 people at 320x240: the compiled support loop and footprint flood
-    fill give exactly the detections of the numpy/OpenCV reference (MK_TRACKER_NO_NUMBA)."""
+    """Whole detector, 5 people at 320x240: the compiled support loop, support ownership and
+    footprint flood fill give exactly the detections of the numpy/OpenCV reference
+    (MK_TRACKER_NO_NUMBA)."""
     import mk_tracker.kernel_covariance as kc
     import mk_tracker.sparse_factorization as sf
     import mk_tracker.thermal_detector as td
     from mk_tracker.synthetic import crowd_scene
-    if td._fused_kernel() is None or td._footprint_kernel() is None:
+    if td._fused_kernel() is None or td._footprint_kernel() is None or \
+            td._owner_kernel() is None:
         pytest.skip("numba not installed")
     scene = crowd_scene(5, seed=3, width=320, height=240, frames=36)
     frames = [scene.frame(i) for i in range(len(scene))]
@@ -321,8 +323,8 @@ def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
         return out
 
     fast = run()
-    for module, name in ((td, "_FUSED"), (td, "_FOOTPRINT"), (sf, "_COMPILED"),
-                         (kc, "_LEVEL_KERNELS")):
+    for module, name in ((td, "_FUSED"), (td, "_FOOTPRINT"), (td, "_OWNER"),
+                         (sf, "_COMPILED"), (kc, "_LEVEL_KERNELS")):
         monkeypatch.setattr(module, name, [None])
     assert td._fused_kernel() is None and sf._compiled_kernel() is None
     ref = run()
