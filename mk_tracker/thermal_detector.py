@@ -673,10 +673,43 @@ def _background_level(frame, offset, support, y0, y1, x0, x1, buf):
     if n == 0:
         return np.float32(np.nan)
     step = max(1, n // 2048)
-    sample = buf[0:n:step].copy()
-    half = sample.shape[0] // 2
-    part = np.partition(sample, half)
-    if sample.shape[0] % 2:
+    return _sample_median(buf[0:n:step])
+
+
+def _sample_median(sample):
+    """:func:`_median` of a float32 sample, compiled: by counting when the values are
+    integers spanning less than 65536 (integer encodings; the same order statistics
+    exactly), else by a partition."""
+    size = sample.shape[0]
+    half = size // 2
+    lo = sample[0]
+    hi = sample[0]
+    integral = True
+    for i in range(size):
+        v = sample[i]
+        if v < lo:
+            lo = v
+        elif v > hi:
+            hi = v
+        if v != np.floor(v):
+            integral = False
+    if integral and hi - lo < 65536:
+        counts = np.zeros(int(hi - lo) + 1, dtype=np.int64)
+        for i in range(size):
+            counts[int(sample[i] - lo)] += 1
+        seen = 0
+        below = lo
+        for level in range(counts.shape[0]):
+            seen += counts[level]
+            if seen >= half and seen - counts[level] < half:
+                below = lo + level                  # element half - 1 (0-based)
+            if seen > half:
+                middle = np.float32(lo + level)     # element half
+                if size % 2:
+                    return middle
+                return np.float32((np.float32(below) + middle) / np.float32(2.0))
+    part = np.partition(sample.copy(), half)
+    if size % 2:
         return part[half]
     below = part[0]
     for i in range(1, half):
@@ -755,7 +788,8 @@ def _footprint_kernel():
             if os.environ.get("MK_TRACKER_NO_NUMBA"):
                 raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
             import numba
-            global _in_footprint, _footprint_loops, _background_level
+            global _in_footprint, _footprint_loops, _background_level, _sample_median
+            _sample_median = numba.njit(cache=True)(_sample_median)
             _in_footprint = numba.njit(cache=True)(_in_footprint)
             _footprint_loops = numba.njit(cache=True)(_footprint_loops)
             _background_level = numba.njit(cache=True)(_background_level)

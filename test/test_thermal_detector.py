@@ -335,3 +335,20 @@ def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
         for x, y in zip(a, b):
             assert x[0] == pytest.approx(y[0], abs=1e-9)
             assert x[4] == pytest.approx(y[4], abs=1e-6)
+
+
+def test_compiled_background_median_equals_numpy_median():
+    """The footprint's background level: counting (integer levels) and partition (other
+    values) give np.median's value exactly, odd and even sample sizes."""
+    import mk_tracker.thermal_detector as td
+    if td._footprint_kernel() is None:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(11)
+    samples = [rng.integers(0, 256, n).astype(np.float32) for n in (1, 2, 7, 8, 2047, 2048)]
+    samples += [rng.integers(-40, 4000, n).astype(np.float32) for n in (3, 10, 1001)]
+    samples += [np.full(6, 17, np.float32), np.array([5, 5, 9, 9], np.float32)]
+    samples += [rng.normal(300.0, 2.0, n).astype(np.float32) for n in (5, 64, 999)]
+    for sample in samples:
+        expected = np.float32(np.median(sample))
+        assert td._sample_median(sample) == expected, sample[:8]
+        assert td._median(sample) == expected
