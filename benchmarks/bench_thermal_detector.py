@@ -14,9 +14,12 @@ people at 320x240 and 640x512), and reports
 * centroid RMSE over the matched pairs.
 
 The figures are printed and written to ``docs/benchmark_thermal_detector.md`` together with
-the command line.  Not a test: nothing is asserted.
+the command line, the machine load and a goal check (issue #4: tracking-mode frame at
+320x240 with 5 people <= 5 ms median on one core; full-frame pass <= 30 ms at 320x240 for
+1, 5 and 15 people).  Not a test: nothing is asserted.
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_thermal_detector.py
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 \
+        .venv/bin/python benchmarks/bench_thermal_detector.py --frames 100
 """
 
 from __future__ import annotations
@@ -95,6 +98,34 @@ def fmt_ms(cpu, wall):
     return f"{np.median(cpu):.1f} / {np.median(wall):.1f} ({len(cpu)})"
 
 
+def goal_check(figures) -> list[str]:
+    """Markdown lines: each goal of issue #4 MET / NOT MET with the measured medians, and the
+    crowd recall of the default detector and of the crowd preset."""
+    kernel = "kernel (Alg. 2)"
+    lines = []
+    track = figures.get(("crowd 320x240, 5 people", kernel), {}).get("track", float("nan"))
+    verdict = "MET" if track <= 5.0 else "NOT MET"
+    lines.append(f"- Tracking-mode frame, 320x240, 5 people, <= 5 ms median CPU on one core: "
+                 f"**{verdict}** ({track:.1f} ms).")
+    fulls = [figures.get((f"crowd 320x240, {n} people", kernel), {}).get("full", float("nan"))
+             for n in (1, 5, 15)]
+    verdict = "MET" if all(f <= 30.0 for f in fulls) else "NOT MET"
+    lines.append("- Full-frame pass, 320x240, <= 30 ms for 1 / 5 / 15 people: "
+                 f"**{verdict}** ({' / '.join(f'{f:.1f}' for f in fulls)} ms median CPU).")
+    crowd = {k[1]: v for k, v in figures.items() if k[0] == "crowd 320x240, 15 people"}
+    preset = next((v for k, v in crowd.items() if k.startswith("kernel, crowd preset")), None)
+    default = crowd.get(kernel)
+    if default is not None:
+        text = (f"- Crowd, 320x240, 15 people: the default detector merges people who touch: "
+                f"recall {default['recall']:.3f} (precision {default['precision']:.3f})")
+        if preset is not None:
+            text += (f"; the crowd preset (paper rule (3.13) alone) recall "
+                     f"{preset['recall']:.3f} (precision {preset['precision']:.3f}), tracking "
+                     f"frame {preset['track']:.1f} ms, full pass {preset['full']:.1f} ms")
+        lines.append(text + ".")
+    return lines
+
+
 def warm_up():
     """Load the numba caches (or compile) before anything is timed."""
     det = ThermalDetector()
@@ -119,6 +150,7 @@ def main(argv=None) -> int:
         total += i
     calibration = (time.process_time() - c0) * 1e3
     rows = []
+    figures: dict[tuple[str, str], dict[str, float]] = {}
     header = ("| scene | detector | full-frame pass ms CPU / wall (n) | tracking frame ms CPU / "
               "wall (n) | precision | recall | centroid RMSE px |")
     warm_up()
@@ -137,7 +169,9 @@ def main(argv=None) -> int:
                           [{}, dict(crowd, merge_distance_sq=1000.0 * scale)]))
     cases.append(("static warm objects + cooler person, 640x480",
                   lambda: static_warm_objects_scene(args.seed), [{}]))
+    loads = [load_before[0]]
     for name, make, variants in cases:
+        loads.append(os.getloadavg()[0])
         scene = make()
         detectors = []
         for overrides in variants:
@@ -159,13 +193,21 @@ def main(argv=None) -> int:
             prec = tp / (tp + fp) if tp + fp else float("nan")
             rec = tp / (tp + fn) if tp + fn else float("nan")
             rmse = float(np.sqrt(np.mean(errs))) if errs else float("nan")
+            figures[(name, det_name)] = {
+                "full": float(np.median(full)) if full else float("nan"),
+                "track": float(np.median(track)) if track else float("nan"),
+                "precision": prec, "recall": rec}
             row = (f"| {name} | {det_name} | {fmt_ms(full, full_w)} | "
                    f"{fmt_ms(track, track_w)} | {prec:.3f} | {rec:.3f} | {rmse:.2f} |")
             print(row, flush=True)
             rows.append(row)
 
-    command = ("OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python "
+    load_after = os.getloadavg()
+    command = ("OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 .venv/bin/python "
                "benchmarks/bench_thermal_detector.py " + " ".join(argv or sys.argv[1:]))
+    goal_lines = goal_check(figures)
+    for line in goal_lines:
+        print(line)
     text = "\n".join([
         "# Thermal detector benchmark",
         "",
@@ -175,6 +217,12 @@ def main(argv=None) -> int:
         command.strip(),
         "```",
         "",
+        "## Goal check (issue #4)",
+        "",
+        *goal_lines,
+        "",
+        "## Figures",
+        "",
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores "
         f"(shared with other jobs while this ran), Python {platform.python_version()}, numpy "
         f"{np.__version__}.  Times are medians per `process()` call, one thread: CPU time "
@@ -182,7 +230,9 @@ def main(argv=None) -> int:
         f"is busy).  The numba caches are loaded before timing.",
         "",
         f"Machine load while it ran: load average {load_before[0]:.1f} before, "
-        f"{os.getloadavg()[0]:.1f} after, on {os.cpu_count()} cores; calibration: a Python loop "
+        f"{load_after[0]:.1f} after ({min(loads + [load_after[0]]):.1f}-"
+        f"{max(loads + [load_after[0]]):.1f} sampled before each scene), on "
+        f"{os.cpu_count()} cores; calibration: a Python loop "
         f"of 3M integer additions took {calibration:.0f} ms CPU (~100-150 ms on an idle modern "
         f"core), so CPU times here are inflated by roughly that ratio.",
         "",

@@ -1,82 +1,195 @@
-"""Where a thermal detector frame spends its time: per-mode CPU medians and a cProfile.
+"""Where a thermal detector frame spends its time, and how it compares with an older version.
 
-Feeds a synthetic crowd (:func:`mk_tracker.synthetic.crowd_scene`, as the benchmark builds
-it) to :class:`mk_tracker.thermal_detector.ThermalDetector`, reports the median CPU time
-(``time.process_time``) of full-frame passes and tracking frames, and prints the top
-functions of a cProfile run over the same frames, split by mode.  Not a test; run it with
-one thread::
+Feeds synthetic crowds (:func:`mk_tracker.synthetic.crowd_scene`, built as the benchmark
+builds them) to :class:`mk_tracker.thermal_detector.ThermalDetector` and reports
+
+* per mode (tracking frame, full-frame pass) the median CPU time (``time.process_time``),
+  both the plain median over all runs and the median over frames of each frame's fastest
+  run ("median of min", less sensitive to other jobs on a shared machine: the detector is
+  deterministic, so every run does the same work);
+* with ``--compare DIR`` the same figures for the ``mk_tracker`` package found in ``DIR``
+  (e.g. ``git archive <commit> mk_tracker | tar -x -C DIR``), measured in the same run,
+  alternating with the current one, each in its own process;
+* a cProfile of the current version (top functions by own time) per mode.
+
+The report goes to ``docs/profile_thermal_detector.md`` with the command and the machine
+load.  Not a test: nothing is asserted.  Run it with one thread::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 \\
-        .venv/bin/python benchmarks/profile_thermal_detector.py --people 5 --frames 100
+        .venv/bin/python benchmarks/profile_thermal_detector.py --compare /tmp/base
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
+import io
+import json
 import os
 import pstats
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from mk_tracker.synthetic import crowd_scene, paper_scene
-from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
+ROOT = Path(__file__).resolve().parents[1]
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--people", type=int, default=5)
-    parser.add_argument("--width", type=int, default=320)
-    parser.add_argument("--height", type=int, default=240)
-    parser.add_argument("--frames", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--top", type=int, default=25, help="functions listed per mode")
-    parser.add_argument("--repeats", type=int, default=3, help="timed runs (median of all)")
-    parser.add_argument("--no-profile", action="store_true")
-    args = parser.parse_args(argv)
+def measure(people: int, width: int, height: int, frames: int, seed: int,
+            repeats: int) -> dict:
+    """Per-mode CPU medians (ms) of the ``mk_tracker`` importable in this process."""
+    import mk_tracker
+    from mk_tracker.synthetic import crowd_scene, paper_scene
+    from mk_tracker.thermal_detector import ThermalDetector
 
     warm = ThermalDetector()
     ps = paper_scene(99)
     for i in range(10):
         warm.process(ps.frame(i).thermal, ps.frame(i).stamp)
-    scene = crowd_scene(args.people, seed=args.seed, width=args.width, height=args.height,
-                        frames=args.frames)
-    frames = [scene.frame(i) for i in range(len(scene))]
-    print(f"load average before: {os.getloadavg()[0]:.2f}")
-    times: dict[str, list[float]] = {}
-    for _ in range(args.repeats):
-        det = ThermalDetector(ThermalDetectorConfig())
-        for fr in frames:
+    scene = crowd_scene(people, seed=seed, width=width, height=height, frames=frames)
+    data = [scene.frame(i) for i in range(len(scene))]
+    times = np.full((repeats, len(data)), np.nan)
+    modes: list[str] = []
+    for r in range(repeats):
+        det = ThermalDetector()
+        modes = []
+        for i, fr in enumerate(data):
             c0 = time.process_time()
             det.process(fr.thermal, fr.stamp)
-            times.setdefault(det.last_mode, []).append((time.process_time() - c0) * 1e3)
-    for mode, ts in sorted(times.items()):
-        print(f"{mode:16s} median {np.median(ts):6.2f} ms CPU  p90 {np.percentile(ts, 90):6.2f}"
-              f"  (n={len(ts)})")
-    print(f"load average after: {os.getloadavg()[0]:.2f}")
-    if args.no_profile:
-        return 0
-    profiles: dict[str, pstats.Stats] = {}
-    det = ThermalDetector(ThermalDetectorConfig())
-    for fr in frames:
+            times[r, i] = (time.process_time() - c0) * 1e3
+            modes.append(det.last_mode)
+    out = {"package": str(Path(mk_tracker.__file__).parent)}
+    for label, keep in (("tracking", ("tracking",)), ("full", ("startup", "reconfiguration"))):
+        idx = [i for i, m in enumerate(modes) if m in keep]
+        if idx:
+            out[label] = {"median": float(np.median(times[:, idx])),
+                          "median_of_min": float(np.median(times[:, idx].min(axis=0))),
+                          "frames": len(idx)}
+    return out
+
+
+def run_worker(path: str | None, args: argparse.Namespace, people: int) -> dict:
+    """:func:`measure` in a fresh process, importing ``mk_tracker`` from ``path`` (None:
+    this checkout)."""
+    env = dict(os.environ)
+    if path:
+        env["PYTHONPATH"] = path
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "--people", str(people),
+           "--width", str(args.width), "--height", str(args.height), "--frames",
+           str(args.frames), "--seed", str(args.seed), "--repeats", str(args.repeats)]
+    res = subprocess.run(cmd, env=env, cwd="/" if path else str(ROOT), check=True,
+                         capture_output=True, text=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def profile(people: int, args: argparse.Namespace, top: int) -> dict[str, str]:
+    """cProfile text (own time) per mode of the current version."""
+    from mk_tracker.synthetic import crowd_scene
+    from mk_tracker.thermal_detector import ThermalDetector
+
+    from mk_tracker.synthetic import paper_scene
+    warm = ThermalDetector()                    # numba caches loaded before profiling
+    ps = paper_scene(99)
+    for i in range(10):
+        warm.process(ps.frame(i).thermal, ps.frame(i).stamp)
+    scene = crowd_scene(people, seed=args.seed, width=args.width, height=args.height,
+                        frames=args.frames)
+    stats: dict[str, pstats.Stats] = {}
+    det = ThermalDetector()
+    for i in range(len(scene)):
+        fr = scene.frame(i)
         prof = cProfile.Profile()
         prof.enable()
         det.process(fr.thermal, fr.stamp)
         prof.disable()
         mode = "full" if det.last_mode in ("startup", "reconfiguration") else det.last_mode
-        if mode in profiles:
-            profiles[mode].add(prof)
-        else:
-            profiles[mode] = pstats.Stats(prof)
-    for mode in ("tracking", "full"):
-        if mode not in profiles:
+        if mode not in ("tracking", "full"):
             continue
-        print(f"\n===== {mode} (cumulative, top {args.top}) =====")
-        st = profiles[mode]
-        st.sort_stats("cumulative").print_stats(args.top)
-        print(f"\n===== {mode} (own time, top {args.top}) =====")
-        st.sort_stats("tottime").print_stats(args.top)
+        if mode in stats:
+            stats[mode].add(prof)
+        else:
+            stats[mode] = pstats.Stats(prof)
+    out = {}
+    for mode, st in stats.items():
+        buf = io.StringIO()
+        st.stream = buf
+        st.strip_dirs().sort_stats("tottime").print_stats(top)
+        out[mode] = buf.getvalue().strip()
+    return out
+
+
+def fmt(entry: dict | None) -> str:
+    if not entry:
+        return "-"
+    return f"{entry['median_of_min']:.2f} / {entry['median']:.2f}"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--people", type=int, nargs="+", default=[1, 5, 15])
+    parser.add_argument("--width", type=int, default=320)
+    parser.add_argument("--height", type=int, default=240)
+    parser.add_argument("--frames", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--repeats", type=int, default=3, help="runs per scene")
+    parser.add_argument("--compare", default=None,
+                        help="directory holding an older mk_tracker package to measure too")
+    parser.add_argument("--top", type=int, default=15, help="functions listed per mode")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--out", default=str(ROOT / "docs" / "profile_thermal_detector.md"))
+    args = parser.parse_args(argv)
+    if args.worker:
+        print(json.dumps(measure(args.people[0], args.width, args.height, args.frames,
+                                 args.seed, args.repeats)))
+        return 0
+
+    load_before = os.getloadavg()[0]
+    rows = []
+    header = ("| people | version | tracking frame ms CPU, median of min / median | "
+              "full-frame pass ms CPU, median of min / median | load |")
+    for people in args.people:
+        versions = [("current", None)] + ([("compared", args.compare)] if args.compare else [])
+        for label, path in versions:
+            res = run_worker(path, args, people)
+            row = (f"| {people} | {label} (`{res['package']}`) | {fmt(res.get('tracking'))} | "
+                   f"{fmt(res.get('full'))} | {os.getloadavg()[0]:.1f} |")
+            print(row, flush=True)
+            rows.append(row)
+    profiles = profile(args.people[len(args.people) // 2], args, args.top)
+    for mode, text in profiles.items():
+        print(f"\n== {mode} ==\n{text}")
+    command = ("OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 .venv/bin/python "
+               "benchmarks/profile_thermal_detector.py " + " ".join(argv or sys.argv[1:]))
+    text = [
+        "# Thermal detector profile",
+        "",
+        "Produced by:",
+        "",
+        "```",
+        command.strip(),
+        "```",
+        "",
+        f"Crowd scenes {args.width}x{args.height}, {args.frames} frames, seed {args.seed}, "
+        f"{args.repeats} runs each, every version in its own process (the compared one "
+        "measured right after the current one).  CPU time per `process()` call "
+        "(`time.process_time`, one thread); *median of min* takes each frame's fastest run, "
+        "then the median over frames (the detector is deterministic, so slower runs are "
+        "other jobs' interference).  Machine load (1-min average, 2 cores): "
+        f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after; the last column is "
+        "sampled after each measurement.",
+        "",
+        header,
+        "|---|---|---|---|---|",
+        *rows,
+        "",
+    ]
+    for mode, body in profiles.items():
+        text += [f"## cProfile, {mode}, {args.people[len(args.people) // 2]} people "
+                 "(own time; numba functions count as one call)", "", "```", body, "```", ""]
+    Path(args.out).write_text("\n".join(text))
+    print(f"wrote {args.out}")
     return 0
 
 
