@@ -501,8 +501,13 @@ class _Run:
             except TrackerInputError as exc:
                 raise PipelineError(f"tracker configuration rejected: {exc}") from exc
             r.homography = tuple(self.tracker_config.homography)
+        discarded = self.detections.discarded
         dets, unknown = tracker_inputs(self.detections.take(stamp), msg.header.frame_id,
                                        self.config.thermal_frame_id)
+        if self.detections.discarded > discarded:
+            r.problem(f"image #{frame_no}: time went backwards; dropped "
+                      f"{self.detections.discarded - discarded} detection message(s) of the "
+                      f"old time line")
         for frame_id in unknown:
             r.unknown_frame_batches += 1
             r.problem(f"skipping detections in unknown frame {frame_id!r} (image frame "

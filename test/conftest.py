@@ -47,3 +47,16 @@ def pytest_collection_modifyitems(config, items):
         if module in DDS_PROCESS_MODULES:
             item.add_marker(pytest.mark.flaky(reruns=EXTRA_RERUNS.get(module, 2),
                                               reruns_delay=2))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernels_ready(request):
+    """Before any test that starts node processes: compile the numba kernels once (or load
+    them from numba's cache), so a node does not spend its start-up (or, with
+    ``warm_up:=false``, its first frames) compiling -- tens of seconds in a fresh clone,
+    longer than the tests wait for a node to be ready."""
+    modules = {item.module.__name__.rsplit(".", 1)[-1] for item in request.session.items}
+    if modules & DDS_PROCESS_MODULES:
+        from mk_tracker.warm_up import warm_up_detector, warm_up_tracker
+        warm_up_tracker()
+        warm_up_detector()

@@ -124,6 +124,9 @@ def test_installed_tracker_node_runs_joins_the_graph_and_publishes(install_space
         frame.data = bytes(range(256)) * (48 * 64 * 3 // 256)
         frame.header.frame_id = "camera"
         sent = 0
+        # the installed copy compiles its own numba kernels while it starts (its modules live
+        # in the install space, so the checkout's cache does not apply): up to a minute
+        deadline = time.monotonic() + 90
         while time.monotonic() < deadline and not listener.messages("/tracks"):
             frame.header.stamp.sec = 1000 + sent
             publisher.publish(frame)

@@ -182,8 +182,9 @@ def test_bad_input_is_logged_and_skipped_and_tracking_continues(peer, start_trac
     for msg in bad_images:      # spaced: the node keeps only the newest unprocessed frame
         player.image_pub.publish(msg)
         peer.spin_for(0.15)
-    # detections in an unknown frame, and a NaN box, then time going backwards
-    player.send_detections([(10, 10, 40, 80)], stamp, frame_id="lidar")
+    # detections in an unknown frame (stamped for the frame that follows them), and a NaN
+    # box, then time going backwards
+    player.send_detections([(10, 10, 40, 80)], scene.frame(3).stamp, frame_id="lidar")
     nan_det = make_detection_array([], Header(stamp=make_stamp(stamp), frame_id="camera"),
                                    TYPES)
     bad = make_detection(Detection(box=(1, 1, 5, 5), score=0.5),
@@ -198,7 +199,7 @@ def test_bad_input_is_logged_and_skipped_and_tracking_continues(peer, start_trac
     assert node.alive()
     log = node.output()
     for text in ("yuv422", "fewer than step*height", "zero size", "unknown frame 'lidar'",
-                 "time went backwards"):
+                 "time went backwards", "dropped 1 detection message(s) stamped after"):
         assert text in log, f"{text!r} not logged:\n{log}"
     assert "skipped 1 bad detection" in log
     # the node keeps publishing and tracking after all of it

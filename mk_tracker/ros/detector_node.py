@@ -39,12 +39,13 @@ from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
-from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, run_node
+from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up, run_node
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
 from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+from mk_tracker.warm_up import warm_up_detector
 
 @dataclass(frozen=True)
 class DetectorNodeConfig:
@@ -64,6 +65,9 @@ class DetectorNodeConfig:
     report_period: float = parameter(
         5.0, "Seconds between the logs of dropped frames and skipped input", minimum=0.1,
         maximum=3600.0)
+    warm_up: bool = parameter(
+        True, "Compile (first run) or load the detector's numba kernels before subscribing, "
+        "so the first frames are not stalled", read_only=True)
 
 
 def default_configs() -> dict[str, Any]:
@@ -123,6 +127,9 @@ class DetectorNode(Node):
         self._detections_pub = self.create_publisher(Detection2DArray, cfg.detections_topic,
                                                      publisher_qos(10))
         self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
+        if cfg.warm_up and cfg.method == "kernel_covariance":
+            logged_warm_up(self, "sparse kernel covariance detector",
+                           lambda: warm_up_detector(kernel_cfg))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="detector_node-frames").start()
         self.create_subscription(Image, cfg.image_topic, self._worker.submit,

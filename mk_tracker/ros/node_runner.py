@@ -8,6 +8,8 @@
   seconds of wall time) is due.
 * :func:`log_shutdown` logs the node's statistics at shutdown, also after Ctrl-C when the
   context (and with it /rosout) is already gone.
+* :func:`logged_warm_up` runs one of :mod:`mk_tracker.warm_up`'s functions while a node
+  starts, with a log line before and after; a failure is a warning, never the node's end.
 """
 
 from __future__ import annotations
@@ -49,6 +51,20 @@ def log_shutdown(node: Node, statistics: dict[str, Any]) -> None:
         node.get_logger().info(text)
     else:
         print(f"[{node.get_name()}] {text}", file=sys.stderr, flush=True)
+
+
+def logged_warm_up(node: Node, what: str, warm_up: Callable[[], Any]) -> None:
+    """Compile / load ``what``'s numba kernels now (``warm_up()``), not on the first frame."""
+    logger = node.get_logger()
+    logger.info(f"preparing the compiled kernels of the {what} (the first run on a machine "
+                f"compiles them: tens of seconds; later runs load them from numba's cache)")
+    try:
+        seconds = warm_up().seconds
+    except Exception as exc:  # a warm-up problem must not stop the node; frames will show it
+        logger.warning(f"warm-up of the {what} failed ({type(exc).__name__}: {exc}); the "
+                       f"first frames may be slow")
+        return
+    logger.info(f"{what} ready ({seconds:.1f} s)")
 
 
 def run_node(node_class: Callable[[], Node], name: str,

@@ -56,10 +56,11 @@ from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
-from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, run_node
+from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up, run_node
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
+from mk_tracker.warm_up import warm_up_tracker
 
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
 
@@ -96,6 +97,9 @@ class TrackerNodeConfig:
     report_period: float = parameter(
         5.0, "Seconds between the logs of dropped frames and skipped input", minimum=0.1,
         maximum=3600.0)
+    warm_up: bool = parameter(
+        True, "Compile (first run) or load the multiple-kernel tracker's numba kernels before "
+        "subscribing, so the first tracked frames are not stalled", read_only=True)
 
 
 def default_configs() -> dict[str, Any]:
@@ -167,6 +171,9 @@ class TrackerNode(Node):
         self._tracks_pub = self.create_publisher(Detection2DArray, cfg.tracks_topic,
                                                  publisher_qos(10))
         self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
+        if cfg.warm_up and tracker_cfg.use_multi_kernel:
+            logged_warm_up(self, "multiple-kernel tracker",
+                           lambda: warm_up_tracker(tracker_cfg.multi_kernel))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="tracker_node-frames").start()
         self.create_subscription(Image, cfg.image_topic, self._worker.submit,
@@ -250,7 +257,9 @@ class TrackerNode(Node):
                     counters.detection_waits_timed_out += 1
                     break
                 self._detections_arrived.wait(left)
+            discarded = self._detections.discarded
             batches = self._detections.take(stamp)
+            discarded = self._detections.discarded - discarded
             starts = list(self._start_requests)
             self._start_requests.clear()
         with self._tracker_lock:
@@ -265,6 +274,9 @@ class TrackerNode(Node):
                 self._warn(
                     f"image time went backwards by {self._last_stamp - stamp:.3f} s "
                     "(bag restarted?); the tracker decides what to do")
+            if discarded:
+                self._warn(f"dropped {discarded} detection message(s) stamped after this "
+                           f"frame: time went backwards, they belong to the old time line")
             self._last_stamp = stamp
             try:
                 self._start_tracks(tracker, bgr, stamp, frame, starts)

@@ -1,0 +1,23 @@
+"""mk_tracker.warm_up: the nodes' start-up pass goes through the compiled code paths."""
+
+from __future__ import annotations
+
+import pytest
+
+from mk_tracker.multi_kernel import MultiKernelConfig
+from mk_tracker.thermal_detector import ThermalDetectorConfig
+from mk_tracker.warm_up import warm_up_detector, warm_up_tracker
+
+
+@pytest.mark.parametrize("kernels", [1, 2, 4, 6])
+def test_tracker_warm_up_starts_refines_and_compares(kernels):
+    done = warm_up_tracker(MultiKernelConfig(num_kernels=kernels))
+    assert done.paths == {"start", "refine", "appearance_similarity"}
+    assert done.seconds >= 0.0
+
+
+@pytest.mark.parametrize("startup, window", [(6, 4), (3, 2), (10, 8)])
+def test_detector_warm_up_reaches_tracking_mode_with_the_given_config(startup, window):
+    done = warm_up_detector(ThermalDetectorConfig(startup_frames=startup,
+                                                  window_frames=window))
+    assert {"startup", "tracking"} <= done.paths, done.paths
