@@ -893,8 +893,9 @@ class ThermalDetector:
             self.resets += 1
             self.time_resets += 1
             self.last_reset = True
-        valid = np.isfinite(raw)
-        if np.count_nonzero(valid) < self.config.min_valid_fraction * raw.size or not valid.any():
+        # integer encodings cannot hold missing pixels: only float frames are checked
+        n_valid = np.count_nonzero(np.isfinite(raw)) if enc == "32FC1" else raw.size
+        if n_valid < self.config.min_valid_fraction * raw.size or n_valid == 0:
             self.skipped_frames += 1
             self.last_mode = "invalid_frame"
             return []
@@ -902,7 +903,9 @@ class ThermalDetector:
             self.skipped_frames += 1
             self.last_mode = "out_of_order"
             return []
-        filled, _ = fill_missing(raw, self._last_filled)
+        filled = raw
+        if enc == "32FC1":
+            filled, _ = fill_missing(raw, self._last_filled)
         self._last_filled = filled
         self._shape, self._encoding, self._last_stamp = raw.shape, enc, t
         n_slots = self._buffer.maxlen
