@@ -161,21 +161,32 @@ def link_groups(support: np.ndarray, gap: int) -> np.ndarray:
 def merge_linked(labels: np.ndarray, groups: np.ndarray) -> np.ndarray:
     """Merge clusters that share a link group: the final objects are the connected parts of
     the graph joining pixels of one K-means cluster or of one group.  Returns labels
-    renumbered 0..n-1 (ordered by first pixel)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    renumbered 0..n-1 (ordered by first pixel).
 
+    The graph has one node per cluster and per group and an edge per distinct (cluster,
+    group) pair of the pixels; its components come from a union-find over those few pairs.
+    """
     labels = np.asarray(labels, dtype=np.int64)
     groups = np.asarray(groups, dtype=np.int64)
     if labels.size == 0:
         return labels
     _, lab = np.unique(labels, return_inverse=True)
     _, grp = np.unique(groups, return_inverse=True)
-    n_lab, n_grp = lab.max() + 1, grp.max() + 1
-    graph = coo_matrix((np.ones(lab.size), (lab, n_lab + grp)),
-                       shape=(n_lab + n_grp, n_lab + n_grp))
-    _, comp = connected_components(graph, directed=False)
-    merged = comp[lab]
+    n_lab, n_grp = int(lab.max()) + 1, int(grp.max()) + 1
+    parent = list(range(n_lab + n_grp))
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for pair in np.unique(lab * n_grp + grp).tolist():
+        ra, rb = find(pair // n_grp), find(n_lab + pair % n_grp)
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    root = np.array([find(k) for k in range(n_lab)], dtype=np.int64)
+    merged = root[lab]
     _, first = np.unique(merged, return_index=True)
     order = np.argsort(np.argsort(first))
     _, dense = np.unique(merged, return_inverse=True)

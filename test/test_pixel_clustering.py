@@ -76,3 +76,20 @@ def test_describe_pixels_uses_the_pixel_centre_convention():
     assert obj.pixel_count == 4
     with pytest.raises(ClusteringError):
         describe_pixels(np.array([]), np.array([]))
+
+
+def test_merge_linked_chains_and_first_pixel_order():
+    # cluster 2 and 0 share group 7, cluster 0 and 3 share group 9 -> one object; cluster 1
+    # alone; numbering follows the first pixel of each object
+    labels = np.array([1, 2, 0, 0, 3, 1, 4])
+    groups = np.array([5, 7, 7, 9, 9, 5, 6])
+    np.testing.assert_array_equal(merge_linked(labels, groups), [0, 1, 1, 1, 1, 0, 2])
+    rng = np.random.default_rng(4)
+    labels = rng.integers(0, 20, 500)
+    groups = rng.integers(0, 200, 500)
+    out = merge_linked(labels, groups)
+    # pixels with the same cluster, or the same group, always share an object
+    for values in (labels, groups):
+        for v in np.unique(values):
+            assert np.unique(out[values == v]).size == 1
+    assert out[0] == 0 and set(np.unique(out)) == set(range(out.max() + 1))
