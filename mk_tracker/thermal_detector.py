@@ -64,6 +64,14 @@ paper; the others are ours, chosen on the synthetic scenes (see docs/benchmark_t
 ``lambda`` relates to the exact skip threshold of a pixel's kernel variance by
 ``T = 3/2 (lambda/2)^(2/3)``: the default 0.15 gives T = 0.267 (a pixel that is object in
 one frame of six has 0.28; isolated dropouts of 5% missing pixels mostly stay below).
+
+Speed (docs/profile_thermal_detector.md): with numba installed, integer frames (mono8,
+mono16) take compiled paths that do the same arithmetic as the numpy reference paths
+(``MK_TRACKER_NO_NUMBA=1`` selects those; tests check both give the same detections):
+one loop over the blocks reads the ring buffer in place and runs the skip rule, (3.5) and
+Algorithm 1 per block (:func:`_support_loops`); each object's support pixels are found by
+one scan of its (5.2) window (:func:`_owned_loops`) and its footprint by one flood fill
+(:func:`_footprint_compiled`).  32FC1 frames use the numpy support path.
 """
 
 from __future__ import annotations
