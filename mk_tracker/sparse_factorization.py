@@ -298,10 +298,9 @@ def _minimizer_scalar(c1, c2, lam):
     return 0.0
 
 
-def _factorize_block(sb, m, prev, sv, norms, gram, lam, n_cols, max_cycles, tol):
+def _factorize_block(sb, m, sv, norms, gram, lam, n_cols, max_cycles, tol):
     """Algorithm 1 on one block: ``sb`` ``(p, p)``, factor ``m`` ``(p, R)`` (zeros on entry,
-    the result on exit); ``prev``, ``sv`` (``(p, R)``), ``norms``, ``gram`` are scratch
-    arrays.  Returns ``(cycles, converged)``.  The detector's fused per-block loop calls it
+    the result on exit); ``sv`` (``(p, R)``), ``norms``, ``gram`` are scratch arrays.  Returns ``(cycles, converged)``.  The detector's fused per-block loop calls it
     as well.
 
     ``sv = Sigma M`` is kept up to date (a column update when an entry changes; most stay
@@ -310,7 +309,7 @@ def _factorize_block(sb, m, prev, sv, norms, gram, lam, n_cols, max_cycles, tol)
     cycles = 0
     sv[:, :] = 0.0
     for cycle in range(1, max_cycles + 1):
-        prev[:, :] = m
+        change = 0.0               # ||M^k - M^(k-1)||^2, summed as the entries change
         for r in range(n_cols):
             for r2 in range(n_cols):
                 acc = 0.0
@@ -331,6 +330,7 @@ def _factorize_block(sb, m, prev, sv, norms, gram, lam, n_cols, max_cycles, tol)
                 c1 = 2.0 * (norms[r] - old * old) - 2.0 * rjj
                 c2 = -4.0 * cross
                 new = _minimizer_scalar(c1, c2, lam)
+                change += (new - old) * (new - old)
                 if new != old:
                     m[j, r] = new
                     delta = new - old
@@ -343,11 +343,6 @@ def _factorize_block(sb, m, prev, sv, norms, gram, lam, n_cols, max_cycles, tol)
                             upd = (new - old) * m[j, r2]
                             gram[r, r2] += upd
                             gram[r2, r] += upd
-        change = 0.0
-        for mu in range(p):
-            for r in range(n_cols):
-                d = m[mu, r] - prev[mu, r]
-                change += d * d
         cycles = cycle
         if np.sqrt(change) <= tol:
             return cycles, True
@@ -359,12 +354,11 @@ def _factorize_loops(s, lam, n_cols, max_cycles, tol):
     out = np.zeros((n_blocks, p, n_cols))
     cycles = np.zeros(n_blocks, dtype=np.int64)
     converged = np.zeros(n_blocks, dtype=np.bool_)
-    prev = np.zeros((p, n_cols))
     sv = np.zeros((p, n_cols))
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
     for b in range(n_blocks):
-        cycles[b], converged[b] = _factorize_block(s[b], out[b], prev, sv, norms, gram, lam,
+        cycles[b], converged[b] = _factorize_block(s[b], out[b], sv, norms, gram, lam,
                                                    n_cols, max_cycles, tol)
     return out, cycles, converged
 

@@ -340,7 +340,6 @@ def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_ran
     same = np.zeros((p, p))
     cross = np.zeros((p, p))
     m = np.zeros((p, n_cols))
-    prev = np.zeros((p, n_cols))
     sv = np.zeros((p, n_cols))
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
@@ -394,7 +393,7 @@ def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_ran
         factored += 1
         _levels_block_covariance(x, table, same, cross, sigma)
         m[:, :] = 0.0
-        _factorize_block(sigma, m, prev, sv, norms, gram, lam, n_cols, max_cycles, tol)
+        _factorize_block(sigma, m, sv, norms, gram, lam, n_cols, max_cycles, tol)
         for dy in range(rho):
             if y0 + dy >= h:
                 break
