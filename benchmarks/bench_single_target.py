@@ -821,9 +821,9 @@ FINDINGS = """## Findings (hand-written from this run; the tables below are the 
   places the box horizontally; 4 kernels (2x2) add a left/right structure: the bare
   4-kernel refinement gets 3.1 px, and the 4-kernel full tracker with the experimental
   settings 2.3 px, below CSRT's 2.8 px.  That row is below every OpenCV tracker on all five
-  synthetic scenes, but not on the TUD-Campus people (persons 3 and 7 are lost: too few
-  pixels per kernel, as the paper warns in Secs. IV-A and V-C), where the 2-kernel rows are best.
-  No single configuration measured here meets the accuracy goal everywhere."""
+  synthetic scenes, but not on the TUD-Campus people (it loses persons 3 and 7; not
+  diagnosed), where the 2-kernel rows are best.  No single configuration measured here
+  meets the accuracy goal everywhere."""
 
 
 if __name__ == "__main__":
