@@ -434,30 +434,36 @@ def _fused_kernel():
     return _FUSED[0]
 
 
-def _drop_stale_cache(kernel: Any) -> None:
+def _drop_stale_cache(kernel: Any) -> bool:
     """numba's disk cache of a function is keyed on its own source file only, but the
     compiled :func:`_support_loops` contains the level kernels and the block factorizer of
-    two other modules: when their source changes, drop its cache (recompiled on first use)."""
+    two other modules: when their source changes, drop its cache (recompiled on first use).
+    The sources' digest is kept next to the cache.  Returns whether the cache was dropped."""
     import hashlib
     from mk_tracker import kernel_covariance, sparse_factorization
     digest = hashlib.sha256()
     for module in (kernel_covariance, sparse_factorization):
         with open(module.__file__, "rb") as fh:
             digest.update(fh.read())
+    cache = getattr(kernel, "_cache", None)
+    cache_path = getattr(cache, "cache_path", None)
+    if not cache_path:
+        return False                       # no disk cache: nothing can be stale
+    path = os.path.join(cache_path, "thermal_detector._support_loops.deps")
     try:
-        path = os.path.join(kernel._cache.cache_path, "thermal_detector._support_loops.deps")
         with open(path, encoding="ascii") as fh:
-            known = fh.read().strip()
-    except (OSError, AttributeError):
-        known = None
-    if known == digest.hexdigest():
-        return
+            if fh.read().strip() == digest.hexdigest():
+                return False
+    except OSError:
+        pass
     try:
-        kernel._cache.flush()
+        cache.flush()
+        os.makedirs(cache_path, exist_ok=True)
         with open(path, "w", encoding="ascii") as fh:
             fh.write(digest.hexdigest())
-    except (OSError, AttributeError, NameError):
+    except OSError:
         pass           # an unwritable cache: numba compiles in memory anyway
+    return True
 
 
 _TABLES: dict[float, np.ndarray] = {}

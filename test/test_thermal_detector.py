@@ -352,3 +352,26 @@ def test_compiled_background_median_equals_numpy_median():
         expected = np.float32(np.median(sample))
         assert td._sample_median(sample) == expected, sample[:8]
         assert td._median(sample) == expected
+
+
+def test_stale_compiled_support_cache_is_dropped(tmp_path):
+    """The fused support loop embeds code of two other modules, which numba's cache does
+    not track: a changed digest of their sources flushes the cache, an unchanged one not."""
+    from mk_tracker.thermal_detector import _drop_stale_cache
+
+    class FakeCache:
+        cache_path = str(tmp_path)
+        flushed = 0
+
+        def flush(self):
+            self.flushed += 1
+
+    class FakeKernel:
+        _cache = FakeCache()
+
+    kernel = FakeKernel()
+    assert _drop_stale_cache(kernel) and kernel._cache.flushed == 1     # no digest yet
+    assert not _drop_stale_cache(kernel) and kernel._cache.flushed == 1
+    (tmp_path / "thermal_detector._support_loops.deps").write_text("0" * 64)
+    assert _drop_stale_cache(kernel) and kernel._cache.flushed == 2     # sources changed
+    assert not _drop_stale_cache(kernel)
