@@ -120,6 +120,24 @@ def synthetic_sequences() -> list[Sequence]:
     ]
 
 
+HELD_OUT_SEEDS = (11, 12)
+
+
+def held_out_sequences() -> list[Sequence]:
+    """Every person of two generator crowd scenes (5 people, 150 frames, random turns,
+    crossings, 2 pillars; seeds not used anywhere else) as a single target: sequences that
+    played no part in choosing any setting of this benchmark (the experimental rows' settings
+    were chosen on the other sequences).  Not part of issue #3's goal."""
+    out = []
+    for seed in HELD_OUT_SEEDS:
+        scene = synthetic.crowd_scene(n_people=5, seed=seed, frames=150)
+        for pid in range(1, 6):
+            seq = synthetic_sequence(f"held-out crowd seed {seed} person {pid}", scene, pid)
+            if seq.truth[0] is not None:
+                out.append(seq)
+    return out
+
+
 def _image_reader(paths: list[Path]) -> Callable[[], Iterator[np.ndarray]]:
     return lambda: (cv2.imread(str(p), cv2.IMREAD_COLOR) for p in paths)
 
@@ -458,7 +476,7 @@ def main(argv=None) -> int:
     cv2.setNumThreads(1)
     load_before = os.getloadavg()
 
-    seqs = synthetic_sequences() + otb_sequences() + tud_sequences()
+    seqs = synthetic_sequences() + otb_sequences() + tud_sequences() + held_out_sequences()
     trackers = tracker_table()
     if args.list:
         print("trackers:\n  " + "\n  ".join(n for n, _ in trackers))
@@ -502,6 +520,11 @@ NOTES = """Notes.
   prediction initialises the multiple-kernel search and the result is the Kalman
   measurement; below `lifecycle.occlusion_similarity` the track is `occluded` and coasts on
   the prediction.  Its box is scored in every state (while it coasts: the predicted box).
+* "held-out crowd persons": every person of two generator crowd scenes
+  (`synthetic.crowd_scene(5, seed=11 / 12, frames=150)`: random turns, crossings, pillars),
+  each as a single target from its first box.  No setting of any row was chosen on them
+  (the experimental settings were chosen on the other sequences), so they show whether
+  those settings carry over.  Not part of the goal.
 * "said hidden" = frames in which the tracker itself said it does not see the target: MK
   `lost` (its last box is scored), the full tracker's state other than `confirmed`, OpenCV
   `ok=False` (its last box is scored), CamShift's collapsed window.  "truly hidden" (synthetic
@@ -524,6 +547,7 @@ NOTES = """Notes.
   its sequences' medians."""
 
 SPEED_GOAL_MS = 2.0
+HELD_OUT = "held-out crowd persons (not a goal)"
 SPEED_GOAL_FACTOR = 5.0
 
 
@@ -619,6 +643,10 @@ def accuracy_table(trackers, results, opencv, syn, tud) -> list[str]:
     cols = [(n.replace("synthetic ", ""), [n]) for n in syn]
     cols += [("synthetic mean", syn), ("TUD-Campus mean", tud)]
     cols = [(c, names) for c, names in cols if names]
+    n_goal = len(cols)
+    held = [n for n in next(iter(results.values())) if "held-out" in n]
+    if held:
+        cols.append(("held-out crowd mean (not a goal)", held))
 
     def err(name, names):
         return float(np.mean([results[name][n][0]["mean_center_error"] for n in names]))
@@ -628,7 +656,8 @@ def accuracy_table(trackers, results, opencv, syn, tud) -> list[str]:
         o = min(opencv, key=lambda o: err(o, names))
         best.append((o.replace("OpenCV ", ""), err(o, names)))
     lines = ["Accuracy goal, every MK row (mean centre error in px; yes = lower than every "
-             "OpenCV tracker on that scene or group):", "",
+             "OpenCV tracker on that scene or group; the held-out column is not part of the "
+             "goal and not of \"all met\"):", "",
              "| tracker | " + " | ".join(c for c, _ in cols) + " | all met |",
              "|---|" + "---|" * (len(cols) + 1),
              "| best OpenCV | " + " | ".join(f"{v:.2f} ({o})" for o, v in best) + " | |"]
@@ -636,10 +665,11 @@ def accuracy_table(trackers, results, opencv, syn, tud) -> list[str]:
         if f is None or not name.startswith("MK") or name not in results:
             continue
         cells, met = [], True
-        for (_, names), (_, b) in zip(cols, best):
+        for k, ((_, names), (_, b)) in enumerate(zip(cols, best)):
             e = err(name, names)
             ok = e < b
-            met &= ok
+            if k < n_goal:
+                met &= ok
             cells.append(f"{e:.2f} {'yes' if ok else 'no'}")
         lines.append(f"| {name} | " + " | ".join(cells) + f" | {'**yes**' if met else 'no'} |")
     return lines + [""]
@@ -692,7 +722,8 @@ def write_markdown(path: Path, seqs, trackers, results, argv, loads=None,
         cmd += " " + " ".join(f"'{a}'" if " " in a else a for a in args)
     groups = [("synthetic occlusion scenes", [s.name for s in seqs if "synthetic" in s.name]),
               ("TUD-Campus persons", [s.name for s in seqs if "TUD" in s.name]),
-              ("OTB Crossing", [s.name for s in seqs if "OTB" in s.name])]
+              ("OTB Crossing", [s.name for s in seqs if "OTB" in s.name]),
+              (HELD_OUT, [s.name for s in seqs if "held-out" in s.name])]
     groups = [(g, names) for g, names in groups if names]
     lines = ["# Single-target benchmark: multiple-kernel tracker vs OpenCV trackers", "",
              "Produced by:", "", "```", cmd, "```", ""]
