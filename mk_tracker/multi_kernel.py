@@ -41,8 +41,10 @@ kernels of the target per iteration in one call of
 :meth:`mk_tracker.kernel_histograms.SearchRegion.evaluate` (numba-compiled by default, numpy
 with ``backend="numpy"`` or ``MK_TRACKER_NO_NUMBA=1``; both give the same results, tested).
 The iteration of Algorithm 1 is sensitive to rounding: the two backends (or a first box moved
-by 1e-9 px) give the same boxes for tens of frames, then can drift apart by pixels on
-sequences where the iteration does not settle within ``T`` steps.
+by 1e-9 px) give the same boxes for the first few to few tens of frames, then can drift apart
+by pixels on sequences where the iteration does not settle within ``T`` steps; the benchmark
+centre errors of both stay within the spread such 1e-9 px moves cause
+(docs/profile_multi_kernel.md).
 
 Constraint thresholds.  The paper sets ``eps_C`` per constraint "in the range 0.05 to 9
 depending on the object size".  Here a single pixel tolerance ``e`` (``constraint_tolerance_px``)
