@@ -136,6 +136,8 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="runs per scene")
     parser.add_argument("--compare", default=None,
                         help="directory holding an older mk_tracker package to measure too")
+    parser.add_argument("--label", default="compared",
+                        help="name of the --compare version in the report (e.g. its commit)")
     parser.add_argument("--top", type=int, default=15, help="functions listed per mode")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--out", default=str(ROOT / "docs" / "profile_thermal_detector.md"))
@@ -150,7 +152,7 @@ def main(argv=None) -> int:
     header = ("| people | version | tracking frame ms CPU, median of min / median | "
               "full-frame pass ms CPU, median of min / median | load |")
     for people in args.people:
-        versions = [("current", None)] + ([("compared", args.compare)] if args.compare else [])
+        versions = [("current", None)] + ([(args.label, args.compare)] if args.compare else [])
         for label, path in versions:
             res = run_worker(path, args, people)
             row = (f"| {people} | {label} (`{res['package']}`) | {fmt(res.get('tracking'))} | "
@@ -176,7 +178,9 @@ def main(argv=None) -> int:
         "measured right after the current one).  CPU time per `process()` call "
         "(`time.process_time`, one thread); *median of min* takes each frame's fastest run, "
         "then the median over frames (the detector is deterministic, so slower runs are "
-        "other jobs' interference).  Machine load (1-min average, 2 cores): "
+        "other jobs' interference).  The compared package is a plain copy of `mk_tracker/` at "
+        "an older commit (`git archive <commit> mk_tracker | tar -x -C DIR`).  Machine load "
+        "(1-min average, 2 cores): "
         f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after; the last column is "
         "sampled after each measurement.",
         "",
