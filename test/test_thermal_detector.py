@@ -375,3 +375,22 @@ def test_stale_compiled_support_cache_is_dropped(tmp_path):
     (tmp_path / "thermal_detector._support_loops.deps").write_text("0" * 64)
     assert _drop_stale_cache(kernel) and kernel._cache.flushed == 2     # sources changed
     assert not _drop_stale_cache(kernel)
+
+
+def test_levels_beyond_the_kernel_table_fall_back_to_the_exponential_path():
+    """mono16 counts spanning more than the table inside one block: the compiled loop
+    declines (-1) and the numpy path with exponentials gives the support."""
+    from mk_tracker.thermal_detector import TABLE_LEVELS, _fused_kernel, support_in_frame
+    rng = np.random.default_rng(5)
+    window = _moving_blob_levels(rng, 5, 24, 32, lo=100, hi=100 + TABLE_LEVELS + 900)
+    cfg = ThermalDetectorConfig()
+    scale = 1.0 / (TABLE_LEVELS + 1000)
+    ref = support_in_frame(window, cfg, scale, False, backend="numpy")
+    assert ref.support.any()
+    auto = support_in_frame(window, cfg, scale, True)
+    np.testing.assert_array_equal(auto.support, ref.support)
+    np.testing.assert_allclose(auto.variance, ref.variance, atol=1e-6)
+    if _fused_kernel() is not None:
+        with_table = support_in_frame(window[:, :8, :8] * 0 + 7, cfg, scale, True,
+                                      backend="compiled")
+        assert not with_table.support.any()
