@@ -210,13 +210,21 @@ class ConstantVelocityKalman:
         :class:`KalmanError` and leaves the filter unchanged.
         """
         z = _as_point("measurement", measurement)
-        s = self.innovation_covariance(sigma_w)
-        pht = self._cov[:, :2]                       # P H^T
-        gain = np.linalg.solve(s, pht.T).T           # (4.5): G = P H^T S^-1 (S symmetric)
+        r = self._measurement_std(sigma_w) ** 2
+        p = self._cov
+        # S = H P H^T + sigma_w^2 I (2x2, symmetric), inverted in closed form: this runs for
+        # every object of every frame, and np.linalg on a 2x2 costs more than the arithmetic
+        s00, s01, s11 = p[0, 0] + r, 0.5 * (p[0, 1] + p[1, 0]), p[1, 1] + r
+        det = s00 * s11 - s01 * s01
+        if not (math.isfinite(det) and det > 0.0):
+            raise KalmanError("innovation covariance is not positive definite; filter left "
+                              "unchanged")
+        s_inv = np.array([[s11, -s01], [-s01, s00]]) / det
+        gain = p[:, :2] @ s_inv                      # (4.5): G = P H^T S^-1
         state = self._state + gain @ (z - self._state[:2])
-        cov = (np.eye(4) - gain @ MEASUREMENT_MATRIX) @ self._cov   # (4.4)
+        cov = p - gain @ p[:2, :]                    # (4.4): (I - G H) P, with H P = P[:2, :]
         cov = 0.5 * (cov + cov.T)
-        if not (np.all(np.isfinite(state)) and np.all(np.isfinite(cov))):
+        if not (math.isfinite(float(state.sum())) and math.isfinite(float(cov.sum()))):
             raise KalmanError("update produced a non-finite state; filter left unchanged")
         self._state, self._cov = state, cov
         return self._state.copy()
