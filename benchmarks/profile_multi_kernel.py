@@ -166,12 +166,14 @@ def main(argv=None) -> int:
 
     # results[impl][nk][seq] = (times (min over repeats), iterations, metrics, boxes)
     results: dict = {name: {nk: {} for nk in kernels} for name, _, _ in impls}
+    passes: dict = {}       # (impl, kernels, sequence) -> per-frame times of every pass
     for rep in range(args.repeats):
         for seq, frames in seqs:
             for nk in kernels:
                 order = impls if rep % 2 == 0 else impls[::-1]
                 for name, module, backend in order:
                     t, it, m, boxes = run_one(module, backend, nk, seq, frames)
+                    passes.setdefault((name, nk, seq.name), []).append(t)
                     prev = results[name][nk].get(seq.name)
                     if prev is not None:
                         t = list(np.minimum(prev[0], t))
@@ -212,7 +214,8 @@ def main(argv=None) -> int:
     groups = sorted({group_of(s.name) for s, _ in seqs})
     lines = []
     header = ("| kernels | implementation | " +
-              " | ".join(f"{g}: ms median / iterations / centre error" for g in groups) + " |")
+              " | ".join(f"{g}: ms (per-frame min) / iterations / centre error" for g in groups)
+            + " |")
     lines += [header, "|---|---|" + "---|" * len(groups)]
     for nk in kernels:
         for name, _, _ in impls:
@@ -220,14 +223,18 @@ def main(argv=None) -> int:
             for g in groups:
                 names = [s.name for s, _ in seqs if group_of(s.name) == g]
                 rs = [results[name][nk][n] for n in names]
-                ms = float(np.median(np.concatenate([r[0] for r in rs]))) * 1e3
+                ms_min = float(np.median(np.concatenate([r[0] for r in rs]))) * 1e3
+                # the median of each pass over the group's frames, then their median
+                ms = float(np.median([np.median(np.concatenate(
+                    [passes[(name, nk, n)][k] for n in names])) for k in range(args.repeats)]))
+                ms *= 1e3
                 its = float(np.mean(np.concatenate([r[1] for r in rs])))
                 # group mean centre error of each start (unmoved, jittered ...)
                 means = np.mean([errs[name][nk][n] for n in names], axis=0)
                 err = f"{means[0]:.2f}"
                 if len(means) > 1:
                     err += f" ({means.min():.2f}-{means.max():.2f})"
-                cells.append(f"{ms:.2f} / {its:.2f} / {err}")
+                cells.append(f"{ms:.2f} ({ms_min:.2f}) / {its:.2f} / {err}")
             lines.append(f"| {nk} | {name} | " + " | ".join(cells) + " |")
     for name, per_seq in cv_results.items():
         cells = []
@@ -287,8 +294,11 @@ def main(argv=None) -> int:
                f"{cv2.__version__}, numba {_numba_version()}, one thread.", "",
                f"{len(seqs)} sequences, {n_frames} refinements per tracker and pass. ms = "
                "median over all frames of a group of the process CPU time of one `refine` "
-               f"(HSV conversion of the search region included), the per-frame minimum over "
-               f"{args.repeats} passes; iterations = mean iterations of Algorithm 1 per "
+               f"(HSV conversion of the search region included), the median over {args.repeats}"
+               " passes (the figure `bench_single_target.py` reports is one such pass); in "
+               "brackets the median of each frame's fastest pass, the cost without "
+               "interference from other processes' use of the shared cores and caches; "
+               "iterations = mean iterations of Algorithm 1 per "
                "frame; centre error = mean over the group's sequences of the mean centre "
                "error in px (a lost result scores the last state box, as in "
                "`bench_single_target.py`)"

@@ -562,6 +562,10 @@ class KernelBackendError(ValueError):
     """A backend name is unknown, or ``"compiled"`` was asked for without numba."""
 
 
+class BinMismatchError(ValueError):
+    """Bin indices or target models do not fit the number of histogram bins."""
+
+
 #: Fixed-point reciprocals of OpenCV's 8-bit BGR->HSV conversion (12 fractional bits):
 #: ``255 / v`` for the saturation and ``180 / (6 * diff)`` for the hue.
 _HSV_SHIFT = 12
@@ -797,6 +801,9 @@ class SearchRegion:
             raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
         self.backend = resolve_backend(backend)
         self.bins = np.ascontiguousarray(bins, dtype=np.int32)
+        # the compiled loops index histograms with these without bounds checks
+        if self.bins.size and (int(self.bins.min()) < 0 or int(self.bins.max()) >= n_bins):
+            raise BinMismatchError(f"bin indices must lie in [0, {n_bins})")
         self.origin = (int(origin[0]), int(origin[1]))
         self.stride = int(stride)
         self.n_bins = int(n_bins)
@@ -811,7 +818,11 @@ class SearchRegion:
             raise ValueError(f"weighting must be one of {PIXEL_WEIGHTINGS}, got {weighting!r}")
         axes = np.ascontiguousarray(half_axes, dtype=np.float64).reshape(-1, 2)
         centres = np.ascontiguousarray(centres, dtype=np.float64).reshape(-1, 2)
-        models = np.ascontiguousarray(models, dtype=np.float64).reshape(len(axes), -1)
+        models = np.ascontiguousarray(models, dtype=np.float64)
+        if models.shape != (len(axes), self.n_bins) or centres.shape != axes.shape:
+            raise BinMismatchError(f"{len(axes)} kernels need {len(axes)} centres and models "
+                                   f"of {self.n_bins} bins, got centres {centres.shape} and "
+                                   f"models {models.shape}")
         if self.backend == "numpy":
             templates = [self._template(a) for a in axes]
             return self._padded_bins(templates).evaluate_batch(templates, centres, models,

@@ -347,3 +347,19 @@ def test_search_region_equals_the_direct_per_kernel_evaluation():
                 assert np.allclose(batch.p[i], d.p, atol=1e-12)
                 assert np.allclose(batch.mean_shift[i], d.mean_shift, atol=1e-9)
                 assert batch.scale_ratios[i] == pytest.approx(d.scale_ratio, abs=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "auto"])
+def test_search_region_refuses_bins_and_models_that_do_not_fit(backend):
+    from mk_tracker.kernel_histograms import BinMismatchError
+    bins = quantize(_blob_scene(), "hsv", BINS)
+    with pytest.raises(BinMismatchError):
+        SearchRegion(bins, (0, 0), 1, 64, backend=backend)          # indices up to 511
+    with pytest.raises(BinMismatchError):
+        SearchRegion(bins - 600, (0, 0), 1, M, backend=backend)
+    region = SearchRegion(bins, (0, 0), 1, M, backend=backend)
+    with pytest.raises(BinMismatchError):
+        region.evaluate(np.ones((2, 2)) * 10, np.ones((2, 2)) * 50, np.full((2, 64), 1 / 64))
+    with pytest.raises(BinMismatchError):
+        region.evaluate(np.ones((2, 2)) * 10, np.ones((3, 2)) * 50, np.full((2, M), 1 / M))
+    assert issubclass(BinMismatchError, ValueError)
