@@ -493,10 +493,13 @@ def main(argv=None) -> int:
     for seq in seqs:
         print(f"{seq.name} ({len(seq.truth)} frames"
               + (f", hidden {sum(seq.hidden[1:])}" if seq.hidden else "") + ")", flush=True)
+        # render / read the frames once for all trackers (one sequence in memory at a time)
+        frames = list(seq.frames())
+        cached = replace(seq, frames=lambda: iter(frames))
         for name, factory in trackers:
             if factory is None:
                 continue
-            m, ms = run_repeated(seq, factory, REPEATS.get(name, 1))
+            m, ms = run_repeated(cached, factory, REPEATS.get(name, 1))
             results.setdefault(name, {})[seq.name] = (m, ms)
             print(f"  {name:52s} err {m['mean_center_error']:8.2f}  P@20 "
                   f"{m['precision_at_20px']:.3f}  AUC {m['success_auc']:.3f}  {ms:7.2f} ms"
