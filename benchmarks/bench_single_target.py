@@ -862,10 +862,10 @@ FINDINGS = """## Findings (hand-written from this run; the tables below are the 
   is best (22.5 px; CSRT 28.9) and every full-tracker row is worse (42.5-46.1 px), so the
   experimental settings do not carry over.  For example person 3 of seed 11 turns round
   while half hidden behind person 1: the track goes `occluded`, coasts on along its old
-  velocity and never comes back (a track started by hand never becomes `lost`, and while it
-  coasts the refinement searches only around the prediction), whereas the bare refinement
-  stays on the person.  Searching also around the last seen position while coasting is the
-  next thing to try (a `MultiObjectTracker` change)."""
+  velocity and never comes back (a track started by hand coasts until its prediction leaves
+  the image, and meanwhile the refinement searches only around the prediction), whereas the
+  bare refinement stays on the person.  Searching also around the last seen position while
+  coasting is the next thing to try (a `MultiObjectTracker` change)."""
 
 
 if __name__ == "__main__":
