@@ -809,7 +809,7 @@ def write_markdown(path: Path, seqs, trackers, results, argv, loads=None,
 FINDINGS = """## Findings (hand-written from this run; the tables below are the evidence)
 
 * **Full tracker (Kalman + refinement, Sec. IV-D) with its defaults.**  It coasts through the
-  full occlusion of "crossing (far)" and re-acquires the person (2.2 px vs 31.3 px for the
+  full occlusion of "crossing (far)" and re-acquires the person (2.1 px vs 31.3 px for the
   best OpenCV tracker, KCF; it said hidden in 15 frames, 11 of them truly hidden).  On "full
   pillar" it beats CSRT (31.7 vs 53.6 px) but does not re-acquire: while the person walks
   into the pillar the refinement lags on the shrinking visible part with a good similarity,
