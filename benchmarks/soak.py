@@ -251,10 +251,11 @@ def main(argv: list[str] | None = None) -> int:
                          else f"| {key} | {value} |")
     lines += [
         "",
-        "Drops are expected: the detector needs about 0.27 s per 640x480 frame with 15 people "
-        "on this machine, so at the publish rate it takes the newest frame and counts the "
-        "rest as dropped (by design, :class:`mk_tracker.ros.latest_frame.LatestFrameWorker`). "
-        "The tracker tracks on every frame it processes and uses whatever detections arrived.",
+        "A node slower than the publish rate takes the newest frame and counts the rest as "
+        "dropped (by design, :class:`mk_tracker.ros.latest_frame.LatestFrameWorker`); the "
+        "tracker tracks on every frame it processes and uses whatever detections arrived.  "
+        "The identity scores are low because the detector merges people who touch in this "
+        "15-person crowd (README, known limitations), so the tracker holds only a few tracks.",
         "",
     ]
     text = "\n".join(lines)
