@@ -118,7 +118,12 @@ def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(dom
     log = detector.output()
     dropped = [int(line.split(" frames dropped")[0].rsplit(" ", 1)[-1])
                for line in log.splitlines() if " frames dropped" in line]
-    assert dropped and dropped[-1] > 0.2 * len(sent), log[-2000:]
+    # (frames it never processed were either replaced in its newest-frame slot, which it
+    # counts, or overwritten inside DDS by the depth-1 best-effort reader, which it cannot
+    # see; since the compiled detector runs ~30 Hz here, about a third of the unprocessed
+    # frames reach its slot)
+    unprocessed = len(sent) - len(processed)
+    assert dropped and dropped[-1] > 0.2 * unprocessed, (unprocessed, log[-2000:])
     # memory flat: after the warm-up the peak stops rising (allocator steps of a few MiB
     # while the first reconfiguration passes run are allowed, steady growth is not)
     settled = [(t, m) for t, m in memory if t >= WARM_UP_S]
