@@ -28,15 +28,20 @@ def _render(scene, object_id=1):
     return frames, truth
 
 
-def _mean_error(config, frames, truth):
+def track(config, frames, truth):
+    """Boxes of a tracker started on ``truth[0]`` for ``frames[1:]`` (a lost frame keeps the
+    last box)."""
     tracker = MultiKernelTracker(config)
     state = tracker.start(frames[0], truth[0])
     boxes = []
     for frame in frames[1:]:
         res = tracker.refine(frame, state)
         boxes.append(state.box if res.lost else res.box)
-    err = center_errors(boxes, truth[1:])
-    return float(np.mean(err))
+    return boxes
+
+
+def _mean_error(config, frames, truth):
+    return float(np.mean(center_errors(track(config, frames, truth), truth[1:])))
 
 
 def _lower_body_wall_scene():

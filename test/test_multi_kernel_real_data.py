@@ -21,8 +21,9 @@ import pytest
 
 from mk_tracker.datasets import read_mot_sequence
 from mk_tracker.evaluation import center_errors, overlaps
-from mk_tracker.multi_kernel import (MultiKernelConfig, MultiKernelTracker,
-                                     mean_shift_baseline_config)
+from mk_tracker.multi_kernel import MultiKernelConfig, mean_shift_baseline_config
+
+from test_multi_kernel_behaviour import track
 
 PERSON = 2
 
@@ -39,15 +40,8 @@ def person_two(shared_data):
 
 
 def _run(config: MultiKernelConfig, frames, truth):
-    tracker = MultiKernelTracker(config)
-    state = tracker.start(frames[0], truth[0])
-    boxes = []
-    for frame in frames[1:]:
-        res = tracker.refine(frame, state)
-        boxes.append(state.box if res.lost else res.box)
-    err = center_errors(boxes, truth[1:])
-    ious = overlaps(boxes, truth[1:])
-    return np.asarray(err), np.asarray(ious)
+    boxes = track(config, frames, truth)
+    return np.asarray(center_errors(boxes, truth[1:])), np.asarray(overlaps(boxes, truth[1:]))
 
 
 def test_projected_gradient_keeps_tud_person_2_where_the_ablations_lose_it(person_two):
