@@ -492,6 +492,39 @@ def _compiled_step():
     return _COMPILED_STEP[0]
 
 
+#: Statistics of the kernel similarities that say how well a target is seen (see
+#: :func:`visibility_similarity`).
+VISIBILITY_STATISTICS = ("mean", "weighted")
+
+
+def visibility_similarity(similarities: np.ndarray, weights: np.ndarray | None = None,
+                          statistic: str = "mean") -> float:
+    """How well a target is seen, from its kernel similarities ``rho_i = exp(-J_i)``.
+
+    ``"mean"``: ``sum_i rho_i / N``, the plain mean (the mean similarity of (5)).
+    ``"weighted"``: ``sum_i W_i rho_i / N`` with the adaptive weights ``W_i`` of (7)-(8)
+    (``W_i = N rho_i / sum_j rho_j``, so this is ``sum rho_i^2 / sum rho_i``); ``weights``
+    defaults to those.  One occluded kernel (``rho ~ 0``) halves the plain mean of two
+    kernels but hardly changes the weighted one, which follows the kernels that still see
+    the target; with every kernel occluded both are low.  NaN similarities count as 0.
+    Raises ``ValueError`` for an unknown statistic or mismatched shapes.
+    """
+    if statistic not in VISIBILITY_STATISTICS:
+        raise ValueError(f"visibility statistic must be one of {VISIBILITY_STATISTICS}, "
+                         f"got {statistic!r}")
+    s = np.asarray(similarities, dtype=np.float64).reshape(-1)
+    if s.size == 0:
+        raise ValueError("no kernel similarities")
+    s = np.where(np.isfinite(s), s, 0.0)
+    if statistic == "mean":
+        return float(s.mean())
+    w = adaptive_weights(s) if weights is None else \
+        np.asarray(weights, dtype=np.float64).reshape(-1)
+    if w.shape != s.shape:
+        raise ValueError(f"{w.size} weights for {s.size} kernel similarities")
+    return float(np.sum(w * s) / s.size)
+
+
 def adaptive_weights(similarities: np.ndarray) -> np.ndarray:
     """``W_i ~ sim_i`` normalised to sum ``N`` (7)-(8); uniform when every sim is 0."""
     s = np.asarray(similarities, dtype=np.float64)
@@ -554,7 +587,7 @@ class RefinementResult:
 
     ``box`` is (x, y, w, h) from the kernels' extremes (14), ``center`` its centroid;
     ``similarity`` the mean of ``kernel_similarities`` (each ``exp(-J_i)`` in [0, 1]);
-    ``weights`` the adaptive W_i; ``kernel_centres``/``kernel_axes`` the ellipses for drawing;
+    ``weights`` the adaptive W_i (``weighted_similarity`` = ``sum_i W_i rho_i / N``); ``kernel_centres``/``kernel_axes`` the ellipses for drawing;
     ``lost`` with ``reason`` ("" when tracked, else "outside_image", "nan_pixels" or
     "low_similarity").
     """
@@ -572,6 +605,11 @@ class RefinementResult:
     cost: float = float("nan")
     scale: float = 1.0
     cost_history: list = field(default_factory=list)
+
+    @property
+    def weighted_similarity(self) -> float:
+        """``sum_i W_i rho_i / N`` (:func:`visibility_similarity`, ``"weighted"``)."""
+        return visibility_similarity(self.kernel_similarities, self.weights, "weighted")
 
 
 # --------------------------------------------------------------------------------------------

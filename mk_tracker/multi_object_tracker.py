@@ -24,9 +24,13 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
 5. **Multiple-kernel refinement** (Chu et al. 2013, Sec. IV-D): for each confirmed or
    occluded track with an appearance model and no detection this frame (or every such track
    with ``refine_when_detected``), the Kalman prediction initialises the multiple-kernel
-   search whose result is a Kalman measurement.  Its similarity sets the measurement noise
-   (:func:`mk_tracker.track.measurement_sigma`) and, below
-   ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).
+   search whose result is a Kalman measurement.  Its visibility statistic
+   (``lifecycle.visibility_statistic``: the plain mean of the kernel similarities or
+   ``sum_i W_i rho_i / N``, :func:`mk_tracker.multi_kernel.visibility_similarity`) sets the
+   measurement noise (:func:`mk_tracker.track.measurement_sigma`) and, below
+   ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).  Tracks started
+   by hand (:meth:`MultiObjectTracker.start_track`) use the settings of
+   :class:`ManualTrackConfig` instead (their own refiner, Kalman prior and visibility).
 6. **Update and lifecycle** (:mod:`mk_tracker.track`).
 
 The refiner is any object with ``start(image, box) -> target``,
@@ -41,7 +45,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
@@ -50,7 +54,9 @@ from mk_tracker.association import (AssociationConfig, assign, association_cost,
                                     mahalanobis_matrix)
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
-from mk_tracker.multi_kernel import MultiKernelConfig, MultiKernelTracker
+from mk_tracker.multi_kernel import (SUPPORTED_KERNEL_COUNTS, VISIBILITY_STATISTICS,
+                                     MultiKernelConfig, MultiKernelTracker,
+                                     visibility_similarity)
 from mk_tracker.parameters import ParameterError, parameter, validate_config
 from mk_tracker.stamps import checked_stamp
 from mk_tracker.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
@@ -65,6 +71,85 @@ class TrackerInputError(ValueError):
 
 
 @dataclass(frozen=True)
+class ManualTrackConfig:
+    """Settings of tracks started by hand (:meth:`MultiObjectTracker.start_track`: the node's
+    ``initial_box`` and ``~/start_track``, ``mk_tracker process --init-from-gt``).
+
+    Such a track follows one person with no detector to correct it (the single-target
+    protocol of Chu et al. 2013, Sec. V), so the multiple-kernel refinement from the Kalman
+    prediction (Sec. IV-D) is its only measurement.  The defaults for tracks born from
+    detections were chosen for the multi-object benchmark, where a detection corrects the
+    track every frame; here they fail (docs/benchmark_single_target.md, "Findings"):
+
+    * a velocity prior of 50 px/s (``kalman.initial_velocity_var`` 2500) is far below the
+      ~250 px/s at which the TUD-Campus people walk, so the filter has not learnt the speed
+      when it first has to coast;
+    * on real video a matching target scores 0.45-0.65 (plain mean), below the 0.6 of
+      ``lifecycle.occlusion_similarity``, so the track coasts while in plain view;
+    * with one kernel hidden (legs behind a wall) the plain mean halves although the other
+      kernel places the target (hence the ``weighted`` visibility statistic);
+    * the refinement's similarity was mapped to a measurement quality of ~0 (range
+      0.5-0.95, times 0.5 without a detection), so the filter ignored its only measurement
+      and drifted behind a walking person on its own velocity;
+    * two stacked kernels give no left/right structure once the legs are hidden.
+
+    Every field replaces one field of the tracker's ``kalman`` / ``lifecycle`` /
+    ``multi_kernel`` sections for these tracks only; the rest of those sections applies to
+    them unchanged.
+    """
+
+    initial_velocity_var: float = parameter(
+        4.0e4, "Initial variance of the velocity of a track started by hand, (px/s)^2 "
+        "(replaces kalman.initial_velocity_var: a walking person may move at ~250 px/s)",
+        minimum=1e-9, maximum=1e12)
+    occlusion_similarity: float = parameter(
+        0.4, "Visibility statistic below which a track started by hand is occluded "
+        "(replaces lifecycle.occlusion_similarity)", minimum=0.0, maximum=1.0)
+    visibility_statistic: str = parameter(
+        "weighted", "Visibility statistic of a track started by hand: mean or weighted "
+        "(replaces lifecycle.visibility_statistic)", choices=VISIBILITY_STATISTICS)
+    refinement_similarity_range: tuple = parameter(
+        (0.2, 0.8), "Visibility statistics (low, high) mapped linearly to match quality 0..1 "
+        "for a track started by hand (replaces refinement_similarity_range: its refinement "
+        "is its only measurement, and on real video a matching target scores 0.45-0.65)")
+    undetected_quality_factor: float = parameter(
+        1.0, "Factor on the refinement's quality of a track started by hand in frames "
+        "without a detection (replaces undetected_quality_factor)", minimum=0.0, maximum=1.0)
+    num_kernels: int = parameter(
+        6, "Kernels of a track started by hand (replaces multi_kernel.num_kernels; 6 = 3 rows "
+        "x 2 columns, Fig. 14b: left/right structure that still places a person whose legs "
+        "are hidden)", choices=SUPPORTED_KERNEL_COUNTS)
+    scale_gate_statistic: str = parameter(
+        "mean", "Scale gate statistic of a track started by hand (replaces "
+        "multi_kernel.scale_gate_statistic; with 6 small kernels the minimum is almost never "
+        "above the gate, so the scale would never follow)", choices=("mean", "min"))
+    scale_similarity_gate: float = parameter(
+        0.7, "Scale gate of a track started by hand (replaces "
+        "multi_kernel.scale_similarity_gate)", minimum=0.0, maximum=1.0)
+
+
+def manual_track_kalman(config: "MultiObjectTrackerConfig") -> KalmanConfig:
+    """The Kalman settings of a track started by hand."""
+    m = config.manual_track
+    return replace(config.kalman, initial_velocity_var=m.initial_velocity_var)
+
+
+def manual_track_lifecycle(config: "MultiObjectTrackerConfig") -> LifecycleConfig:
+    """The lifecycle settings of a track started by hand."""
+    m = config.manual_track
+    return replace(config.lifecycle, occlusion_similarity=m.occlusion_similarity,
+                   visibility_statistic=m.visibility_statistic)
+
+
+def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernelConfig:
+    """The multiple-kernel settings of a track started by hand."""
+    m = config.manual_track
+    return replace(config.multi_kernel, num_kernels=m.num_kernels,
+                   scale_gate_statistic=m.scale_gate_statistic,
+                   scale_similarity_gate=m.scale_similarity_gate)
+
+
+@dataclass(frozen=True)
 class MultiObjectTrackerConfig:
     """Every constant of the multi-object tracker (nested configs flatten with dots)."""
 
@@ -74,6 +159,9 @@ class MultiObjectTrackerConfig:
     lifecycle: LifecycleConfig = parameter(LifecycleConfig(), "Track states and smoothing")
     multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
                                                 "Multiple-kernel refinement (Chu et al. 2013)")
+    manual_track: ManualTrackConfig = parameter(
+        ManualTrackConfig(), "Tracks started by hand (initial_box, ~/start_track): their own "
+        "Kalman, visibility and kernel settings")
     use_multi_kernel: bool = parameter(
         True, "Refine every confirmed/occluded track with the multiple-kernel tracker "
         "(Sec. IV-D); false = detections and Kalman prediction only")
@@ -243,6 +331,29 @@ def _homography_matrix(values: Sequence[float]) -> np.ndarray:
     return h
 
 
+def _check_similarity_range(name: str, value: Any) -> None:
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError) as exc:
+        raise TrackerInputError(f"{name} must be two numbers (low, high), got {value!r}") \
+            from exc
+    if not (0.0 <= lo < hi <= 1.0):
+        raise TrackerInputError(f"{name} must satisfy 0 <= low < high <= 1, got {value!r}")
+
+
+def _visibility(result: Any, statistic: str) -> float:
+    """The visibility statistic of a refinement result (:func:`visibility_similarity`) from
+    its ``kernel_similarities`` and ``weights``; a result without them (a refiner that is
+    not multiple-kernel) is judged by its ``similarity``."""
+    sims = getattr(result, "kernel_similarities", None)
+    if statistic == "mean" or sims is None:
+        return float(getattr(result, "similarity", 0.0))
+    try:
+        return visibility_similarity(sims, getattr(result, "weights", None), statistic)
+    except (TypeError, ValueError):
+        return float(getattr(result, "similarity", 0.0))
+
+
 def _quality(score: float) -> float:
     return min(max(float(score), 0.0), 1.0)
 
@@ -251,16 +362,34 @@ class MultiObjectTracker:
     """Tracks people through occlusion; see the module docstring for one step's work."""
 
     def __init__(self, config: MultiObjectTrackerConfig | None = None, *,
-                 refiner: Refiner | None = None) -> None:
+                 refiner: Refiner | None = None,
+                 manual_refiner: Refiner | None = None) -> None:
+        """``refiner`` serves tracks born from detections, ``manual_refiner`` tracks started
+        by hand; by default :class:`MultiKernelTracker` with ``multi_kernel`` and with
+        :func:`manual_track_multi_kernel` (the same object when those agree).  A given
+        ``refiner`` without ``manual_refiner`` serves both."""
         self.config = config or MultiObjectTrackerConfig()
         try:
             validate_config(self.config)
         except ParameterError as exc:
             raise TrackerInputError(str(exc)) from exc
         self.homography = _homography_matrix(self.config.homography)
+        for name, cfg in (("refinement_similarity_range", self.config),
+                          ("manual_track.refinement_similarity_range", self.config.manual_track)):
+            _check_similarity_range(name, cfg.refinement_similarity_range)
+        if manual_refiner is None:
+            if refiner is None and self.config.use_multi_kernel:
+                manual_cfg = manual_track_multi_kernel(self.config)
+                if manual_cfg != self.config.multi_kernel:
+                    manual_refiner = MultiKernelTracker(manual_cfg)
+            elif refiner is not None:
+                manual_refiner = refiner
         if refiner is None and self.config.use_multi_kernel:
             refiner = MultiKernelTracker(self.config.multi_kernel)
         self.refiner = refiner
+        self.manual_refiner = manual_refiner if manual_refiner is not None else refiner
+        self._manual_kalman = manual_track_kalman(self.config)
+        self._manual_lifecycle = manual_track_lifecycle(self.config)
         self._next_id = 1
         self.tracks: list[Track] = []
         self.last_stamp: float | None = None
@@ -284,17 +413,20 @@ class MultiObjectTracker:
             raise TrackerInputError(str(exc)) from exc
         stamp = self._check_stamp(stamp)
         target = None
-        if self.refiner is not None:
+        refiner = self.manual_refiner
+        if refiner is not None:
             try:
-                target = self.refiner.start(image_bgr, tuple(float(v) for v in b))
+                target = refiner.start(image_bgr, tuple(float(v) for v in b))
             except ValueError as exc:
                 raise TrackerInputError(f"cannot start a target on {tuple(b)}: {exc}") from exc
-        track = self._new_track(b, stamp, 1.0, TrackState.CONFIRMED)
+        # its own Kalman and lifecycle settings (config.manual_track)
+        track = self._new_track(b, stamp, 1.0, TrackState.CONFIRMED,
+                                kalman=self._manual_kalman, lifecycle=self._manual_lifecycle)
         track.hits = self.config.lifecycle.min_hits
         track.manual = True
         track.target, track.target_stamp = target, stamp
         if target is not None:
-            track.references.append(self.refiner.start(image_bgr, tuple(float(v) for v in b)))
+            track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b)))
         if self.frame_size is None:
             self.frame_size = image_bgr.shape[:2]
         return track.id
@@ -375,18 +507,19 @@ class MultiObjectTracker:
         refined: dict[int, tuple[np.ndarray, float]] = {}
         for t in live:
             t.refined_box = None
-            if (self.refiner is None or t.target is None
+            refiner = self._refiner_for(t)
+            if (refiner is None or t.target is None
                     or t.state not in (TrackState.CONFIRMED, TrackState.OCCLUDED)
                     or not self._in_image(t, width, height)):
                 continue
             if t.id in det_boxes_now and not self.config.refine_when_detected:
                 continue
             try:
-                res = self.refiner.refine(image_bgr, t.target, predicted_center=tuple(t.center))
+                res = refiner.refine(image_bgr, t.target, predicted_center=tuple(t.center))
             except ValueError as exc:       # the refiner's own input errors
                 result.events.append(f"track {t.id}: refinement failed: {exc}")
                 continue
-            sim = float(getattr(res, "similarity", 0.0))
+            sim = _visibility(res, t.config.visibility_statistic)
             box = getattr(res, "box", None)
             if (not getattr(res, "lost", False) and box is not None and math.isfinite(sim)
                     and all(math.isfinite(float(v)) for v in box)):
@@ -438,6 +571,10 @@ class MultiObjectTracker:
         return result
 
     # -- internals ------------------------------------------------------------------------
+    def _refiner_for(self, t: Track) -> Refiner | None:
+        """The refiner of a track: ``manual_refiner`` for tracks started by hand."""
+        return self.manual_refiner if t.manual else self.refiner
+
     def _count(self, result: FrameResult) -> None:
         self.totals["dropped_stale"] += result.dropped_stale
         self.totals["skipped_bad_detections"] += result.skipped_bad_detections
@@ -454,10 +591,13 @@ class MultiObjectTracker:
     def _check_stamp(stamp: Any) -> float:
         return checked_stamp(stamp, TrackerInputError)
 
-    def _new_track(self, box: np.ndarray, stamp: float, score: float,
-                   state: TrackState) -> Track:
-        t = Track(self._next_id, box, stamp, score=_quality(score), kalman=self.config.kalman,
-                  config=self.config.lifecycle, state=state)
+    def _new_track(self, box: np.ndarray, stamp: float, score: float, state: TrackState,
+                   kalman: KalmanConfig | None = None,
+                   lifecycle: LifecycleConfig | None = None) -> Track:
+        t = Track(self._next_id, box, stamp, score=_quality(score),
+                  kalman=self.config.kalman if kalman is None else kalman,
+                  config=self.config.lifecycle if lifecycle is None else lifecycle,
+                  state=state)
         self._next_id += 1
         self.tracks.append(t)
         return t
@@ -557,10 +697,10 @@ class MultiObjectTracker:
                     continue
                 contested.add(j)
                 sim = 1.0
-                if self.refiner is not None and t.references:
+                refiner = self._refiner_for(t)
+                if refiner is not None and t.references:
                     try:
-                        sims = [float(self.refiner.appearance_similarity(image, ref,
-                                                                         tuple(d.box)))
+                        sims = [float(refiner.appearance_similarity(image, ref, tuple(d.box)))
                                 for ref in t.references]
                     except ValueError:
                         continue
@@ -587,14 +727,15 @@ class MultiObjectTracker:
 
     def _refresh_appearance(self, t: Track, image: np.ndarray, box: np.ndarray, stamp: float,
                             force: bool = False) -> None:
-        if self.refiner is None:
+        refiner = self._refiner_for(t)
+        if refiner is None:
             return
         due = (t.target is None or force or t.target_stamp is None
                or stamp - t.target_stamp >= self.config.appearance_update_interval)
         if due:
             try:
-                t.target = self.refiner.start(image, tuple(float(v) for v in box))
-                fresh = self.refiner.start(image, tuple(float(v) for v in box))
+                t.target = refiner.start(image, tuple(float(v) for v in box))
+                fresh = refiner.start(image, tuple(float(v) for v in box))
             except ValueError:
                 # e.g. a uniform-colour or mostly out-of-image box: keep the old model (if
                 # any) and try again on a later detection
@@ -613,11 +754,13 @@ class MultiObjectTracker:
                       det_box: np.ndarray | None, det: _Prepared | None,
                       refined: tuple[np.ndarray, float] | None, width: int, height: int,
                       blockers: dict[int, np.ndarray], hold: bool = False) -> None:
-        cfg = self.config.lifecycle
+        cfg = t.config            # the tracker's lifecycle, or manual_track's for hand-started
         was = t.state
         sim = refined[1] if refined is not None else None
         visible = sim is not None and sim >= cfg.occlusion_similarity
-        lo, hi = self.config.refinement_similarity_range
+        # a track started by hand maps its refinement to quality by its own settings
+        measurement = self.config.manual_track if t.manual else self.config
+        lo, hi = measurement.refinement_similarity_range
         quality = 0.0 if sim is None else min(max((sim - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
         if det_box is not None:
             if was is TrackState.LOST:
@@ -638,7 +781,7 @@ class MultiObjectTracker:
         else:
             t.tentative_misses += 1
             if visible:
-                t.correct(refined[0], quality * self.config.undetected_quality_factor,
+                t.correct(refined[0], quality * measurement.undetected_quality_factor,
                           size_weight=cfg.refinement_size_weight)
                 t.last_seen = stamp
             t.score = sim if sim is not None else 0.0
@@ -658,7 +801,8 @@ class MultiObjectTracker:
         if new is not TrackState.LOST:
             t.lost_since = None
         t.state = new
-        if det_box is not None and new is TrackState.CONFIRMED and self.refiner is not None:
+        if det_box is not None and new is TrackState.CONFIRMED and \
+                self._refiner_for(t) is not None:
             # refresh only from a clean view: not next to another person, and (when the
             # refiner ran) a good match, so an occluder's pixels never enter the model; a
             # re-acquired track keeps the model that just proved to match

@@ -63,6 +63,11 @@ class LifecycleConfig:
     occlusion_similarity: float = parameter(
         0.6, "Multiple-kernel similarity below which an undetected track is occluded "
         "(coasting on the Kalman prediction)", minimum=0.0, maximum=1.0)
+    visibility_statistic: str = parameter(
+        "mean", "Statistic of the kernel similarities compared with occlusion_similarity and "
+        "mapped to the measurement quality: mean (plain mean) or weighted (sum_i W_i rho_i / N "
+        "with the adaptive weights (7)-(8): one occluded kernel does not make a visible target "
+        "occluded)", choices=("mean", "weighted"))
     max_coast_time: float = parameter(
         1.0, "Seconds a track may coast (occluded, no detection) before it is lost",
         minimum=0.0, maximum=1e4)

@@ -1,0 +1,213 @@
+"""Tracks started by hand (``start_track``) use ``config.manual_track``; tracks born from
+detections keep the tracker's own ``kalman`` / ``lifecycle`` / ``multi_kernel`` settings.
+Also the visibility statistic (plain mean vs ``sum_i W_i rho_i / N``, Chu et al. (7)-(8))."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mk_tracker import synthetic
+from mk_tracker.multi_kernel import (MultiKernelConfig, MultiKernelTracker,
+                                     visibility_similarity)
+from mk_tracker.multi_object_tracker import (FrameDetection, ManualTrackConfig,
+                                             MultiObjectTracker, MultiObjectTrackerConfig,
+                                             TrackerInputError)
+from mk_tracker.parameters import parameter_specs, updated
+from mk_tracker.track import LifecycleConfig
+
+IMG = np.zeros((480, 640, 3), np.uint8)
+DT = 1.0 / 25.0
+
+
+# -- the visibility statistic ------------------------------------------------------------------
+
+def test_weighted_visibility_of_a_half_occluded_target():
+    # rho = (0.8, 0): W = 2 * rho / 0.8 = (2, 0); sum W rho / N = 1.6 / 2
+    assert visibility_similarity([0.8, 0.0], statistic="weighted") == pytest.approx(0.8)
+    assert visibility_similarity([0.8, 0.0], statistic="mean") == pytest.approx(0.4)
+
+
+def test_weighted_visibility_of_a_constructed_case():
+    # rho = (0.6, 0.2): W = (1.5, 0.5); (1.5 * 0.6 + 0.5 * 0.2) / 2 = 0.5 = (0.36 + 0.04) / 0.8
+    assert visibility_similarity([0.6, 0.2], statistic="weighted") == pytest.approx(0.5)
+    # four kernels, two hidden: rho = (0.9, 0.7, 0, 0): (0.81 + 0.49) / 1.6
+    assert visibility_similarity([0.9, 0.7, 0.0, 0.0], statistic="weighted") == \
+        pytest.approx(0.8125)
+    # given weights are used as they are (W = I: the plain mean)
+    assert visibility_similarity([0.6, 0.2], [1.0, 1.0], "weighted") == pytest.approx(0.4)
+    # every kernel hidden: low either way; NaN counts as 0
+    assert visibility_similarity([0.0, 0.0], statistic="weighted") == 0.0
+    assert visibility_similarity([np.nan, 0.5], statistic="weighted") == pytest.approx(0.5)
+
+
+def test_visibility_statistic_rejects_bad_input():
+    with pytest.raises(ValueError, match="statistic"):
+        visibility_similarity([0.5, 0.5], statistic="median")
+    with pytest.raises(ValueError, match="weights"):
+        visibility_similarity([0.5, 0.5], [1.0, 1.0, 1.0], "weighted")
+    with pytest.raises(ValueError):
+        visibility_similarity([], statistic="mean")
+
+
+def test_refinement_result_weighted_similarity_matches_its_kernels():
+    scene = synthetic.occlusion_scene(full=False)
+    f0, f1 = scene.frame(0), scene.frame(1)
+    box = next(o.box_rgb for o in scene.ground_truth(0) if o.id == 1)
+    trk = MultiKernelTracker(MultiKernelConfig(num_kernels=4))
+    res = trk.refine(f1.rgb, trk.start(f0.rgb, box))
+    rho = np.asarray(res.kernel_similarities)
+    assert res.weighted_similarity == pytest.approx(float(np.sum(rho ** 2) / np.sum(rho)))
+    assert res.similarity == pytest.approx(float(rho.mean()))
+
+
+# -- hand-started vs detection-born tracks ---------------------------------------------------
+
+class KernelRefiner:
+    """Fake refiner: every refinement matches at ``box`` with kernel similarities ``rho``."""
+
+    def __init__(self, rho, box=(200.0, 100.0, 40.0, 80.0)):
+        self.rho = np.asarray(rho, dtype=float)
+        self.box = box
+        self.started = []
+
+    def start(self, image, box):
+        self.started.append(tuple(box))
+        return "target"
+
+    def refine(self, image, state, predicted_center=None):
+        return type("R", (), {"box": self.box, "similarity": float(self.rho.mean()),
+                              "kernel_similarities": self.rho,
+                              "weights": self.rho * self.rho.size / self.rho.sum(),
+                              "lost": False})()
+
+    def appearance_similarity(self, image, state, box):
+        return 0.0
+
+
+def _config(**manual):
+    base = updated(MultiObjectTrackerConfig(), {"lifecycle.min_hits": 1})
+    return dataclasses.replace(base, manual_track=ManualTrackConfig(**manual))
+
+
+def test_hand_started_track_uses_its_visibility_settings_a_detected_one_the_defaults():
+    # legs hidden: rho = (0.9, 0.05): plain mean 0.475 (< lifecycle 0.6: occluded),
+    # weighted (0.81 + 0.0025) / 0.95 = 0.855 (>= manual_track 0.4: seen)
+    cfg = _config(occlusion_similarity=0.4, visibility_statistic="weighted")
+    manual = MultiObjectTracker(cfg, refiner=KernelRefiner([0.9, 0.05]))
+    tid = manual.start_track(IMG, 0.0, (200, 100, 40, 80))
+    r = manual.step(IMG, DT)
+    (t,) = r.tracks
+    assert (t.id, t.state, t.manual) == (tid, "confirmed", True)
+    assert t.score == pytest.approx(0.81 / 0.95 + 0.0025 / 0.95)
+
+    born = MultiObjectTracker(cfg, refiner=KernelRefiner([0.9, 0.05]))
+    born.step(IMG, 0.0, [FrameDetection((200, 100, 40, 80), 0.9)])
+    r = born.step(IMG, DT, [])                    # no detection: refined, mean 0.475
+    (t,) = r.tracks
+    assert (t.state, t.manual) == ("occluded", False)
+
+
+def test_hand_started_track_with_the_plain_mean_is_occluded_like_the_defaults():
+    cfg = _config(occlusion_similarity=0.6, visibility_statistic="mean")
+    trk = MultiObjectTracker(cfg, refiner=KernelRefiner([0.9, 0.05]))
+    trk.start_track(IMG, 0.0, (200, 100, 40, 80))
+    (t,) = trk.step(IMG, DT).tracks
+    assert t.state == "occluded"
+
+
+def test_hand_started_track_uses_its_kalman_settings():
+    cfg = _config(initial_velocity_var=9.0e4)
+    trk = MultiObjectTracker(cfg, refiner=KernelRefiner([0.9, 0.9]))
+    trk.start_track(IMG, 0.0, (200, 100, 40, 80))
+    trk.step(IMG, 0.0, [FrameDetection((400, 100, 40, 80), 0.9)])
+    manual, born = sorted(trk.tracks, key=lambda t: not t.manual)
+    assert manual.manual and not born.manual
+    assert manual.kf.covariance[2, 2] == pytest.approx(9.0e4)
+    assert manual.kf.sigma_u == cfg.kalman.sigma_u
+    assert born.kf.covariance[2, 2] == pytest.approx(cfg.kalman.initial_velocity_var)
+    assert born.kf.sigma_u == cfg.kalman.sigma_u
+    assert manual.config.occlusion_similarity == cfg.manual_track.occlusion_similarity
+    assert born.config == cfg.lifecycle
+
+
+def test_hand_started_track_gets_its_own_kernel_layout():
+    scene = synthetic.crossing_scene()
+    frame = scene.frame(0)
+    boxes = [o.box_rgb for o in scene.ground_truth(0) if o.kind == "person"]
+    cfg = updated(MultiObjectTrackerConfig(), {"lifecycle.min_hits": 1,
+                                               "manual_track.num_kernels": 4,
+                                               "manual_track.scale_gate_statistic": "mean",
+                                               "manual_track.scale_similarity_gate": 0.7})
+    trk = MultiObjectTracker(cfg)
+    assert trk.manual_refiner is not trk.refiner
+    assert trk.manual_refiner.config.num_kernels == 4
+    assert trk.manual_refiner.config.scale_similarity_gate == 0.7
+    assert trk.refiner.config == cfg.multi_kernel
+    trk.start_track(frame.rgb, frame.stamp, boxes[0])
+    trk.step(frame.rgb, frame.stamp, [FrameDetection(boxes[1], 0.9)])
+    manual, born = sorted(trk.tracks, key=lambda t: not t.manual)
+    assert manual.target.num_kernels == 4
+    assert born.target.num_kernels == cfg.multi_kernel.num_kernels == 2
+    r = trk.step(scene.frame(1).rgb, scene.frame(1).stamp, [])
+    assert set(r.kernels) == {manual.id, born.id}
+    assert len(r.kernels[manual.id].centres) == 4 and len(r.kernels[born.id].centres) == 2
+
+
+def test_one_refiner_serves_both_when_the_kernel_settings_agree():
+    cfg = updated(MultiObjectTrackerConfig(), {"manual_track.num_kernels": 2,
+                                               "manual_track.scale_gate_statistic": "min",
+                                               "manual_track.scale_similarity_gate": 0.8})
+    trk = MultiObjectTracker(cfg)
+    assert trk.manual_refiner is trk.refiner
+
+
+def test_manual_track_parameters_are_declared_and_validated():
+    names = {s.name for s in parameter_specs(MultiObjectTrackerConfig())}
+    for field in dataclasses.fields(ManualTrackConfig):
+        assert f"manual_track.{field.name}" in names
+    assert "lifecycle.visibility_statistic" in names
+    for bad in ({"num_kernels": 3}, {"visibility_statistic": "median"},
+                {"occlusion_similarity": 1.5}, {"undetected_quality_factor": -1.0},
+                {"scale_gate_statistic": "max"}, {"initial_velocity_var": 0.0}):
+        with pytest.raises(TrackerInputError):
+            MultiObjectTracker(_config(**bad))
+    with pytest.raises(TrackerInputError):
+        MultiObjectTracker(dataclasses.replace(
+            MultiObjectTrackerConfig(), lifecycle=LifecycleConfig(visibility_statistic="max")))
+
+
+def test_similarity_ranges_are_validated():
+    for bad in ((0.8, 0.2), (0.5,), (0.2, 1.5), ("a", 0.5)):
+        with pytest.raises(TrackerInputError, match="refinement_similarity_range"):
+            MultiObjectTracker(_config(refinement_similarity_range=bad))
+        with pytest.raises(TrackerInputError, match="refinement_similarity_range"):
+            MultiObjectTracker(dataclasses.replace(MultiObjectTrackerConfig(),
+                                                   refinement_similarity_range=bad))
+
+
+class CountingKalmanRefiner(KernelRefiner):
+    """Matches 10 px right of wherever the prediction is, with visibility 0.5."""
+
+    def refine(self, image, state, predicted_center=None):
+        cx, cy = predicted_center
+        self.box = (cx + 10.0 - 20.0, cy - 40.0, 40.0, 80.0)
+        return super().refine(image, state, predicted_center)
+
+
+def test_hand_started_track_trusts_its_refinement_by_its_own_quality_mapping():
+    # visibility 0.5 (both kernels 0.5): detection-born mapping (0.5, 0.95) -> quality 0,
+    # the floor; the hand-started mapping (0.2, 0.8) -> quality 0.5: a smaller measurement
+    # std, so the filter follows the refinement further
+    moved = {}
+    for low in (0.5, 0.2):
+        cfg = _config(refinement_similarity_range=(low, 0.8), occlusion_similarity=0.4,
+                      undetected_quality_factor=1.0)
+        trk = MultiObjectTracker(cfg, refiner=CountingKalmanRefiner([0.5, 0.5]))
+        trk.start_track(IMG, 0.0, (200, 100, 40, 80))
+        (t,) = trk.step(IMG, DT).tracks
+        assert t.state == "confirmed"
+        moved[low] = t.box[0] - 200.0
+    assert 0.0 < moved[0.5] < moved[0.2] < 10.0
