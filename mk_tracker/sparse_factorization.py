@@ -285,9 +285,14 @@ def _root_scalar(p, q):
 
 def _minimizer_scalar(c1, c2, lam):
     a = abs(c2)
-    t = max(-c1 / 3.0, 0.0)
-    if lam - a >= 2.0 * t * np.sqrt(t):      # J >= 0 = J(0) on y > 0: no root needed
-        return 0.0
+    # J >= 0 = J(0) on y > 0 iff lam - a >= 2 t^(3/2), t = max(-c1/3, 0): no root needed
+    if c1 >= 0.0:                             # t = 0 (the same comparison, without sqrt)
+        if lam - a >= 0.0:
+            return 0.0
+    else:
+        t = -c1 / 3.0
+        if lam - a >= 2.0 * t * np.sqrt(t):
+            return 0.0
     y = _root_scalar(0.5 * c1, 0.25 * (lam - a))
     if y <= 0:
         return 0.0
@@ -298,14 +303,20 @@ def _minimizer_scalar(c1, c2, lam):
     return 0.0
 
 
-def _factorize_block(sb, m, sv, norms, gram, lam, n_cols, max_cycles, tol):
-    """Algorithm 1 on one block: ``sb`` ``(p, p)``, factor ``m`` ``(p, R)`` (zeros on entry,
-    the result on exit); ``sv`` (``(p, R)``), ``norms``, ``gram`` are scratch arrays.  Returns ``(cycles, converged)``.  The detector's fused per-block loop calls it
-    as well.
+def _factorize_block(cols, m, sv, norms, gram, lam, n_cols, max_cycles, tol):
+    """Algorithm 1 on one block.  ``cols`` ``(p, p)`` holds the *columns* of Sigma as rows
+    (``cols[j, mu] = Sigma(mu, j)``, i.e. Sigma transposed; a symmetric Sigma can be passed
+    as it is); factor ``m`` ``(p, R)`` (zeros on entry, the result on exit); ``sv``
+    (``(R, p)``), ``norms``, ``gram`` are scratch arrays.  Returns ``(cycles, converged)``.
+    The detector's fused per-block loop calls it as well.
 
-    ``sv = Sigma M`` is kept up to date (a column update when an entry changes; most stay
-    0), so the sum ``sum_mu Sigma(j, mu) M(mu, r)`` of (3.9) is read, not recomputed."""
-    p = sb.shape[0]
+    ``sv[r] = (Sigma M)[:, r]`` is kept up to date (a column update when an entry changes;
+    most stay 0), so the sum ``sum_mu Sigma(j, mu) M(mu, r)`` of (3.9) is read, not
+    recomputed.  Each update reads a column of Sigma, i.e. a contiguous row of ``cols``
+    (same products and sums as reading Sigma column-wise, so the same values)."""
+    if n_cols == 1:
+        return _factorize_block_one_column(cols, m, sv, lam, max_cycles, tol)
+    p = cols.shape[0]
     cycles = 0
     sv[:, :] = 0.0
     for cycle in range(1, max_cycles + 1):
@@ -318,10 +329,12 @@ def _factorize_block(sb, m, sv, norms, gram, lam, n_cols, max_cycles, tol):
                 gram[r, r2] = acc
             norms[r] = gram[r, r]
         for j in range(p):
+            col = cols[j]
+            sjj = col[j]
             for r in range(n_cols):
                 old = m[j, r]
-                rjj = sb[j, j]
-                cross = sv[j, r] - sb[j, j] * old
+                rjj = sjj
+                cross = sv[r, j] - sjj * old
                 for r2 in range(n_cols):
                     if r2 != r:
                         mj2 = m[j, r2]
@@ -334,8 +347,9 @@ def _factorize_block(sb, m, sv, norms, gram, lam, n_cols, max_cycles, tol):
                 if new != old:
                     m[j, r] = new
                     delta = new - old
+                    svr = sv[r]
                     for mu in range(p):
-                        sv[mu, r] += sb[mu, j] * delta
+                        svr[mu] += col[mu] * delta
                     norms[r] += new * new - old * old
                     gram[r, r] = norms[r]
                     for r2 in range(n_cols):
@@ -349,16 +363,51 @@ def _factorize_block(sb, m, sv, norms, gram, lam, n_cols, max_cycles, tol):
     return cycles, False
 
 
+def _factorize_block_one_column(cols, m, sv, lam, max_cycles, tol):
+    """:func:`_factorize_block` for ``R = 1`` (the default): the same operations in the same
+    order with the loops over other columns removed (they do nothing for one column)."""
+    p = cols.shape[0]
+    sv[:, :] = 0.0
+    svr = sv[0]
+    for cycle in range(1, max_cycles + 1):
+        change = 0.0
+        norm = 0.0
+        for mu in range(p):
+            norm += m[mu, 0] * m[mu, 0]
+        for j in range(p):
+            col = cols[j]
+            sjj = col[j]
+            old = m[j, 0]
+            c1 = 2.0 * (norm - old * old) - 2.0 * sjj
+            c2 = -4.0 * (svr[j] - sjj * old)
+            new = _minimizer_scalar(c1, c2, lam)
+            change += (new - old) * (new - old)
+            if new != old:
+                m[j, 0] = new
+                delta = new - old
+                for mu in range(p):
+                    svr[mu] += col[mu] * delta
+                norm += new * new - old * old
+        if np.sqrt(change) <= tol:
+            return cycle, True
+    return max_cycles, False
+
+
 def _factorize_loops(s, lam, n_cols, max_cycles, tol):
     n_blocks, p, _ = s.shape
     out = np.zeros((n_blocks, p, n_cols))
     cycles = np.zeros(n_blocks, dtype=np.int64)
     converged = np.zeros(n_blocks, dtype=np.bool_)
-    sv = np.zeros((p, n_cols))
+    cols = np.zeros((p, p))
+    sv = np.zeros((n_cols, p))
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
     for b in range(n_blocks):
-        cycles[b], converged[b] = _factorize_block(s[b], out[b], sv, norms, gram, lam,
+        sb = s[b]
+        for i in range(p):
+            for j in range(p):
+                cols[j, i] = sb[i, j]
+        cycles[b], converged[b] = _factorize_block(cols, out[b], sv, norms, gram, lam,
                                                    n_cols, max_cycles, tol)
     return out, cycles, converged
 
@@ -378,9 +427,10 @@ def _compiled_kernel():
     except ImportError:
         _COMPILED.append(None)
         return None
-    global _root_scalar, _minimizer_scalar, _factorize_block
+    global _root_scalar, _minimizer_scalar, _factorize_block, _factorize_block_one_column
     _root_scalar = numba.njit(cache=True)(_root_scalar)
     _minimizer_scalar = numba.njit(cache=True)(_minimizer_scalar)
+    _factorize_block_one_column = numba.njit(cache=True)(_factorize_block_one_column)
     _factorize_block = numba.njit(cache=True)(_factorize_block)
     kernel = numba.njit(cache=True)(_factorize_loops)
     _COMPILED.append(kernel)

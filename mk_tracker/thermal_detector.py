@@ -255,16 +255,22 @@ def _support(frames: np.ndarray, order: np.ndarray, offset: float,
     if backend == "compiled" and (fused is None or not integer_levels):
         raise ThermalInputError("the compiled support path needs numba and integer levels")
     if fused is not None and integer_levels:
-        by, bx = _block_list(nby, nbx, block_mask)
+        if block_mask is None:
+            listed = np.ones((nby, nbx), dtype=bool)
+        else:
+            listed = np.asarray(block_mask, dtype=bool)
+            if listed.shape != (nby, nbx):
+                raise ThermalInputError(f"block mask of shape {listed.shape}, expected "
+                                        f"{(nby, nbx)}")
         support = np.zeros((h, w), dtype=bool)
         variance = np.zeros((h, w), dtype=np.float32)
         factored = fused(frames, np.ascontiguousarray(order, dtype=np.int64), np.float32(offset),
-                         by.astype(np.int64), bx.astype(np.int64), rho,
-                         _kernel_table(sigma2), threshold,
+                         listed, rho, _kernel_table(sigma2), threshold,
                          range_for_variance(threshold, sigma2), config.lam,
                          config.columns, config.max_cycles, config.tol, support, variance)
         if factored >= 0:
-            return SupportResult(support, variance, int(by.size), int(factored))
+            return SupportResult(support, variance, int(np.count_nonzero(listed)),
+                                 int(factored))
         # a block's levels span more than the table: the exponential path
     window = frames[order] - np.float32(offset)
     return _support_numpy(window, config, sigma2, threshold, integer_levels, block_mask, chunk)
@@ -319,11 +325,12 @@ def _support_numpy(window: np.ndarray, config: ThermalDetectorConfig, sigma2: fl
     return SupportResult(sup_img[:h, :w], var_img[:h, :w], by.size, int(active.size))
 
 
-def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_range, lam,
+def _support_loops(frames, order, offset, listed, rho, table, threshold, max_range, lam,
                    n_cols, max_cycles, tol, support, variance):
     """Compiled per-block loop of :func:`_support_numpy` on integer levels, same arithmetic.
 
-    For each listed block: its levels ``frames[order[t]] - offset`` (0 outside the frame,
+    For each block listed in ``listed`` (``(nby, nbx)`` bool), in row-major order like
+    ``np.nonzero``: its levels ``frames[order[t]] - offset`` (0 outside the frame,
     like the zero padding); blocks where no pixel's temporal range exceeds ``max_range``
     are skipped (their variance is provably <= ``threshold``); the others get the diagonal
     of (3.5), and if some pixel's variance exceeds ``threshold`` the kernel covariance (3.5)
@@ -335,49 +342,58 @@ def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_ran
     p = rho * rho
     n_levels = table.shape[0]
     x = np.zeros((n_frames, p), dtype=np.int32)
+    lo = np.empty(p, dtype=np.int32)               # per-pixel temporal range
+    hi = np.empty(p, dtype=np.int32)
     var = np.zeros(p)
     sigma = np.zeros((p, p))
     same = np.zeros((p, p))
     cross = np.zeros((p, p))
     m = np.zeros((p, n_cols))
-    sv = np.zeros((p, n_cols))
+    sv = np.zeros((n_cols, p))
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
     factored = 0
-    for b in range(by.shape[0]):
-        y0 = by[b] * rho
-        x0 = bx[b] * rho
+    nbx = listed.shape[1]
+    for b in range(listed.size):
+        if not listed[b // nbx, b % nbx]:
+            continue
+        y0 = (b // nbx) * rho
+        x0 = (b % nbx) * rho
         inside = y0 + rho <= h and x0 + rho <= w
-        if not inside:
+        if inside:
+            for t in range(n_frames):
+                f = frames[order[t]]
+                xt = x[t]
+                for dy in range(rho):
+                    row = f[y0 + dy]
+                    for dx in range(rho):
+                        xt[dy * rho + dx] = np.int32(row[x0 + dx] - offset)
+        else:
             x[:, :] = 0                              # the zero padding at the frame edge
+            for t in range(n_frames):
+                f = frames[order[t]]
+                for dy in range(rho):
+                    if y0 + dy >= h:
+                        break
+                    row = f[y0 + dy]
+                    for dx in range(rho):
+                        if x0 + dx >= w:
+                            break
+                        x[t, dy * rho + dx] = np.int32(row[x0 + dx] - offset)
+        lo[:] = x[0]
+        hi[:] = x[0]
+        for t in range(1, n_frames):
+            xt = x[t]
+            for i in range(p):
+                lo[i] = min(lo[i], xt[i])
+                hi[i] = max(hi[i], xt[i])
         moving = False
         block_lo = 0 if not inside else n_levels
         block_hi = 0 if not inside else -n_levels
-        for t in range(n_frames):
-            f = frames[order[t]]
-            for dy in range(rho):
-                if y0 + dy >= h:
-                    break
-                row = f[y0 + dy]
-                for dx in range(rho):
-                    if x0 + dx >= w:
-                        break
-                    x[t, dy * rho + dx] = np.int32(row[x0 + dx] - offset)
         for i in range(p):
-            lo = x[0, i]
-            hi = lo
-            for t in range(1, n_frames):
-                v = x[t, i]
-                if v < lo:
-                    lo = v
-                elif v > hi:
-                    hi = v
-            if hi - lo > max_range:
-                moving = True
-            if lo < block_lo:
-                block_lo = lo
-            if hi > block_hi:
-                block_hi = hi
+            moving |= hi[i] - lo[i] > max_range
+            block_lo = min(block_lo, lo[i])
+            block_hi = max(block_hi, hi[i])
         if block_hi - block_lo >= n_levels:
             return -1
         if not moving:
@@ -393,6 +409,8 @@ def _support_loops(frames, order, offset, by, bx, rho, table, threshold, max_ran
         factored += 1
         _levels_block_covariance(x, table, same, cross, sigma)
         m[:, :] = 0.0
+        # sigma is exactly symmetric (each entry is written to both halves), so it is its
+        # own column array
         _factorize_block(sigma, m, sv, norms, gram, lam, n_cols, max_cycles, tol)
         for dy in range(rho):
             if y0 + dy >= h:
@@ -618,13 +636,16 @@ class _VoronoiCell:
 _NO_CENTRES = np.zeros((0, 2))
 
 
-def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, k, state):
+def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, k, state,
+                     stats):
     """Compiled footprint of :meth:`ThermalDetector._footprint` over the patch of ``state``
     (``(ph, pw)`` int8 zeros at ``(y0, x0)``; values ``frame - offset``): the polarity from
     the support pixels ``(rows, cols)``, then a flood fill (8-connectivity) from them
     through the pixels with ``polarity * (frame - offset - level) > radius`` that lie in the
     Voronoi cell of ``centres[k]`` (``k < 0``: no cell).  Same arithmetic as the numpy path.
-    Marks the object's pixels 1 (others visited 2) and returns their number (0: none)."""
+    Marks the object's pixels 1 (others visited 2) and returns their number (0: none);
+    ``stats`` (int64, 6) receives their patch-coordinate sums and extremes
+    ``(sum_c, sum_r, c_min, c_max, r_min, r_max)``, gathered as they are marked."""
     n_seeds = rows.shape[0]
     valid = 0
     warmer = 0
@@ -641,6 +662,12 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
     stack = np.empty(ph * pw, dtype=np.int64)     # every pixel is pushed at most once
     top = 0
     count = 0
+    sum_c = 0
+    sum_r = 0
+    c_min = pw
+    c_max = -1
+    r_min = ph
+    r_max = -1
     for s in range(n_seeds):
         r0 = rows[s] - y0
         c0 = cols[s] - x0
@@ -651,13 +678,19 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
             state[r0, c0] = 2
             continue
         state[r0, c0] = 1
-        count += 1
         stack[0] = r0 * pw + c0
         top = 1
-        while top > 0:
+        while top > 0:               # every pixel on the stack is marked 1: count it here
             top -= 1
             r = stack[top] // pw
             c = stack[top] % pw
+            count += 1
+            sum_c += c
+            sum_r += r
+            c_min = min(c_min, c)
+            c_max = max(c_max, c)
+            r_min = min(r_min, r)
+            r_max = max(r_max, r)
             for rr in range(max(r - 1, 0), min(r + 2, ph)):
                 for cc in range(max(c - 1, 0), min(c + 2, pw)):
                     if state[rr, cc] != 0:
@@ -665,11 +698,16 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
                     if _in_footprint(frame, offset, rr + y0, cc + x0, level, polarity,
                                      radius, centres, k):
                         state[rr, cc] = 1
-                        count += 1
                         stack[top] = rr * pw + cc
                         top += 1
                     else:
                         state[rr, cc] = 2
+    stats[0] = sum_c
+    stats[1] = sum_r
+    stats[2] = c_min
+    stats[3] = c_max
+    stats[4] = r_min
+    stats[5] = r_max
     return count
 
 
@@ -753,25 +791,14 @@ def _footprint_compiled(frame, offset, support, by0, by1, bx0, bx1, rows, cols, 
         level = _background_level(frame, offset, support, by0, by1, bx0, bx1, buf)
     if np.isnan(level):
         return y0, x0, state, 0, 0, 0, 0, 0, 0, 0
+    stats = np.zeros(6, dtype=np.int64)
     count = _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, k,
-                             state)
-    sx = 0
-    sy = 0
-    xmin = x1
-    xmax = -1
-    ymin = y1
-    ymax = -1
-    if count > 0:
-        for r in range(y1 - y0):
-            for c in range(x1 - x0):
-                if state[r, c] == 1:
-                    sx += c + x0
-                    sy += r + y0
-                    xmin = min(xmin, c + x0)
-                    xmax = max(xmax, c + x0)
-                    ymin = min(ymin, r + y0)
-                    ymax = max(ymax, r + y0)
-    return y0, x0, state, count, sx, sy, xmin, xmax, ymin, ymax
+                             state, stats)
+    if count == 0:
+        return y0, x0, state, 0, 0, 0, x1, -1, y1, -1
+    # integer sums: the order in which the fill met the pixels does not matter
+    return (y0, x0, state, count, stats[0] + count * x0, stats[1] + count * y0,
+            stats[2] + x0, stats[3] + x0, stats[4] + y0, stats[5] + y0)
 
 
 def _in_footprint(frame, offset, y, x, level, polarity, radius, centres, k):
