@@ -74,6 +74,12 @@ def _check_std(name: str, value: float, *, allow_zero: bool) -> float:
 
 
 def _as_point(name: str, value: Sequence[float]) -> np.ndarray:
+    if type(value) is tuple and len(value) == 2 and type(value[0]) is float \
+            and type(value[1]) is float:
+        # the common case (a centroid tuple), without numpy's generic conversion
+        if not (math.isfinite(value[0]) and math.isfinite(value[1])):
+            raise KalmanError(f"{name} {list(value)} has a NaN or infinite value")
+        return np.array(value)
     try:
         arr = np.asarray(value, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError) as exc:
@@ -103,6 +109,26 @@ def process_noise(dt: float, sigma_u: float) -> np.ndarray:
     s2 = _check_std("sigma_u", sigma_u, allow_zero=True) ** 2
     a, b, c = s2 * dt ** 3 / 3.0, s2 * dt ** 2 / 2.0, s2 * dt
     return np.array([[a, 0.0, b, 0.0], [0.0, a, 0.0, b], [b, 0.0, c, 0.0], [0.0, b, 0.0, c]])
+
+
+#: ``(dt, sigma_u) -> (A, Sigma_u)`` of recent steps: every object of a frame is predicted
+#: over the same ``dt``.  Read-only arrays; bounded.
+_STEP_MATRICES: dict = {}
+
+
+def _step_matrices(dt: float, sigma_u: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`transition_matrix` and :func:`process_noise` of a step, cached."""
+    key = (dt, sigma_u)
+    hit = _STEP_MATRICES.get(key)
+    if hit is None:
+        a = transition_matrix(dt)
+        q = process_noise(dt, sigma_u)
+        a.setflags(write=False)
+        q.setflags(write=False)
+        if len(_STEP_MATRICES) >= 16:
+            _STEP_MATRICES.clear()
+        hit = _STEP_MATRICES[key] = (a, q)
+    return hit
 
 
 class ConstantVelocityKalman:
@@ -169,8 +195,7 @@ class ConstantVelocityKalman:
         (4.2): ``s(t|t-1) = A s(t-1|t-1)``.  (4.3): ``P(t|t-1) = A P(t-1|t-1) A^T + Sigma_u``;
         the paper prints ``F^T`` in (4.3), a typo for ``A^T`` (F is its frame symbol).
         """
-        a = transition_matrix(dt)
-        q = process_noise(dt, self.sigma_u)
+        a, q = _step_matrices(dt, self.sigma_u)
         state = a @ self._state
         cov = a @ self._cov @ a.T + q
         return state, 0.5 * (cov + cov.T)

@@ -69,9 +69,10 @@ Speed (docs/profile_thermal_detector.md): with numba installed, integer frames (
 mono16) take compiled paths that do the same arithmetic as the numpy reference paths
 (``MK_TRACKER_NO_NUMBA=1`` selects those; tests check both give the same detections):
 one loop over the blocks reads the ring buffer in place and runs the skip rule, (3.5) and
-Algorithm 1 per block (:func:`_support_loops`); each object's support pixels are found by
-one scan of its (5.2) window (:func:`_owned_loops`) and its footprint by one flood fill
-(:func:`_footprint_compiled`).  32FC1 frames use the numpy support path.
+Algorithm 1 per block (:func:`_support_loops`); in a tracking pass one call per object
+(:func:`_object_loops`) finds its support pixels by one scan of its (5.2) window
+(:func:`_owned_loops`), gathers their kernel variances and finds its footprint by one flood
+fill (:func:`_footprint_compiled`).  32FC1 frames use the numpy support path.
 """
 
 from __future__ import annotations
@@ -353,78 +354,79 @@ def _support_loops(frames, order, offset, listed, rho, table, threshold, max_ran
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
     factored = 0
-    nbx = listed.shape[1]
-    for b in range(listed.size):
-        if not listed[b // nbx, b % nbx]:
-            continue
-        y0 = (b // nbx) * rho
-        x0 = (b % nbx) * rho
-        inside = y0 + rho <= h and x0 + rho <= w
-        if inside:
-            for t in range(n_frames):
-                f = frames[order[t]]
-                xt = x[t]
-                for dy in range(rho):
-                    row = f[y0 + dy]
-                    for dx in range(rho):
-                        xt[dy * rho + dx] = np.int32(row[x0 + dx] - offset)
-        else:
-            x[:, :] = 0                              # the zero padding at the frame edge
-            for t in range(n_frames):
-                f = frames[order[t]]
-                for dy in range(rho):
-                    if y0 + dy >= h:
-                        break
-                    row = f[y0 + dy]
-                    for dx in range(rho):
-                        if x0 + dx >= w:
+    nby, nbx = listed.shape
+    for by in range(nby):
+        for bx in range(nbx):
+            if not listed[by, bx]:
+                continue
+            y0 = by * rho
+            x0 = bx * rho
+            inside = y0 + rho <= h and x0 + rho <= w
+            if inside:
+                for t in range(n_frames):
+                    f = frames[order[t]]
+                    xt = x[t]
+                    for dy in range(rho):
+                        row = f[y0 + dy]
+                        for dx in range(rho):
+                            xt[dy * rho + dx] = np.int32(row[x0 + dx] - offset)
+            else:
+                x[:, :] = 0                              # the zero padding at the frame edge
+                for t in range(n_frames):
+                    f = frames[order[t]]
+                    for dy in range(rho):
+                        if y0 + dy >= h:
                             break
-                        x[t, dy * rho + dx] = np.int32(row[x0 + dx] - offset)
-        lo[:] = x[0]
-        hi[:] = x[0]
-        for t in range(1, n_frames):
-            xt = x[t]
+                        row = f[y0 + dy]
+                        for dx in range(rho):
+                            if x0 + dx >= w:
+                                break
+                            x[t, dy * rho + dx] = np.int32(row[x0 + dx] - offset)
+            lo[:] = x[0]
+            hi[:] = x[0]
+            for t in range(1, n_frames):
+                xt = x[t]
+                for i in range(p):
+                    lo[i] = min(lo[i], xt[i])
+                    hi[i] = max(hi[i], xt[i])
+            moving = False
+            block_lo = 0 if not inside else n_levels
+            block_hi = 0 if not inside else -n_levels
             for i in range(p):
-                lo[i] = min(lo[i], xt[i])
-                hi[i] = max(hi[i], xt[i])
-        moving = False
-        block_lo = 0 if not inside else n_levels
-        block_hi = 0 if not inside else -n_levels
-        for i in range(p):
-            moving |= hi[i] - lo[i] > max_range
-            block_lo = min(block_lo, lo[i])
-            block_hi = max(block_hi, hi[i])
-        if block_hi - block_lo >= n_levels:
-            return -1
-        if not moving:
-            continue
-        _levels_block_variance(x, table, var)
-        active = False
-        for i in range(p):
-            if var[i] > threshold:
-                active = True
-                break
-        if not active:
-            continue
-        factored += 1
-        _levels_block_covariance(x, table, same, cross, sigma)
-        m[:, :] = 0.0
-        # sigma is exactly symmetric (each entry is written to both halves), so it is its
-        # own column array
-        _factorize_block(sigma, m, sv, norms, gram, lam, n_cols, max_cycles, tol)
-        for dy in range(rho):
-            if y0 + dy >= h:
-                break
-            for dx in range(rho):
-                if x0 + dx >= w:
+                moving |= hi[i] - lo[i] > max_range
+                block_lo = min(block_lo, lo[i])
+                block_hi = max(block_hi, hi[i])
+            if block_hi - block_lo >= n_levels:
+                return -1
+            if not moving:
+                continue
+            _levels_block_variance(x, table, var)
+            active = False
+            for i in range(p):
+                if var[i] > threshold:
+                    active = True
                     break
-                i = dy * rho + dx
-                variance[y0 + dy, x0 + dx] = var[i]
-                on = False
-                for r in range(n_cols):
-                    if m[i, r] != 0.0:
-                        on = True
-                support[y0 + dy, x0 + dx] = on
+            if not active:
+                continue
+            factored += 1
+            _levels_block_covariance(x, table, same, cross, sigma)
+            m[:, :] = 0.0
+            # sigma is exactly symmetric (each entry is written to both halves), so it is its
+            # own column array
+            _factorize_block(sigma, m, sv, norms, gram, lam, n_cols, max_cycles, tol)
+            for dy in range(rho):
+                if y0 + dy >= h:
+                    break
+                for dx in range(rho):
+                    if x0 + dx >= w:
+                        break
+                    i = dy * rho + dx
+                    variance[y0 + dy, x0 + dx] = var[i]
+                    on = False
+                    for r in range(n_cols):
+                        if m[i, r] != 0.0:
+                            on = True
+                    support[y0 + dy, x0 + dx] = on
     return factored
 
 
@@ -659,7 +661,8 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
         return 0
     polarity = np.float32(1.0) if 2 * warmer >= valid else np.float32(-1.0)
     ph, pw = state.shape
-    stack = np.empty(ph * pw, dtype=np.int64)     # every pixel is pushed at most once
+    stack_r = np.empty(ph * pw, dtype=np.int32)   # every pixel is pushed at most once
+    stack_c = np.empty(ph * pw, dtype=np.int32)
     top = 0
     count = 0
     sum_c = 0
@@ -678,12 +681,13 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
             state[r0, c0] = 2
             continue
         state[r0, c0] = 1
-        stack[0] = r0 * pw + c0
+        stack_r[0] = r0
+        stack_c[0] = c0
         top = 1
         while top > 0:               # every pixel on the stack is marked 1: count it here
             top -= 1
-            r = stack[top] // pw
-            c = stack[top] % pw
+            r = stack_r[top]
+            c = stack_c[top]
             count += 1
             sum_c += c
             sum_r += r
@@ -698,7 +702,8 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
                     if _in_footprint(frame, offset, rr + y0, cc + x0, level, polarity,
                                      radius, centres, k):
                         state[rr, cc] = 1
-                        stack[top] = rr * pw + cc
+                        stack_r[top] = rr
+                        stack_c[top] = cc
                         top += 1
                     else:
                         state[rr, cc] = 2
@@ -837,6 +842,47 @@ def _footprint_kernel():
         except ImportError:
             _FOOTPRINT.append(None)
     return _FOOTPRINT[0]
+
+
+def _object_loops(frame, offset, support, variance, y0, y1, x0, x1, centres, k, cell_centres,
+                  cell_k, min_pixels, margin, radius, values):
+    """One object of a tracking pass in one compiled call: its support pixels in its (5.2)
+    window ``(y0, y1, x0, x1)`` and those it owns (:func:`_owned_loops`); when both number
+    at least ``min_pixels``, the kernel variances of the owned ones (in their order, into
+    ``values``, one slot per window pixel) and their footprint (:func:`_footprint_compiled`
+    with the Voronoi cell ``cell_centres``, ``cell_k``).  Returns ``(n_inside, n_owned,
+    count, sum_x, sum_y, x_min, x_max, y_min, y_max)``; ``count`` 0: no footprint (or not
+    searched)."""
+    size = (y1 - y0) * (x1 - x0)
+    rows = np.empty(size, dtype=np.int64)
+    cols = np.empty(size, dtype=np.int64)
+    n_inside, n_mine = _owned_loops(support, y0, y1, x0, x1, centres, k, rows, cols)
+    if n_inside < min_pixels or n_mine < min_pixels:
+        return n_inside, n_mine, 0, 0, 0, 0, 0, 0, 0
+    for i in range(n_mine):
+        values[i] = variance[rows[i], cols[i]]
+    _, _, _, count, sx, sy, xmin, xmax, ymin, ymax = _footprint_compiled(
+        frame, offset, support, y0, y1, x0, x1, rows[:n_mine], cols[:n_mine], margin, radius,
+        cell_centres, cell_k)
+    return n_inside, n_mine, count, sx, sy, xmin, xmax, ymin, ymax
+
+
+_OBJECT: list = []
+
+
+def _object_kernel():
+    """:func:`_object_loops` compiled with numba, or ``None`` (no numba, or
+    ``MK_TRACKER_NO_NUMBA`` set)."""
+    if not _OBJECT:
+        owner, footprint = _owner_kernel(), _footprint_kernel()
+        if owner is None or footprint is None:
+            _OBJECT.append(None)
+        else:
+            import numba
+            global _owned_loops, _footprint_compiled
+            _owned_loops, _footprint_compiled = owner, footprint
+            _OBJECT.append(numba.njit(cache=True)(_object_loops))
+    return _OBJECT[0]
 
 
 def _median(values: np.ndarray) -> np.float32:
@@ -989,7 +1035,9 @@ class ThermalDetector:
 
     def _order(self, n_frames: int) -> np.ndarray:
         """Ring slots of the last ``n_frames`` frames, oldest first."""
-        return np.array([slot for slot, _ in list(self._buffer)[-n_frames:]], dtype=np.int64)
+        n = min(n_frames, len(self._buffer))
+        return np.array([self._buffer[i][0] for i in range(len(self._buffer) - n,
+                                                             len(self._buffer))], dtype=np.int64)
 
     def _newest(self) -> np.ndarray:
         """The newest frame as stored (raw, float32; window units are ``raw - offset``)."""
@@ -1250,8 +1298,7 @@ class ThermalDetector:
         h, w = self._shape
         rho = c.block_size
         stamp = self._last_stamp
-        stamps = [s for _, s in list(self._buffer)[-c.window_frames:]]
-        span = stamps[-1] - stamps[0]
+        span = self._buffer[-1][1] - self._buffer[-min(c.window_frames, len(self._buffer))][1]
         nby, nbx = -(-h // rho), -(-w // rho)
         mask = np.zeros((nby, nbx), dtype=bool)
         regions, preds = [], []
@@ -1273,16 +1320,41 @@ class ThermalDetector:
         result = _support(self._ring, self._order(c.window_frames), self._map[0], c,
                           self._map[1], self._integer, mask)
         centres = np.array([(s[0], s[1]) for s in preds])
-        owned = _owned_support(result.support, regions, centres)
         frame = self._newest()
+        # the compiled path does ownership, variances and footprint of an object in one call
+        compiled = _object_kernel() if c.current_frame_refinement else None
+        if compiled is None:
+            owned = _owned_support(result.support, regions, centres)
+        else:
+            offset = np.float32(self._map[0])
+            radius = np.float32(_similarity_radius(c.sigma2) / self._map[1])
         detections: list[ThermalDetection] = []
         kept: list[_Track] = []
         for k, (tr, region) in enumerate(zip(self._tracks, regions)):
             cand = None
-            n_inside, rows, cols = owned[k]
-            if n_inside >= c.min_object_pixels and rows.size >= c.min_object_pixels:
-                cell = _VoronoiCell(centres, k) if len(preds) > 1 else None
-                cand = self._candidate(frame, result, rows, cols, region, cell)
+            if compiled is not None:
+                if region is not None:
+                    cell_centres, cell_k = (centres, k) if len(preds) > 1 else (_NO_CENTRES, -1)
+                    y0, y1, x0, x1 = region
+                    values = np.empty((y1 - y0) * (x1 - x0), dtype=result.variance.dtype)
+                    n_inside, n_mine, n, sx, sy, xmin, xmax, ymin, ymax = compiled(
+                        frame, offset, result.support, result.variance, y0, y1, x0, x1,
+                        centres, k, cell_centres, cell_k, c.min_object_pixels,
+                        c.window_margin, radius, values)
+                    # as _candidate: no footprint, or a smaller one than min_object_pixels,
+                    # is no object
+                    if n_inside >= c.min_object_pixels and n_mine >= c.min_object_pixels \
+                            and n >= c.min_object_pixels:
+                        cand = _Candidate((sx / n + 0.5, sy / n + 0.5),
+                                          (float(xmin), float(ymin), float(xmax + 1 - xmin),
+                                           float(ymax + 1 - ymin)),
+                                          float(min(1.0, values[:n_mine].mean() / 0.5)),
+                                          int(n))
+            else:
+                n_inside, rows, cols = owned[k]
+                if n_inside >= c.min_object_pixels and rows.size >= c.min_object_pixels:
+                    cell = _VoronoiCell(centres, k) if len(preds) > 1 else None
+                    cand = self._candidate(frame, result, rows, cols, region, cell)
             if cand is None:
                 tr.missed += 1
                 if tr.missed <= c.max_missed:

@@ -140,3 +140,21 @@ def test_config_is_declared_and_used():
     assert kf.covariance[0, 0] == 9.0
     with pytest.raises(ParameterError):
         ConstantVelocityKalman.from_config((1, 2), KalmanConfig(sigma_w=-1.0))
+
+
+def test_repeated_step_uses_the_same_matrices_and_they_cannot_be_changed():
+    """Objects predicted over the same dt share A and Sigma_u (cached per step): the second
+    filter's prediction equals the formulas (4.2)-(4.3) written out, and the shared matrices
+    are read-only."""
+    from mk_tracker.kalman import _step_matrices, process_noise, transition_matrix
+    first, second = _filter(), ConstantVelocityKalman((3.0, -2.0), sigma_u=1.5,
+                                                      initial_velocity=(4.0, 1.0))
+    first.predict(0.25)
+    cov = second.covariance
+    state, pred_cov = second.predicted(0.25)
+    a, q = transition_matrix(0.25), process_noise(0.25, 1.5)
+    np.testing.assert_allclose(state, [4.0, -1.75, 4.0, 1.0])
+    np.testing.assert_allclose(pred_cov, a @ cov @ a.T + q)
+    cached_a, _ = _step_matrices(0.25, 1.5)
+    with pytest.raises(ValueError):
+        cached_a[0, 2] = 1.0
