@@ -856,15 +856,50 @@ def _object_loops(frame, offset, support, variance, y0, y1, x0, x1, centres, k, 
     size = (y1 - y0) * (x1 - x0)
     rows = np.empty(size, dtype=np.int64)
     cols = np.empty(size, dtype=np.int64)
-    n_inside, n_mine = _owned_loops(support, y0, y1, x0, x1, centres, k, rows, cols)
+    near = _near_centres(centres, k, y0, y1, x0, x1)
+    n_inside, n_mine = _owned_loops(support, y0, y1, x0, x1, near, 0, rows, cols)
     if n_inside < min_pixels or n_mine < min_pixels:
         return n_inside, n_mine, 0, 0, 0, 0, 0, 0, 0
     for i in range(n_mine):
         values[i] = variance[rows[i], cols[i]]
+    if cell_k >= 0:                 # the footprint patch lies inside the window
+        cell_centres = _near_centres(cell_centres, cell_k, y0, y1, x0, x1)
+        cell_k = 0
     _, _, _, count, sx, sy, xmin, xmax, ymin, ymax = _footprint_compiled(
         frame, offset, support, y0, y1, x0, x1, rows[:n_mine], cols[:n_mine], margin, radius,
         cell_centres, cell_k)
     return n_inside, n_mine, count, sx, sy, xmin, xmax, ymin, ymax
+
+
+def _near_centres(centres, k, y0, y1, x0, x1):
+    """``centres[k]`` followed by the other centres that can be nearer than it to some pixel
+    centre of rows ``y0:y1``, columns ``x0:x1`` -- the Voronoi tests against the others
+    always pass there, so leaving them out changes no test.  A centre is left out only when
+    its distance to the pixel-centre box exceeds the own centre's distance to the box's
+    farthest corner by a wide margin (1e-9 relative, far above the rounding of either)."""
+    n = centres.shape[0]
+    near = np.empty((n, 2))
+    near[0, 0] = centres[k, 0]
+    near[0, 1] = centres[k, 1]
+    if n == 1:
+        return near
+    gx0, gx1 = x0 + 0.5, x1 - 0.5
+    gy0, gy1 = y0 + 0.5, y1 - 0.5
+    cx, cy = centres[k, 0], centres[k, 1]
+    far = max((gx0 - cx) ** 2, (gx1 - cx) ** 2) + max((gy0 - cy) ** 2, (gy1 - cy) ** 2)
+    bound = far * (1.0 + 1e-9) + 1e-6
+    m = 1
+    for j in range(n):
+        if j == k:
+            continue
+        dx = max(gx0 - centres[j, 0], 0.0, centres[j, 0] - gx1)
+        dy = max(gy0 - centres[j, 1], 0.0, centres[j, 1] - gy1)
+        if dx * dx + dy * dy > bound:
+            continue
+        near[m, 0] = centres[j, 0]
+        near[m, 1] = centres[j, 1]
+        m += 1
+    return near[:m]
 
 
 _OBJECT: list = []
@@ -879,8 +914,9 @@ def _object_kernel():
             _OBJECT.append(None)
         else:
             import numba
-            global _owned_loops, _footprint_compiled
+            global _owned_loops, _footprint_compiled, _near_centres
             _owned_loops, _footprint_compiled = owner, footprint
+            _near_centres = numba.njit(cache=True)(_near_centres)
             _OBJECT.append(numba.njit(cache=True)(_object_loops))
     return _OBJECT[0]
 
@@ -894,6 +930,13 @@ def _median(values: np.ndarray) -> np.float32:
         return np.float32(np.partition(values, half)[half])
     part = np.partition(values, (half - 1, half))
     return np.float32((part[half - 1] + part[half]) / np.float32(2.0))
+
+
+def _overlap(a: tuple, b: tuple) -> bool:
+    """Whether boxes ``(x, y, w, h)`` share area: the test of
+    :func:`mk_tracker.boxes.intersection_area` (False there means an IoU of 0)."""
+    return (min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]) > 0
+            and min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]) > 0)
 
 
 def _similarity_radius(sigma2: float) -> float:
@@ -1306,12 +1349,13 @@ class ThermalDetector:
             state = tr.kf.predict(stamp - tr.stamp)          # (4.2)-(4.3)
             tr.stamp = stamp
             preds.append(state)
-            reach = c.window_margin + math.hypot(state[2], state[3]) * span
+            px, py, vx, vy = state.tolist()                 # the same doubles, as floats
+            reach = c.window_margin + math.hypot(vx, vy) * span
             # (5.2): a w_s x h_s window around the prediction, w_s >= w_s^0, mod(w_s, rho) = 0
-            bx0 = max(int(math.floor((state[0] - tr.box[2] / 2.0 - reach) / rho)), 0)
-            bx1 = min(int(math.ceil((state[0] + tr.box[2] / 2.0 + reach) / rho)), nbx)
-            by0 = max(int(math.floor((state[1] - tr.box[3] / 2.0 - reach) / rho)), 0)
-            by1 = min(int(math.ceil((state[1] + tr.box[3] / 2.0 + reach) / rho)), nby)
+            bx0 = max(int(math.floor((px - tr.box[2] / 2.0 - reach) / rho)), 0)
+            bx1 = min(int(math.ceil((px + tr.box[2] / 2.0 + reach) / rho)), nbx)
+            by0 = max(int(math.floor((py - tr.box[3] / 2.0 - reach) / rho)), 0)
+            by1 = min(int(math.ceil((py + tr.box[3] / 2.0 + reach) / rho)), nby)
             if bx1 <= bx0 or by1 <= by0:        # predicted outside the frame
                 regions.append(None)
                 continue
@@ -1373,7 +1417,9 @@ class ThermalDetector:
         keep: list[ThermalDetection] = []
         for i in order:
             d = detections[i]
-            if any(iou(d.box, k.box) > 0.5 for k in keep):
+            # iou is 0 for boxes that do not overlap (intersection_area): only the others
+            # are computed
+            if any(iou(d.box, k.box) > 0.5 for k in keep if _overlap(d.box, k.box)):
                 self._tracks = [t for t in self._tracks if t.object_id != d.object_id]
                 continue
             keep.append(d)
