@@ -1,10 +1,11 @@
 """Single-target benchmark of the multiple-kernel tracker against OpenCV's trackers.
 
 Runs, in one process on the same frames, the projected-gradient multiple-kernel tracker
-(1/2/4 kernels, with and without projected gradient, the single-kernel mean shift baseline and
-the paper's eps_J = 0.7N), our full tracker (the multiple-kernel refinement inside the Kalman
-filter of :class:`mk_tracker.multi_object_tracker.MultiObjectTracker`, Chu et al. Sec. IV-D,
-one target started by hand, no detector) with its defaults and with experimental settings, and
+(1/2/4/6 kernels, with and without projected gradient, the single-kernel mean shift baseline
+and the paper's eps_J = 0.7N), our full tracker (the multiple-kernel refinement inside the
+Kalman filter of :class:`mk_tracker.multi_object_tracker.MultiObjectTracker`, Chu et al.
+Sec. IV-D, one target started by hand, no detector) with its defaults for tracks started by
+hand (``MultiObjectTrackerConfig.manual_track``) and two experimental variants of them, and
 OpenCV's model-free trackers (CamShift and meanShift from the main package; MIL; KCF and CSRT
 when opencv-contrib is installed) on
 
@@ -57,8 +58,9 @@ from mk_tracker.evaluation import read_box_list, read_mot_file, single_target_me
 from mk_tracker.multi_kernel import (MultiKernelConfig, MultiKernelTracker,  # noqa: E402
                                      TrackingInputError, mean_shift_baseline_config,
                                      paper_config)
-from mk_tracker.multi_object_tracker import (MultiObjectTracker,  # noqa: E402
-                                              MultiObjectTrackerConfig, TrackerInputError)
+from mk_tracker.multi_object_tracker import (ManualTrackConfig,  # noqa: E402
+                                              MultiObjectTracker, MultiObjectTrackerConfig,
+                                              TrackerInputError, manual_track_multi_kernel)
 from mk_tracker.track import TrackState  # noqa: E402
 from mk_tracker import synthetic  # noqa: E402
 
@@ -187,17 +189,16 @@ def multi_kernel_factory(config: MultiKernelConfig):
     return make
 
 
-def full_tracker_factory(config: MultiObjectTrackerConfig, weighted_similarity: bool = False):
+def full_tracker_factory(config: MultiObjectTrackerConfig):
     """Our full tracker (Chu et al. Sec. IV-D): :class:`MultiObjectTracker` with one track
     started by hand on the first box, as ``tracker_node``'s ``initial_box`` / ``~/start_track``
-    and ``mk_tracker process --init-from-gt`` do, and no detector input.  Each frame the Kalman
-    prediction initialises the multiple-kernel search, whose result is the measurement; below
-    ``lifecycle.occlusion_similarity`` the track coasts (state ``occluded``) on the prediction.
-    The scored box is the track's box in every state (the prediction while it coasts)."""
+    and ``mk_tracker process --init-from-gt`` do, and no detector input, so the track runs with
+    ``config.manual_track``.  Each frame the Kalman prediction initialises the multiple-kernel
+    search, whose result is the measurement; below ``manual_track.occlusion_similarity`` the
+    track coasts (state ``occluded``) on the prediction.  The scored box is the track's box in
+    every state (the prediction while it coasts)."""
     def make(seq: Sequence):
-        refiner = WeightedSimilarityRefiner(config.multi_kernel) if weighted_similarity \
-            else None
-        tracker = MultiObjectTracker(config, refiner=refiner)
+        tracker = MultiObjectTracker(config)
         holder = {"frame": 0}
 
         def stamp():
@@ -218,32 +219,6 @@ def full_tracker_factory(config: MultiObjectTrackerConfig, weighted_similarity: 
             return Step(t.box, t.state != TrackState.CONFIRMED.value)
         return init, update
     return make
-
-
-class WeightedSimilarityRefiner:
-    """Experiment (not library behaviour): :class:`MultiKernelTracker` whose result reports,
-    as ``similarity``, the mean of the kernel similarities weighted by the adaptive weights
-    (7)-(8), ``sum_i W_i rho_i / N`` (= ``sum rho_i^2 / sum rho_i``), instead of their plain
-    mean.  With one kernel occluded (rho ~ 0) and the other matching, the plain mean is about
-    half and the full tracker coasts although the visible kernel places the target; the
-    weighted one stays high.  With every kernel occluded both are low."""
-
-    def __init__(self, config: MultiKernelConfig):
-        self.tracker = MultiKernelTracker(config)
-
-    def start(self, image, box):
-        return self.tracker.start(image, box)
-
-    def appearance_similarity(self, image, state, box):
-        return self.tracker.appearance_similarity(image, state, box)
-
-    def refine(self, image, state, predicted_center=None):
-        res = self.tracker.refine(image, state, predicted_center=predicted_center)
-        if res.lost:
-            return res
-        sims = np.asarray(res.kernel_similarities, dtype=float)
-        weights = np.asarray(res.weights, dtype=float)
-        return replace(res, similarity=float(np.sum(weights * sims) / sims.size))
 
 
 def camshift_factory(use_camshift: bool):
@@ -306,36 +281,36 @@ def _contrib(name: str):
 
 
 HEADLINE = "MK 2 kernels (PG)"
-FULL_TRACKER = "MK 2 kernels + Kalman (Sec. IV-D, our full tracker)"
-FULL_TUNED = "MK 2 + Kalman, single-target settings (exp.)"
-FULL_TUNED_WEIGHTED = "MK 2 + Kalman, single-target settings, weighted sim. (exp.)"
-FULL_TUNED_WEIGHTED_4 = "MK 4 + Kalman, single-target settings, weighted sim., scale gate " \
-    "mean > 0.7 (exp.)"
+FULL_TRACKER = "MK full tracker, started by hand (Kalman + 6 kernels, Sec. IV-D)"
+FULL_AS_DETECTED = "MK full tracker, started by hand with the detection-born settings (exp.)"
+FULL_TWO_KERNELS = "MK full tracker, started by hand, 2 kernels (exp.)"
+BARE_SIX = "MK 6 kernels (PG), scale gate mean > 0.7"
 
 
-def single_target_config(**multi_kernel) -> MultiObjectTrackerConfig:
-    """Experiment: the full tracker with three defaults changed for a target started by hand
-    without detections (chosen on these same sequences, so optimistic):
+def detection_born_settings() -> MultiObjectTrackerConfig:
+    """Experiment: a track started by hand with exactly the settings of tracks born from
+    detections (``manual_track`` set to the values it replaces) -- the full tracker as it was
+    before tracks started by hand had their own settings."""
+    d = MultiObjectTrackerConfig()
+    return replace(d, manual_track=ManualTrackConfig(
+        initial_velocity_var=d.kalman.initial_velocity_var,
+        occlusion_similarity=d.lifecycle.occlusion_similarity,
+        visibility_statistic=d.lifecycle.visibility_statistic,
+        refinement_similarity_range=d.refinement_similarity_range,
+        undetected_quality_factor=d.undetected_quality_factor,
+        num_kernels=d.multi_kernel.num_kernels,
+        scale_gate_statistic=d.multi_kernel.scale_gate_statistic,
+        scale_similarity_gate=d.multi_kernel.scale_similarity_gate))
 
-    * ``kalman.initial_velocity_var`` 2500 -> 40000 (px/s)^2: the TUD-Campus people walk at
-      ~250 px/s; with a 50 px/s prior the filter never learns the speed before the first
-      weak match and then coasts far too slowly;
-    * ``lifecycle.occlusion_similarity`` 0.6 -> 0.4: on real video a matching target scores
-      0.45-0.65 (sharp synthetic scenes: 0.8-0.9), so at 0.6 the track coasts while it is in
-      plain view;
-    * ``kalman.sigma_u`` 30 -> 15 px/s^1.5: while a person walks into a pillar the refinement
-      lags on the shrinking visible part; a stiffer motion model keeps more of the speed for
-      coasting through the full occlusion.
 
-    ``multi_kernel`` overrides fields of :class:`MultiKernelConfig` (e.g. ``num_kernels=4``;
-    with 4 kernels the default scale gate, every kernel's similarity > 0.8, almost never
-    opens, so the 4-kernel row also gates on the mean > 0.7)."""
-    from mk_tracker.kalman import KalmanConfig
-    from mk_tracker.track import LifecycleConfig
-    return MultiObjectTrackerConfig(
-        kalman=KalmanConfig(initial_velocity_var=4.0e4, sigma_u=15.0),
-        lifecycle=LifecycleConfig(occlusion_similarity=0.4),
-        multi_kernel=MultiKernelConfig(**multi_kernel))
+def two_kernel_settings() -> MultiObjectTrackerConfig:
+    """Experiment: the defaults for tracks started by hand, but with the 2-kernel layout and
+    scale gate of tracks born from detections (shows what the 6-kernel layout adds)."""
+    d = MultiObjectTrackerConfig()
+    return replace(d, manual_track=replace(
+        d.manual_track, num_kernels=d.multi_kernel.num_kernels,
+        scale_gate_statistic=d.multi_kernel.scale_gate_statistic,
+        scale_similarity_gate=d.multi_kernel.scale_similarity_gate))
 
 
 def tracker_table(include_paper: bool = True) -> list[tuple[str, Callable | None]]:
@@ -343,17 +318,15 @@ def tracker_table(include_paper: bool = True) -> list[tuple[str, Callable | None
     out = [
         ("MK 2 kernels (PG)", multi_kernel_factory(mk(num_kernels=2))),
         (FULL_TRACKER, full_tracker_factory(MultiObjectTrackerConfig())),
-        (FULL_TUNED, full_tracker_factory(single_target_config())),
-        (FULL_TUNED_WEIGHTED, full_tracker_factory(single_target_config(), True)),
-        (FULL_TUNED_WEIGHTED_4, full_tracker_factory(
-            single_target_config(num_kernels=4, scale_gate_statistic="mean",
-                                 scale_similarity_gate=0.7), True)),
+        (FULL_AS_DETECTED, full_tracker_factory(detection_born_settings())),
+        (FULL_TWO_KERNELS, full_tracker_factory(two_kernel_settings())),
         ("MK 2 kernels, no PG", multi_kernel_factory(mk(num_kernels=2,
                                                          use_projected_gradient=False))),
         ("MK 2 kernels, no scale", multi_kernel_factory(mk(num_kernels=2, scale_update=False))),
         ("MK 4 kernels (PG)", multi_kernel_factory(mk(num_kernels=4))),
         ("MK 4 kernels, no PG", multi_kernel_factory(mk(num_kernels=4,
                                                          use_projected_gradient=False))),
+        (BARE_SIX, multi_kernel_factory(manual_track_multi_kernel(MultiObjectTrackerConfig()))),
         ("MK 1 kernel (K-L)", multi_kernel_factory(mk(num_kernels=1))),
         ("Mean shift (Comaniciu)", multi_kernel_factory(mean_shift_baseline_config())),
     ]
@@ -515,19 +488,27 @@ NOTES = """Notes.
   ~20 and ~11 frames; the bare refinement (MK rows without Kalman) and OpenCV's trackers lose
   it there (the paper's own limitation, Sec. V-D), and those two sequences dominate the
   synthetic group mean.
-* "MK 2 kernels + Kalman (Sec. IV-D, our full tracker)" is `MultiObjectTracker` with its
-  defaults (`MultiObjectTrackerConfig()`), one track started by hand on the first box
-  (`start_track`, as `tracker_node`'s `initial_box` / `~/start_track` and
+* "MK full tracker, started by hand (Kalman + 6 kernels, Sec. IV-D)" is `MultiObjectTracker`
+  with its defaults (`MultiObjectTrackerConfig()`), one track started by hand on the first
+  box (`start_track`, as `tracker_node`'s `initial_box` / `~/start_track` and
   `mk_tracker process --init-from-gt` do), no detector input, frame stamps `i / fps`
-  (25 fps for the real sequences, `datasets.DEFAULT_FRAME_RATE`).  Each frame the Kalman
-  prediction initialises the multiple-kernel search and the result is the Kalman
-  measurement; below `lifecycle.occlusion_similarity` the track is `occluded` and coasts on
-  the prediction.  Its box is scored in every state (while it coasts: the predicted box).
+  (25 fps for the real sequences, `datasets.DEFAULT_FRAME_RATE`).  A track started by hand
+  runs with the `manual_track` section of the config: 6 kernels (3 rows x 2 columns, Fig.
+  14b) with the scale gated on their mean similarity > 0.7, velocity prior
+  `initial_velocity_var` 40000 (px/s)^2, visibility = `sum_i W_i rho_i / N` (adaptive
+  weights (7)-(8)), occluded below 0.4, and that visibility mapped to measurement quality
+  over 0.2-0.8 (tracks born from detections: 2 kernels, 2500, plain mean, 0.6, 0.5-0.95
+  times 0.5).  Each frame the Kalman prediction initialises the multiple-kernel search and
+  the result is the Kalman measurement; below the occlusion threshold the track is
+  `occluded` and coasts on the prediction.  Its box is scored in every state (while it
+  coasts: the predicted box).  The two "(exp.)" full-tracker rows change only
+  `manual_track`: back to every setting of detection-born tracks (the full tracker as it
+  was before this section existed), or back to their 2-kernel layout and scale gate only.
 * "held-out crowd persons": every person of two generator crowd scenes
   (`synthetic.crowd_scene(5, seed=11 / 12, frames=150)`: random turns, crossings, pillars),
-  each as a single target from its first box.  No setting of any row was chosen on them
-  (the experimental settings were chosen on the other sequences), so they show whether
-  those settings carry over.  Not part of the goal.
+  each as a single target from its first box.  No setting was chosen on them (the
+  `manual_track` defaults were chosen on the synthetic occlusion scenes and TUD-Campus), so
+  they show whether those settings carry over.  Not part of the goal.
 * "said hidden" = frames in which the tracker itself said it does not see the target: MK
   `lost` (its last box is scored), the full tracker's state other than `confirmed`, OpenCV
   `ok=False` (its last box is scored), CamShift's collapsed window.  "truly hidden" (synthetic
@@ -539,8 +520,9 @@ NOTES = """Notes.
 * "MK 2 kernels, eps_J=0.7N (paper)" is the paper's stopping threshold: with this K-L cost
   (J_i ~ 0.01-0.3 around the target) Algorithm 1 stops before the first step, so the default
   of `MultiKernelConfig.epsilon_j_factor` is 0 (see mk_tracker/multi_kernel.py).
-* The MK rows use the defaults of `MultiKernelConfig` (2 kernels unless stated): scale update
-  gated on the minimum kernel similarity > 0.8 and verified against the cost, no model update.
+* The bare MK rows use the defaults of `MultiKernelConfig` (2 kernels unless stated): scale
+  update gated on the minimum kernel similarity > 0.8 (the 6-kernel row: mean > 0.7, as the
+  full tracker's hand-started tracks) and verified against the cost, no model update.
 * OpenCV MIL samples at random and gives a different result on every run (`cv2.setRNGSeed`
   does not make it repeatable; e.g. 0.9-6.6 px on "crossing (near)" across runs): its row is
   the mean of 3 runs, with the range of the mean centre error in brackets per sequence.
@@ -808,64 +790,80 @@ def write_markdown(path: Path, seqs, trackers, results, argv, loads=None,
 #: produced them, regenerated into the report
 FINDINGS = """## Findings (hand-written from this run; the tables below are the evidence)
 
-* **Full tracker (Kalman + refinement, Sec. IV-D) with its defaults.**  It coasts through the
-  full occlusion of "crossing (far)" and re-acquires the person (2.1 px vs 31.3 px for the
-  best OpenCV tracker, KCF; it said hidden in 15 frames, 11 of them truly hidden).  On "full
-  pillar" it beats CSRT (31.7 vs 53.6 px) but does not re-acquire: while the person walks
-  into the pillar the refinement lags on the shrinking visible part with a good similarity,
-  the filter's speed falls from 54 to 32 px/s, the coasting prediction ends ~55 px behind
-  and the search started there never reaches the person again (the track honestly stays
-  `occluded` to the end: 91 frames said hidden, 29 truly hidden).  It is *worse* than the
-  bare refinement on the lower-body wall (11.8 vs 5.1 px) and on TUD-Campus (56.5 vs 15.3
-  px): with the legs hidden the mean of the two kernel similarities falls to ~0.45, and on
-  real video a matching target scores only 0.45-0.65, both below
-  `lifecycle.occlusion_similarity` = 0.6, so the track coasts while the target is in plain
-  view; and the velocity prior (`kalman.initial_velocity_var` = 2500, i.e. 50 px/s) is far
-  below the ~250 px/s at which the TUD-Campus people walk, so the filter has not learnt the
-  speed before it starts coasting.  These defaults were chosen for the multi-object tracker,
-  where detections correct the track every frame.
-* **Single-target settings (exp.)**: `kalman.initial_velocity_var` 40000,
-  `kalman.sigma_u` 15, `lifecycle.occlusion_similarity` 0.4 (chosen on these same sequences:
-  optimistic).  With them the full tracker re-acquires the person after the pillar (9.3 px)
-  and is better than the bare refinement on TUD-Campus (13.8 px).  They must not become the
-  global defaults: the multi-object benchmark (`benchmarks/bench_multi_object.py --set ...`,
-  run by hand at 15:05-15:14 UTC) drops with all three from IDF1 0.658 to 0.521 (MOTA 0.496
-  to 0.203) on TUD-Campus and from 0.954 to 0.821 on the 5-person generator scene; alone,
-  the velocity prior costs TUD-Campus MOTA (0.496 -> 0.309), `sigma_u` 15 the generator
-  scenes (IDF1 0.954 -> 0.820 at 5 people) and `occlusion_similarity` 0.4 a little MOTA
-  (0.496 -> 0.437, IDF1 unchanged).  They would have to apply to tracks started by hand
-  only.
-* **Weighted similarity (exp.)**: the tracker judges visibility and measurement quality by
-  `sum_i W_i rho_i / N` (the adaptive weights (7)-(8)) instead of the plain mean of the
-  kernel similarities, so one hidden kernel no longer makes a visible target "occluded"
-  (lower-body wall 6.1 -> 5.2 px, TUD-Campus 13.8 -> 13.0 px, OTB Crossing 15.2 -> 6.1 px).
-  That is a change of `MultiObjectTracker` (the benchmark wraps the refiner to try it).
-* **Saying "not visible"** ("said hidden / both" in the per-sequence tables).  On "crossing
-  (far)" CSRT never reports a failure although its box ends far from the person (83 px mean
-  error); KCF and the bare refinement report failure in 65-67 frames of which 11 are truly
-  hidden (they lost the person for good).  The full tracker says hidden in 13-15 frames
-  covering all 11 truly hidden ones, then re-acquires.  On "full pillar" the 2-kernel
-  experimental rows say hidden in 41-44 frames (29 truly hidden: they coast ~10 frames
-  longer than needed before re-acquiring), the 4-kernel one in 34 (27 truly hidden).
-* **Lower-body wall** (table "Where the error is"): the remaining error of the 2-kernel rows
-  is horizontal while the legs are hidden (mean |dx| 6.8 px vs CSRT 2.3 px), not vertical
-  drift (|dy| 1.6 vs 2.0) and not scale (height ratio 0.94-1.05, CSRT 0.93-1.06); in
-  fully visible frames the 2-kernel layout also lags by 2.5 px (CSRT 1.6).  The upper and
-  lower kernels are stacked, so once the lower one is hidden only the upper-body histogram
-  places the box horizontally; 4 kernels (2x2) add a left/right structure: the bare
-  4-kernel refinement gets 3.1 px, and the 4-kernel full tracker with the experimental
-  settings 2.3 px, below CSRT's 2.8 px.  That row is below every OpenCV tracker on all five
-  synthetic scenes, but not on the TUD-Campus people (it loses persons 3 and 7; not
-  diagnosed), where the 2-kernel rows are best.  No single configuration measured here
-  meets the accuracy goal everywhere.
-* **Held-out crowd persons** (no setting was chosen on them): the bare 2-kernel refinement
-  is best (22.5 px; CSRT 28.9) and every full-tracker row is worse (42.5-46.1 px), so the
-  experimental settings do not carry over.  For example person 3 of seed 11 turns round
-  while half hidden behind person 1: the track goes `occluded`, coasts on along its old
-  velocity and never comes back (a track started by hand coasts until its prediction leaves
-  the image, and meanwhile the refinement searches only around the prediction), whereas the
-  bare refinement stays on the person.  Searching also around the last seen position while
-  coasting is the next thing to try (a `MultiObjectTracker` change)."""
+* **Goal.**  The full tracker with the defaults for tracks started by hand (one shipped
+  configuration, `MultiObjectTrackerConfig()`) is below every OpenCV tracker on each of the
+  five synthetic occlusion scenes (wall 1.44 px vs CSRT 2.78; pillar 4.26 vs CSRT 53.6;
+  crossing near 1.21 vs CSRT 3.20; crossing far 1.23 vs KCF 31.3; approach 1.01 vs KCF
+  7.91), on the synthetic mean (1.8 vs 24.9 px) and on the TUD-Campus mean (8.7 vs CSRT
+  32.1 px; lower than CSRT on 6 of the 8 persons, persons 6 and 8 are 4.7 / 4.1 vs 3.9 /
+  3.9 px).  The `manual_track` settings were chosen on these same sequences (optimistic);
+  the held-out persons below are the check.  It is slower than the bare refinement (6
+  kernels: see the goal check for the measured medians) but within 2 ms.
+* **Why tracks started by hand needed their own settings** (row "... with the
+  detection-born settings (exp.)", the full tracker as it was: wall 11.8, TUD-Campus 56.5,
+  held-out 46.1 px).  The settings of tracks born from detections assume a detection
+  corrects the track every frame: (1) the velocity prior (`kalman.initial_velocity_var`
+  2500, 50 px/s) is far below the ~250 px/s of the TUD-Campus walkers; (2) on real video a
+  matching target's plain-mean kernel similarity is 0.45-0.65, below
+  `lifecycle.occlusion_similarity` 0.6, and with the legs hidden it halves, so the track
+  coasts while in plain view; (3) the refinement's similarity is mapped to a measurement
+  quality over 0.5-0.95 and halved without a detection, which puts a hand-started track's
+  only measurement at the quality floor (std x10): the filter runs on its own velocity and
+  falls behind a walking person.  Making those settings global is not an option: the
+  velocity prior, `sigma_u` 15 and occlusion threshold 0.4 cut the multi-object benchmark's
+  TUD-Campus IDF1 from 0.658 to 0.521 (measured in the previous session).  So they apply to
+  tracks started by hand only (`manual_track.*`; `bench_multi_object.py` gives identical
+  MOTA/IDF1 on every sequence before and after, since detection-born tracks are unchanged).
+* **What the 4-kernel full tracker did on TUD-Campus persons 3 and 7** (previous session:
+  89 and 126 px).  Cause (3): its weighted visibility on TUD-Campus was 0.42-0.5, quality 0,
+  so the filter ignored the refinement and lagged (person 3: 120-147 px/s filtered vs
+  ~190 px/s true).  Once the box was about half a width behind, the left column of the 2x2
+  layout lay on background (rho ~ 0, so weight W ~ 0 by (7)-(8)) and the right column on
+  the person's left half, whose colours match its right half: a stable wrong optimum that
+  the weighted visibility (0.42-0.46) still called visible.  With the refinement trusted
+  (`manual_track.refinement_similarity_range` 0.2-0.8, `undetected_quality_factor` 1) the
+  same 4-kernel track gets persons 3 / 7 to 10 / 13 px (exploration runs with this
+  script's `full_tracker_factory`, not in the tables).
+* **Why 6 kernels.**  The lower-body wall needs a left/right structure once the legs are
+  hidden: two stacked full-width kernels place the box only by the upper-body histogram
+  (row "... 2 kernels (exp.)": wall 5.13 px, |dx| 6.5 px while occluded); 6 kernels (3 rows
+  x 2 columns, Fig. 14b) keep 4 kernels in two columns above the wall (1.44 px, |dx| 1.8 vs
+  CSRT 2.3).  With the refinement trusted, 2 kernels also lose the person at the pillar
+  (50.8 px, barely below CSRT's 53.6: the lagging measurement on the shrinking visible part
+  is now believed), 6 kernels do not (4.26).  The 2x2 layout misses the wall goal (2.90 px
+  vs CSRT 2.78) and is worse at the pillar (11.1 px).
+  The scale is gated on the mean kernel similarity > 0.7: with 6 small kernels the default
+  gate (every kernel > 0.8) almost never opens and "approach" fails (16.8 px).
+* **Sensitivity** (exploration runs, one setting changed at a time from the shipped ones;
+  synthetic / TUD-Campus means and held-out mean in px): occlusion threshold 0.3 or 0.5:
+  2.0 / 15.9, 1.8 / 16.8 (goal still met); quality range 0.3-0.8 or 0.1-0.7: 1.8 / 8.6,
+  2.1 / 9.9; quality factor 0.5: 2.0 / 9.0; velocity prior 1e4 or 1e5: 1.9 / 8.4,
+  1.8 / 8.8; 5 kernels: 2.1 / 10.2; plain-mean visibility: 2.2 / 15.1 (all met; held-out
+  26.5-31.7, the plain mean 44.6).  Goal missed with: the detection-born quality range
+  0.5-0.95 (TUD-Campus 33.2, person 7 138 px), the detection-born velocity prior (37.3), a
+  scale gate of 0.8 (approach 16.8), 4 kernels (wall 2.90) or 2 kernels (wall 5.07, pillar
+  57).
+* **Saying "not visible"** ("said hidden / both").  On "crossing (far)" the full tracker
+  says hidden in 13 frames covering all 11 truly hidden ones, then re-acquires; on "full
+  pillar" in 31 frames covering all 29 truly hidden ones (the detection-born settings: 91).
+  CSRT never reports a failure on "crossing (far)" although its box ends far from the
+  person (83 px); KCF and the bare refinement report failure in 65-67 frames (they lost the
+  person for good).  On TUD-Campus persons 4, 5 and 7 the full tracker says hidden in
+  36-63 frames with 8-13 px error: its visibility is below 0.4 while the box stays near the
+  person, so it coasts on a good velocity; there the figure is a weak "visible" signal,
+  not a lost track.
+* **Held-out crowd persons** (no setting chosen on them): the full tracker gets 26.5 px,
+  below CSRT (28.9) but above the bare 2-kernel refinement (22.5); it is better than the
+  bare refinement on 5 of the 10 persons, close on 2 (seed 11 persons 1 and 5: 13.1 / 7.5
+  vs 7.5 / 7.2 px) and far worse on persons 2, 3 and 4 of seed 12 (84, 60, 84 px; bare 55,
+  19, 76; every tracker but MIL on person 4 is above 50 px on persons 2 and 4).
+  Person 3 of seed 12 shows the remaining failure: while it is half hidden the left kernel
+  column settles on the person's right half (similarities 0.9) and the right column on
+  background (0), the weighted visibility says 0.86, the box stays ~27 px off, and after
+  the next full occlusion the coasting prediction (on a velocity learnt from that offset
+  box) never meets the person again.  The same left/right ambiguity of two-column layouts
+  is what made the 2x2 layout fail; a check that both columns see the target, or a search
+  around the last seen position while coasting, are the next things to try."""
 
 
 if __name__ == "__main__":
