@@ -102,7 +102,7 @@ from mk_tracker.sparse_factorization import (_factorize_block, compiled_block_fa
                                              sparse_factorize, zero_factor_threshold)
 from mk_tracker.stamps import checked_stamp
 from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
-                                      normalization_map, robust_range)
+                                      normalization_map, robust_range, thermal_view)
 
 __all__ = ["ThermalDetectorConfig", "ThermalDetection", "ThermalDetector", "ThermalInputError",
            "SupportResult", "support_in_frame"]
@@ -1003,7 +1003,10 @@ class ThermalDetector:
     def process(self, frame: Any, stamp: float, encoding: str | None = None
                 ) -> list[ThermalDetection]:
         """Detections in ``frame`` (raw array as received) taken at ``stamp`` seconds."""
-        raw, enc = as_thermal_array(frame, encoding)
+        raw, enc = thermal_view(frame, encoding)
+        if enc == "32FC1":
+            raw, enc = as_thermal_array(raw, enc)        # float copy, missing pixels NaN
+        # integer frames stay as received: they are converted once, into the ring buffer
         t = checked_stamp(stamp, ThermalInputError)
         self.last_reset = False
         self.last_event = None
@@ -1035,7 +1038,9 @@ class ThermalDetector:
         filled = raw
         if enc == "32FC1":
             filled, _ = fill_missing(raw, self._last_filled)
-        self._last_filled = filled
+            self._last_filled = filled
+        else:
+            self._last_filled = None      # only float frames are filled from the previous one
         self._shape, self._encoding, self._last_stamp = raw.shape, enc, t
         n_slots = self._buffer.maxlen
         if self._ring is None or self._ring.shape[1:] != filled.shape:

@@ -73,6 +73,17 @@ def as_thermal_array(frame: Any, encoding: str | None = None) -> tuple[np.ndarra
 
     Accepts ``(H, W)`` or ``(H, W, 1)``.  Raises :class:`ThermalInputError` otherwise.
     """
+    arr, enc = thermal_view(frame, encoding)
+    out = arr.astype(np.float32, copy=True)
+    if enc == "32FC1":
+        out[~np.isfinite(out)] = np.nan
+    return out, enc
+
+
+def thermal_view(frame: Any, encoding: str | None = None) -> tuple[np.ndarray, str]:
+    """``(H x W array as received, canonical encoding)``: the checks of
+    :func:`as_thermal_array` without its float32 copy (a view when possible; its values
+    are the raw ones, missing pixels not yet NaN)."""
     try:
         arr = np.asarray(frame)
     except Exception as exc:  # noqa: BLE001 - anything numpy cannot read is bad input
@@ -84,10 +95,7 @@ def as_thermal_array(frame: Any, encoding: str | None = None) -> tuple[np.ndarra
         raise ThermalInputError(f"thermal frame must be 2-D (H, W), got shape {arr.shape}")
     if arr.shape[0] < 1 or arr.shape[1] < 1:
         raise ThermalInputError(f"thermal frame is empty, shape {arr.shape}")
-    out = arr.astype(np.float32, copy=True)
-    if enc == "32FC1":
-        out[~np.isfinite(out)] = np.nan
-    return out, enc
+    return arr, enc
 
 
 def robust_range(frames: np.ndarray, low_percentile: float = 0.5,

@@ -5,7 +5,7 @@ import pytest
 
 from mk_tracker.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
                                       normalization_map, normalize, robust_range,
-                                      thermal_encoding)
+                                      thermal_encoding, thermal_view)
 
 
 def test_mono8_is_divided_by_255():
@@ -69,3 +69,17 @@ def test_fill_missing_holds_the_previous_value():
     np.testing.assert_array_equal(filled, [[5.0, 2.0], [3.0, 8.0]])
     first, n = fill_missing(cur, None)
     np.testing.assert_array_equal(first, [[5.0, 6.5], [6.5, 8.0]])
+
+
+def test_thermal_view_checks_like_as_thermal_array_without_copying():
+    """The detector converts integer frames straight into its ring buffer: the view keeps
+    the raw dtype and memory ((H, W, 1) squeezed), and bad frames fail the same way."""
+    frame = np.arange(12, dtype=np.uint16).reshape(3, 4, 1)
+    view, enc = thermal_view(frame, "16UC1")
+    assert enc == "mono16" and view.shape == (3, 4) and view.dtype == np.uint16
+    assert np.shares_memory(view, frame)
+    np.testing.assert_array_equal(as_thermal_array(frame, "16UC1")[0], view.astype(np.float32))
+    with pytest.raises(ThermalInputError):
+        thermal_view(np.zeros((2, 2), np.uint8), "mono16")
+    with pytest.raises(ThermalInputError):
+        thermal_view(np.zeros((2, 2, 3), np.uint8))
