@@ -27,6 +27,7 @@ import io
 import json
 import os
 import pstats
+import shlex
 import subprocess
 import sys
 import time
@@ -120,10 +121,17 @@ def profile(people: int, args: argparse.Namespace, top: int) -> dict[str, str]:
     return out
 
 
-def fmt(entry: dict | None) -> str:
-    if not entry:
+def fmt(entries: list) -> str:
+    """``median of min / median`` of one round, or their ranges over several rounds."""
+    entries = [e for e in entries if e]
+    if not entries:
         return "-"
-    return f"{entry['median_of_min']:.2f} / {entry['median']:.2f}"
+
+    def span(key: str) -> str:
+        lo, hi = min(e[key] for e in entries), max(e[key] for e in entries)
+        return f"{lo:.2f}" if len(entries) == 1 else f"{lo:.2f}-{hi:.2f}"
+
+    return f"{span('median_of_min')} / {span('median')}"
 
 
 def main(argv=None) -> int:
@@ -138,6 +146,9 @@ def main(argv=None) -> int:
                         help="directory holding an older mk_tracker package to measure too")
     parser.add_argument("--label", default="compared",
                         help="name of the --compare version in the report (e.g. its commit)")
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="measure every version this many times, alternating (the table "
+                             "gives the range over the rounds)")
     parser.add_argument("--top", type=int, default=15, help="functions listed per mode")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--out", default=str(ROOT / "docs" / "profile_thermal_detector.md"))
@@ -151,19 +162,27 @@ def main(argv=None) -> int:
     rows = []
     header = ("| people | version | tracking frame ms CPU, median of min / median | "
               "full-frame pass ms CPU, median of min / median | load |")
+    versions = [("current", None)] + ([(args.label, args.compare)] if args.compare else [])
     for people in args.people:
-        versions = [("current", None)] + ([(args.label, args.compare)] if args.compare else [])
-        for label, path in versions:
-            res = run_worker(path, args, people)
-            row = (f"| {people} | {label} (`{res['package']}`) | {fmt(res.get('tracking'))} | "
-                   f"{fmt(res.get('full'))} | {os.getloadavg()[0]:.1f} |")
+        results: dict[str, list] = {label: [] for label, _ in versions}
+        loads = []
+        for _ in range(max(1, args.rounds)):
+            for label, path in versions:
+                results[label].append(run_worker(path, args, people))
+                loads.append(os.getloadavg()[0])
+        for label, _ in versions:
+            res = results[label]
+            row = (f"| {people} | {label} (`{res[0]['package']}`) | "
+                   f"{fmt([r.get('tracking') for r in res])} | "
+                   f"{fmt([r.get('full') for r in res])} | "
+                   f"{min(loads):.1f}-{max(loads):.1f} |")
             print(row, flush=True)
             rows.append(row)
     profiles = profile(args.people[len(args.people) // 2], args, args.top)
     for mode, text in profiles.items():
         print(f"\n== {mode} ==\n{text}")
     command = ("OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 .venv/bin/python "
-               "benchmarks/profile_thermal_detector.py " + " ".join(argv or sys.argv[1:]))
+               "benchmarks/profile_thermal_detector.py " + shlex.join(argv or sys.argv[1:]))
     text = [
         "# Thermal detector profile",
         "",
@@ -175,14 +194,15 @@ def main(argv=None) -> int:
         "",
         f"Crowd scenes {args.width}x{args.height}, {args.frames} frames, seed {args.seed}, "
         f"{args.repeats} runs each, every version in its own process (the compared one "
-        "measured right after the current one).  CPU time per `process()` call "
+        f"measured right after the current one; {max(1, args.rounds)} round(s) of both, "
+        "alternating, ranges over the rounds).  CPU time per `process()` call "
         "(`time.process_time`, one thread); *median of min* takes each frame's fastest run, "
         "then the median over frames (the detector is deterministic, so slower runs are "
         "other jobs' interference).  The compared package is a plain copy of `mk_tracker/` at "
         "an older commit (`git archive <commit> mk_tracker | tar -x -C DIR`).  Machine load "
         "(1-min average, 2 cores): "
         f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after; the last column is "
-        "sampled after each measurement.",
+        "the range sampled after each measurement of that scene.",
         "",
         header,
         "|---|---|---|---|---|",
