@@ -62,6 +62,35 @@ def layout_fractions(num_kernels: int) -> np.ndarray:
     return np.array([(c[0], r[0], c[1], r[1]) for c, r in cells], dtype=np.float64)
 
 
+def layout_columns(num_kernels: int) -> np.ndarray:
+    """Which column of the box each kernel of the layout covers, shape ``(N,)``: ``0`` the
+    left column ``[0, 0.55]``, ``1`` the right column ``[0.45, 1]``, ``-1`` the full width
+    (both).  Layouts of 1 and 2 kernels have only full-width kernels (no left/right
+    structure).  Raises ``ValueError`` for an unsupported kernel count."""
+    frac = layout_fractions(num_kernels)
+    full = (frac[:, 0] <= 0.0) & (frac[:, 2] >= 1.0)
+    return np.where(full, -1, np.where(frac[:, 0] <= 0.0, 0, 1)).astype(np.int64)
+
+
+def column_coverage(similarities: np.ndarray, num_kernels: int) -> float:
+    """How well the worse-seen column of a target is seen: over the left and the right
+    column, the lower of the best kernel similarity ``rho_i`` in that column (a full-width
+    kernel counts for both).  A target whose box lies half on it and half on background
+    scores ~0 here however well the kernels of its other column match; for layouts without
+    columns (1, 2 kernels) it is the best similarity.  NaN similarities count as 0.  Raises
+    ``ValueError`` when the number of similarities is not ``num_kernels``."""
+    s = np.asarray(similarities, dtype=np.float64).reshape(-1)
+    if s.size != num_kernels:
+        raise ValueError(f"{s.size} kernel similarities for a {num_kernels}-kernel layout")
+    s = np.where(np.isfinite(s), s, 0.0)
+    cols = layout_columns(num_kernels)
+    best = []
+    for c in (0, 1):
+        mine = s[(cols == c) | (cols == -1)]
+        best.append(float(mine.max()) if mine.size else 0.0)
+    return min(best)
+
+
 def kernel_layout(box: BoxLike, num_kernels: int) -> tuple[np.ndarray, np.ndarray]:
     """Centres ``(N, 2)`` and half-axes ``(N, 2)`` of the kernels of ``box``.
 

@@ -54,6 +54,7 @@ from mk_tracker.association import (AssociationConfig, assign, association_cost,
                                     mahalanobis_matrix)
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
+from mk_tracker.kernel_layouts import column_coverage, layout_columns
 from mk_tracker.multi_kernel import (SUPPORTED_KERNEL_COUNTS, VISIBILITY_STATISTICS,
                                      MultiKernelConfig, MultiKernelTracker,
                                      visibility_similarity)
@@ -126,6 +127,16 @@ class ManualTrackConfig:
     scale_similarity_gate: float = parameter(
         0.7, "Scale gate of a track started by hand (replaces "
         "multi_kernel.scale_similarity_gate)", minimum=0.0, maximum=1.0)
+    column_recentre: bool = parameter(
+        True, "When the search of a track started by hand sees the target with one kernel "
+        "column only (the other below min_column_similarity), also search from the box "
+        "moved 0.45 w towards the seeing column and keep that result if both its columns "
+        "see the target (a two-column box locked half on the person, half on background)")
+    min_column_similarity: float = parameter(
+        0.2, "A kernel column of a track started by hand sees the target when one of its "
+        "kernels has at least this similarity (column_coverage; 0.2 = the low end of "
+        "refinement_similarity_range, no information; 0 = column_recentre never runs)",
+        minimum=0.0, maximum=1.0)
 
 
 def manual_track_kalman(config: "MultiObjectTrackerConfig") -> KalmanConfig:
@@ -504,7 +515,7 @@ class MultiObjectTracker:
         # for the tracks no detection was assigned to this frame (missed, part- or fully
         # occluded), or for all with refine_when_detected.  Keeps the per-frame cost to the
         # hard cases.
-        refined: dict[int, tuple[np.ndarray, float]] = {}
+        refined: dict[int, tuple[np.ndarray, float, bool]] = {}
         for t in live:
             t.refined_box = None
             refiner = self._refiner_for(t)
@@ -515,16 +526,13 @@ class MultiObjectTracker:
             if t.id in det_boxes_now and not self.config.refine_when_detected:
                 continue
             try:
-                res = refiner.refine(image_bgr, t.target, predicted_center=tuple(t.center))
+                found = self._refine(t, refiner, image_bgr)
             except ValueError as exc:       # the refiner's own input errors
                 result.events.append(f"track {t.id}: refinement failed: {exc}")
                 continue
-            sim = _visibility(res, t.config.visibility_statistic)
-            box = getattr(res, "box", None)
-            if (not getattr(res, "lost", False) and box is not None and math.isfinite(sim)
-                    and all(math.isfinite(float(v)) for v in box)):
-                refined[t.id] = (np.asarray(box, dtype=np.float64), sim)
-                t.refined_box = refined[t.id][0]
+            if found is not None:
+                refined[t.id] = found
+                t.refined_box = found[0]
 
         # 6. updates and lifecycle
         # boxes other tracks may block an appearance refresh with (computed once per frame)
@@ -574,6 +582,78 @@ class MultiObjectTracker:
     def _refiner_for(self, t: Track) -> Refiner | None:
         """The refiner of a track: ``manual_refiner`` for tracks started by hand."""
         return self.manual_refiner if t.manual else self.refiner
+
+    def _judge(self, t: Track, res: Any) -> tuple[np.ndarray, float, bool] | None:
+        """``(box, visibility statistic, visible)`` of a refinement result (visible: the
+        statistic is at least the track's ``occlusion_similarity``), or None when it is lost
+        or not finite."""
+        sim = _visibility(res, t.config.visibility_statistic)
+        box = getattr(res, "box", None)
+        if (getattr(res, "lost", False) or box is None or not math.isfinite(sim)
+                or not all(math.isfinite(float(v)) for v in box)):
+            return None
+        return np.asarray(box, dtype=np.float64), sim, sim >= t.config.occlusion_similarity
+
+    def _covered(self, res: Any) -> bool:
+        """Both kernel columns of a result see the target: :func:`column_coverage` of its
+        kernel similarities >= ``manual_track.min_column_similarity`` (always true for
+        layouts without columns and results without kernel similarities)."""
+        floor = self.config.manual_track.min_column_similarity
+        sims = getattr(res, "kernel_similarities", None)
+        if floor <= 0.0 or sims is None:
+            return True
+        s = np.asarray(sims, dtype=np.float64).reshape(-1)
+        return s.size not in SUPPORTED_KERNEL_COUNTS or column_coverage(s, s.size) >= floor
+
+    def _refine(self, t: Track, refiner: Refiner, image: np.ndarray
+                ) -> tuple[np.ndarray, float, bool] | None:
+        """Multiple-kernel search of one track from its Kalman prediction (Sec. IV-D), and
+        for a track started by hand a second search when the first one sees the target with
+        one kernel column only.
+
+        A two-column layout (4-6 kernels) has a stable wrong optimum: one column on the
+        person's half whose colours look like the other half, the other column on
+        background (rho ~ 0).  The weighted visibility ``sum rho_i^2 / sum rho_i`` follows
+        the seeing kernels and calls it visible, and a box 0.45 w off becomes the track's
+        only measurement.  Side occlusion (the other column behind a pillar) gives the same
+        similarities, so the first result is not rejected; instead the search is repeated
+        from the box moved towards the seeing column (:meth:`_recentre_shift`), and that
+        result is kept (with its target state) only if it is visible and both of its
+        columns see the target (``manual_track.column_recentre``).  Cost: one more
+        refinement in the frames with a one-column result.  Returns :meth:`_judge` of the
+        kept result.
+        """
+        res = refiner.refine(image, t.target, predicted_center=tuple(t.center))
+        found = self._judge(t, res)
+        if t.manual and self.config.manual_track.column_recentre and found is not None \
+                and found[2] and not self._covered(res):
+            shift = self._recentre_shift(res, found[0])
+            if shift != 0.0:
+                moved = copy.deepcopy(t.target)
+                centre = found[0][:2] + found[0][2:] / 2.0
+                alt_res = refiner.refine(image, moved,
+                                         predicted_center=(centre[0] + shift, centre[1]))
+                alt = self._judge(t, alt_res)
+                if alt is not None and alt[2] and self._covered(alt_res):
+                    t.target, found = moved, alt
+        return found
+
+    @staticmethod
+    def _recentre_shift(res: Any, box: np.ndarray) -> float:
+        """x shift that puts the seeing kernel column of a one-column result where the
+        other column was: a box whose left column lies on the person's right half (whose
+        colours look alike) and whose right column lies on background is ``0.45 w`` (the
+        distance between the column centres, :mod:`mk_tracker.kernel_layouts`) right of the
+        person; 0 for layouts without columns."""
+        s = np.asarray(res.kernel_similarities, dtype=np.float64).reshape(-1)
+        s = np.where(np.isfinite(s), s, 0.0)
+        cols = layout_columns(s.size)
+        if not np.any(cols == 0) or not np.any(cols == 1):
+            return 0.0
+        left = float(s[(cols == 0) | (cols == -1)].max())
+        right = float(s[(cols == 1) | (cols == -1)].max())
+        step = 0.45 * float(box[2])
+        return -step if right < left else step
 
     def _count(self, result: FrameResult) -> None:
         self.totals["dropped_stale"] += result.dropped_stale
@@ -752,12 +832,12 @@ class MultiObjectTracker:
 
     def _update_track(self, t: Track, stamp: float, image: np.ndarray,
                       det_box: np.ndarray | None, det: _Prepared | None,
-                      refined: tuple[np.ndarray, float] | None, width: int, height: int,
+                      refined: tuple[np.ndarray, float, bool] | None, width: int, height: int,
                       blockers: dict[int, np.ndarray], hold: bool = False) -> None:
         cfg = t.config            # the tracker's lifecycle, or manual_track's for hand-started
         was = t.state
         sim = refined[1] if refined is not None else None
-        visible = sim is not None and sim >= cfg.occlusion_similarity
+        visible = refined is not None and refined[2]
         # a track started by hand maps its refinement to quality by its own settings
         measurement = self.config.manual_track if t.manual else self.config
         lo, hi = measurement.refinement_similarity_range

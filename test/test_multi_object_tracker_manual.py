@@ -211,3 +211,99 @@ def test_hand_started_track_trusts_its_refinement_by_its_own_quality_mapping():
         assert t.state == "confirmed"
         moved[low] = t.box[0] - 200.0
     assert 0.0 < moved[0.5] < moved[0.2] < 10.0
+
+
+# -- column coverage and the re-centred search (two-column layouts) ---------------------------
+
+def test_layout_columns_and_column_coverage():
+    from mk_tracker.kernel_layouts import column_coverage, layout_columns
+    assert layout_columns(6).tolist() == [0, 1, 0, 1, 0, 1]
+    assert layout_columns(4).tolist() == [0, 1, 0, 1]
+    assert layout_columns(5).tolist() == [-1, 0, 1, 0, 1]
+    assert layout_columns(2).tolist() == [-1, -1]
+    # right column on background: best of the right column is 0.1
+    assert column_coverage([0.9, 0.0, 0.8, 0.1, 0.7, 0.05], 6) == pytest.approx(0.1)
+    # legs hidden, both columns see the torso: min(0.7, 0.8)
+    assert column_coverage([0.7, 0.8, 0.6, 0.5, 0.0, 0.0], 6) == pytest.approx(0.7)
+    # the full-width head kernel of the 5 layout counts for both columns
+    assert column_coverage([0.6, 0.9, 0.0, 0.8, 0.0], 5) == pytest.approx(0.6)
+    # no columns: the best kernel; NaN counts as 0
+    assert column_coverage([0.3, np.nan], 2) == pytest.approx(0.3)
+    with pytest.raises(ValueError):
+        column_coverage([0.5, 0.5, 0.5], 4)
+
+
+class HalfLockRefiner(KernelRefiner):
+    """6 kernels, a person at x = 200 (box 40 wide).  A search starting within 5 px of it
+    finds it with every kernel (0.6); one starting near x = 218 (0.45 w to the right)
+    settles there with the left column on the person's right half (0.9) and the right
+    column on background (0): a stable wrong optimum.  Else nothing (0.05)."""
+
+    LOCK = [0.9, 0.0, 0.9, 0.0, 0.9, 0.0]
+
+    def __init__(self):
+        super().__init__([0.6] * 6)
+        self.starts = []
+
+    def start(self, image, box):
+        return {"x": float(box[0])}
+
+    def refine(self, image, state, predicted_center=None):
+        x0 = state["x"] if predicted_center is None else predicted_center[0] - 20.0
+        self.starts.append(round(x0, 1))
+        if abs(x0 - 200.0) <= 5.0:
+            x, rho = 200.0, [0.6] * 6
+        elif abs(x0 - 218.0) <= 10.0:
+            x, rho = 218.0, self.LOCK
+        else:
+            x, rho = x0, [0.05] * 6
+        state["x"] = x
+        self.rho, self.box = np.array(rho), (x, 100.0, 40.0, 80.0)
+        return super().refine(image, state, predicted_center)
+
+
+def test_a_box_locked_half_on_the_person_is_moved_onto_it():
+    # the weighted visibility of the wrong optimum is 0.9: it is "visible"
+    assert visibility_similarity(HalfLockRefiner.LOCK, statistic="weighted") == \
+        pytest.approx(0.9)
+    boxes = {}
+    for recentre in (False, True):
+        ref = HalfLockRefiner()
+        trk = MultiObjectTracker(_config(column_recentre=recentre),
+                                 refiner=ref)
+        trk.start_track(IMG, 0.0, (218, 100, 40, 80))       # started on the wrong optimum
+        trk.step(IMG, DT)
+        t = trk.tracks[0]
+        assert t.state.value == "confirmed"
+        boxes[recentre] = (float(t.refined_box[0]), float(t.box[0]), ref.starts)
+    # without: one search a frame, which stays on the wrong optimum
+    assert boxes[False][2] == [218.0] and boxes[False][:2] == (218.0, 218.0)
+    # with: a second search 0.45 * 40 = 18 px to the left finds both columns and is kept
+    assert boxes[True][2] == [218.0, 200.0]
+    assert boxes[True][0] == 200.0 and abs(boxes[True][1] - 200.0) < 5.0
+
+
+class SideOccludedRefiner(HalfLockRefiner):
+    """The person at x = 200 with its right half behind a pillar: the search from there
+    sees the left column only (0.9 / 0); a search 18 px further left puts the right column
+    on the person's left half and the left column on background (0 / 0.9)."""
+
+    def refine(self, image, state, predicted_center=None):
+        x0 = state["x"] if predicted_center is None else predicted_center[0] - 20.0
+        self.starts.append(round(x0, 1))
+        x, rho = (200.0, self.LOCK) if abs(x0 - 200.0) <= 5.0 else \
+            (182.0, [0.0, 0.9, 0.0, 0.9, 0.0, 0.9])
+        state["x"] = x
+        self.rho, self.box = np.array(rho), (x, 100.0, 40.0, 80.0)
+        return KernelRefiner.refine(self, image, state, predicted_center)
+
+
+def test_a_side_occluded_target_keeps_its_one_column_result():
+    ref = SideOccludedRefiner()
+    trk = MultiObjectTracker(_config(column_recentre=True), refiner=ref)
+    trk.start_track(IMG, 0.0, (200, 100, 40, 80))
+    trk.step(IMG, DT)
+    t = trk.tracks[0]
+    # the re-centred search ran (18 px left) but saw one column only: not kept
+    assert ref.starts == [200.0, 182.0]
+    assert t.state.value == "confirmed" and float(t.refined_box[0]) == 200.0
