@@ -30,7 +30,9 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    measurement noise (:func:`mk_tracker.track.measurement_sigma`) and, below
    ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).  Tracks started
    by hand (:meth:`MultiObjectTracker.start_track`) use the settings of
-   :class:`ManualTrackConfig` instead (their own refiner, Kalman prior and visibility).
+   :class:`ManualTrackConfig` instead (their own refiner, Kalman prior and visibility), and
+   a result of theirs that sees the target with one kernel column only is searched again
+   half a box width towards the seeing column (``MultiObjectTracker._refine``).
 6. **Update and lifecycle** (:mod:`mk_tracker.track`).
 
 The refiner is any object with ``start(image, box) -> target``,
@@ -92,7 +94,10 @@ class ManualTrackConfig:
     * the refinement's similarity was mapped to a measurement quality of ~0 (range
       0.5-0.95, times 0.5 without a detection), so the filter ignored its only measurement
       and drifted behind a walking person on its own velocity;
-    * two stacked kernels give no left/right structure once the legs are hidden.
+    * two stacked kernels give no left/right structure once the legs are hidden;
+    * a two-column box can settle with one column on the person's half whose colours look
+      like the other half and the other column on background, which the weighted
+      visibility still calls visible (hence ``column_recentre``).
 
     Every field replaces one field of the tracker's ``kalman`` / ``lifecycle`` /
     ``multi_kernel`` sections for these tracks only; the rest of those sections applies to
