@@ -98,6 +98,10 @@ class ManualTrackConfig:
     * a two-column box can settle with one column on the person's half whose colours look
       like the other half and the other column on background, which the weighted
       visibility still calls visible (hence ``column_recentre``).
+    * with no detector to come back with, such a track is never lost by coasting time, so a
+      coasting prediction extrapolated the last velocity until the box left the image
+      (hence ``max_coast_position_std``: once the predicted centre's std exceeds the
+      search's reach the track holds its position, :meth:`Track.hold_if_uncertain`).
 
     Every field replaces one field of the tracker's ``kalman`` / ``lifecycle`` /
     ``multi_kernel`` sections for these tracks only; the rest of those sections applies to
@@ -142,6 +146,14 @@ class ManualTrackConfig:
         "kernels has at least this similarity (column_coverage; 0.2 = the low end of "
         "refinement_similarity_range, no information; 0 = column_recentre never runs)",
         minimum=0.0, maximum=1.0)
+    max_coast_position_std: float = parameter(
+        1.0, "A coasting track started by hand stops extrapolating its velocity once the std "
+        "of its predicted centre exceeds this many box widths: it holds that position (box "
+        "still, reported velocity 0, state occluded) and keeps searching from it until the "
+        "refinement sees the target again.  1 = the reach of the search (the start box "
+        "grown by multi_kernel.search_margin 0.5 on each side spans 1 box width either side "
+        "of the predicted centre); 0 = extrapolate until the box leaves the image",
+        minimum=0.0, maximum=100.0)
 
 
 def manual_track_kalman(config: "MultiObjectTrackerConfig") -> KalmanConfig:
@@ -870,6 +882,9 @@ class MultiObjectTracker:
                           size_weight=cfg.refinement_size_weight)
                 t.last_seen = stamp
             t.score = sim if sim is not None else 0.0
+        if t.manual:
+            t.hold_if_uncertain(det_box is not None or visible,
+                                self.config.manual_track.max_coast_position_std)
         new = next_state(was, detected=det_box is not None, visible=visible,
                          in_image=self._in_image(t, width, height), hits=t.hits,
                          tentative_misses=t.tentative_misses,

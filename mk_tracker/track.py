@@ -10,6 +10,9 @@ States (:class:`TrackState`) and the rules of :func:`next_state`:
 * ``occluded`` (coasting) -- neither: the Kalman prediction (4.2)-(4.3) continues alone while
   the multiple-kernel search keeps running from the prediction; its adaptive kernel weights
   (Chu et al. 2013, Sec. II-D, (7)-(8)) shift trust to the kernels that are still visible;
+  a track started by hand that coasts until its prediction's position std exceeds its
+  bound is ``held`` (:meth:`Track.hold_if_uncertain`): the prediction stops and the box
+  stands where the target was last believed to be, still searched for;
 * ``lost`` -- coasted for longer than ``max_coast_time`` (or the prediction left the image):
   no output box, but the track is kept for ``max_lost_time`` so that a detection near its
   predicted position that matches its appearance model takes its id back.  This answers the
@@ -193,6 +196,7 @@ class Track:
         self.target_stamp: float | None = None
         self.refined_box: np.ndarray | None = None
         self.manual = False                # started by hand: no detector needed
+        self.held = False                  # coasting at a held position (no prediction)
 
     # -- geometry -----------------------------------------------------------------------
     @property
@@ -206,11 +210,36 @@ class Track:
         return np.array(center_to_xywh(cx, cy, self.size[0], self.size[1]))
 
     def predict(self, stamp: float) -> None:
-        """Advance the Kalman filter to ``stamp`` ((4.2)-(4.3)); no-op for dt <= 0."""
+        """Advance the Kalman filter to ``stamp`` ((4.2)-(4.3)); no-op for dt <= 0.
+
+        A ``held`` track (a coasting track whose prediction became too uncertain to guide a
+        search, :meth:`hold_if_uncertain`) keeps its position: only its stamp advances."""
         dt = float(stamp) - self.stamp
-        if dt > 0:
+        if dt > 0 and not self.held:
             self.kf.predict(dt)
         self.stamp = float(stamp)
+
+    @property
+    def position_std(self) -> float:
+        """Largest std (px) of the centre estimate, sqrt of the larger diagonal entry of the
+        position block of P."""
+        p = self.kf.covariance
+        return math.sqrt(max(float(p[0, 0]), float(p[1, 1]), 0.0))
+
+    def hold_if_uncertain(self, seen: bool, max_std_widths: float) -> bool:
+        """Decide whether the track holds its position from the next frame on.
+
+        A seen track (this frame's measurement corrected it) is not held.  An unseen one is
+        held once its position std exceeds ``max_std_widths`` box widths: the constant-
+        velocity prediction (4.2) then says less about where the person is than the
+        search region around it covers, so extrapolating the old velocity further only
+        carries the box away from where the person was last seen.  ``max_std_widths`` 0
+        never holds.  Returns the new ``held``."""
+        if seen or max_std_widths <= 0.0:
+            self.held = False
+        elif not self.held:
+            self.held = self.position_std > max_std_widths * float(self.size[0])
+        return self.held
 
     def innovation_covariance(self, box_height: float, quality: float = 1.0) -> np.ndarray:
         """``H P H^T + sigma_w^2 I`` with the quality-dependent measurement std."""
@@ -236,7 +265,8 @@ class Track:
     def finish_frame(self) -> None:
         """Update the reported (smoothed) velocity after this frame's corrections."""
         a = self.config.velocity_smoothing
-        self.smoothed_velocity = (1.0 - a) * self.smoothed_velocity + a * self.kf.velocity
+        velocity = np.zeros(2) if self.held else self.kf.velocity   # a held box stands still
+        self.smoothed_velocity = (1.0 - a) * self.smoothed_velocity + a * velocity
 
     def output(self) -> TrackOutput:
         b = self.box

@@ -307,3 +307,103 @@ def test_a_side_occluded_target_keeps_its_one_column_result():
     # the re-centred search ran (18 px left) but saw one column only: not kept
     assert ref.starts == [200.0, 182.0]
     assert t.state.value == "confirmed" and float(t.refined_box[0]) == 200.0
+
+
+# -- bounded coasting of hand-started tracks (manual_track.max_coast_position_std) ----------
+
+STEP = 4.0      # px per frame: 100 px/s at 25 fps
+
+
+class ScriptedRefiner(KernelRefiner):
+    """Sees a 40x80 person walking right at 100 px/s (x = 200 + 4 k in frame k) up to frame
+    ``hidden_from``, and nothing (every kernel similarity 0.02) after it; the test sets
+    ``frame``."""
+
+    def __init__(self, hidden_from):
+        super().__init__([0.9, 0.9])
+        self.hidden_from = hidden_from
+        self.frame = 0
+
+    def refine(self, image, state, predicted_center=None):
+        self.box = (200.0 + STEP * self.frame, 100.0, 40.0, 80.0)
+        self.rho = np.array([0.9, 0.9]) if self.frame < self.hidden_from \
+            else np.full(2, 0.02)
+        return super().refine(image, state, predicted_center)
+
+
+def _walk_then_hide(max_std=None, frames=100, hidden_from=20, born=False):
+    manual = {} if max_std is None else {"max_coast_position_std": max_std}
+    cfg = _config(occlusion_similarity=0.4, visibility_statistic="weighted", **manual)
+    ref = ScriptedRefiner(hidden_from)
+    trk = MultiObjectTracker(cfg, refiner=ref)
+    if born:
+        trk.step(IMG, 0.0, [FrameDetection((200, 100, 40, 80), 0.9)])
+    else:
+        trk.start_track(IMG, 0.0, (200, 100, 40, 80))
+    out = []
+    for k in range(1, frames):
+        ref.frame = k
+        r = trk.step(IMG, k * DT, [FrameDetection((200 + STEP * k, 100, 40, 80), 0.9)]
+                     if born and k < hidden_from else [])
+        out.append(r.tracks[0] if r.tracks else None)
+    return out, trk
+
+
+def test_a_coasting_hand_started_track_holds_its_position_instead_of_running_away():
+    assert ManualTrackConfig().max_coast_position_std == 1.0
+    held, trk = _walk_then_hide()               # the default bound: 1 box width (40 px)
+    free, _ = _walk_then_hide(0.0, frames=120)
+    last_seen_x = 200.0 + STEP * 19
+    # both coast (occluded) from frame 20 on; without the bound the box runs on at 100 px/s
+    # until its centre leaves the 640 px image (lost)
+    assert held[17].state == free[17].state == "confirmed"
+    assert free[79].state == "occluded" and free[79].box[0] > last_seen_x + 240.0
+    assert free[-1].state == "lost"
+    # with it the box stops once the position std passes 40 px (the filter is sure of the
+    # velocity after 20 exact measurements: ~1.7 s of coasting, ~170 px), stays occluded
+    # (still searched for) and stands still
+    assert all(t.state == "occluded" for t in held[19:])
+    assert held[-1].box[0] < last_seen_x + 200.0
+    assert held[-1].box == held[-30].box
+    assert held[-1].velocity == pytest.approx((0.0, 0.0), abs=1e-3)
+    (t,) = trk.tracks
+    assert t.held and t.position_std > 40.0
+
+
+def test_a_smaller_bound_holds_the_box_sooner():
+    stops = {}
+    for bound in (1.0, 0.5, 0.25):
+        out, _ = _walk_then_hide(bound)
+        stops[bound] = out[-1].box[0]
+    assert 200.0 + STEP * 19 < stops[0.25] < stops[0.5] < stops[1.0]
+
+
+def test_a_held_hand_started_track_follows_the_target_when_it_is_seen_again():
+    cfg = _config(max_coast_position_std=0.5, occlusion_similarity=0.4,
+                  visibility_statistic="weighted")
+    ref = ScriptedRefiner(hidden_from=20)
+    trk = MultiObjectTracker(cfg, refiner=ref)
+    trk.start_track(IMG, 0.0, (200, 100, 40, 80))
+    for k in range(1, 80):
+        ref.frame = k
+        trk.step(IMG, k * DT)
+    assert trk.tracks[0].held
+    ref.hidden_from, ref.frame = 10 ** 6, 80    # seen again, at x = 200 + 4 * 80
+    (t,) = trk.step(IMG, 80 * DT).tracks
+    assert t.state == "confirmed" and not trk.tracks[0].held
+    assert t.box[0] == pytest.approx(200.0 + STEP * 80, abs=5.0)
+
+
+def test_detection_born_tracks_ignore_the_coasting_bound():
+    # a bound of 0.05 box widths (2 px) holds a hand-started track within a few frames
+    manual, _ = _walk_then_hide(0.05, frames=45)
+    assert manual[25].box == manual[40].box
+    a, trk = _walk_then_hide(0.05, frames=45, born=True)
+    b, _ = _walk_then_hide(0.0, frames=45, born=True)
+    assert [t and (t.state, t.box) for t in a] == [t and (t.state, t.box) for t in b]
+    # the detection-born track coasts on the prediction until it is lost
+    # (lifecycle.max_undetected_time 0.5 s), never held
+    assert a[25].state == "occluded" and a[25].box[0] > 200.0 + STEP * 25 - 10.0
+    assert a[25].box[0] > a[22].box[0] + 2.0 * STEP
+    assert a[40].state == "lost"
+    assert not any(t.held for t in trk.tracks)

@@ -98,3 +98,37 @@ def test_refinement_alone_keeps_a_track_only_for_max_undetected_time():
     unlimited = dict(kw, config=LifecycleConfig(max_undetected_time=0.0))
     assert next_state(TrackState.CONFIRMED, undetected_time=99.0, **unlimited) is \
         TrackState.CONFIRMED
+
+
+def test_an_unseen_track_holds_its_position_once_its_std_exceeds_the_bound():
+    # box 20 px wide, centre (100, 100) at 50 px/s; initial position variance 4 (std 2 px)
+    t = make_track()
+    for k in range(1, 6):                              # walk right, measured every frame
+        t.predict(k * 0.04)
+        t.correct(np.array([90.0 + 2.0 * k, 75.0, 20.0, 50.0]), 1.0)
+    assert t.position_std < 0.5 * 20.0
+    assert not t.hold_if_uncertain(False, 0.5)         # unseen, but std below 10 px
+    stamp = 0.2
+    while t.position_std <= 0.5 * 20.0:                # coast until the std passes 10 px
+        stamp += 0.04
+        t.predict(stamp)
+        assert not t.held
+        t.hold_if_uncertain(False, 0.5)
+    assert t.held and t.position_std == pytest.approx(
+        np.sqrt(max(t.kf.covariance[0, 0], t.kf.covariance[1, 1])))
+    centre, cov = t.center, t.kf.covariance
+    t.predict(stamp + 1.0)                             # held: neither moves nor grows
+    assert np.array_equal(t.center, centre) and np.array_equal(t.kf.covariance, cov)
+    assert t.stamp == pytest.approx(stamp + 1.0)
+    for _ in range(30):
+        t.finish_frame()                               # the reported velocity decays to 0
+    assert np.allclose(t.smoothed_velocity, 0.0, atol=1e-6)
+    assert not t.hold_if_uncertain(True, 0.5)          # seen again: predicts again
+    t.predict(stamp + 1.04)
+    assert not np.array_equal(t.center, centre)
+
+
+def test_a_zero_bound_never_holds():
+    t = make_track()
+    t.predict(100.0)                                   # std in the thousands of px
+    assert not t.hold_if_uncertain(False, 0.0)
