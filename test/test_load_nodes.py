@@ -62,7 +62,7 @@ def detector(domain, tmp_path):
 
 
 def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(domain, detector):
-    scene = crowd_scene(n_people=8, seed=3, frames=120)
+    scene = crowd_scene(n_people=12, seed=3, frames=120)
     frames = [scene.frame(i).thermal for i in range(0, 120, 2)]   # rendered up front
     peer = Peer(domain)
     sent: dict[float, float] = {}          # stamp -> wall time published
@@ -120,7 +120,7 @@ def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(dom
                for line in log.splitlines() if " frames dropped" in line]
     # (frames it never processed were either replaced in its newest-frame slot, which it
     # counts, or overwritten inside DDS by the depth-1 best-effort reader, which it cannot
-    # see; since the compiled detector runs ~30 Hz here, about a third of the unprocessed
+    # see; the compiled detector runs ~25 Hz here, and about a third of the unprocessed
     # frames reach its slot)
     unprocessed = len(sent) - len(processed)
     assert dropped and dropped[-1] > 0.2 * unprocessed, (unprocessed, log[-2000:])
@@ -131,7 +131,10 @@ def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(dom
     middle_peak = max(m for t, m in settled if t < cut)
     late_peak = max(m for t, m in settled if t >= cut)
     assert late_peak <= middle_peak + 8.0, memory
-    assert settled[-1][1] - settled[0][1] < 25.0, memory
+    # and no large growth over the run: against the peak of its first settled seconds (a
+    # single sample can catch the allocator just after it returned memory: a dip of 15 MiB)
+    early_peak = max(m for t, m in settled if t < WARM_UP_S + 3.0)
+    assert settled[-1][1] - early_peak < 25.0, memory
     print(f"load: sent {len(sent)} at {RATE_HZ:g} Hz, processed {len(processed)} "
           f"({rate:.1f} Hz), latency median early {early * 1000:.0f} ms late "
           f"{late * 1000:.0f} ms, dropped (node's report) {dropped[-1]}, RSS MiB "
