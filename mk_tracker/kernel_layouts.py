@@ -72,13 +72,17 @@ def layout_columns(num_kernels: int) -> np.ndarray:
     return np.where(full, -1, np.where(frac[:, 0] <= 0.0, 0, 1)).astype(np.int64)
 
 
-def column_coverage(similarities: np.ndarray, num_kernels: int) -> float:
-    """How well the worse-seen column of a target is seen: over the left and the right
-    column, the lower of the best kernel similarity ``rho_i`` in that column (a full-width
-    kernel counts for both).  A target whose box lies half on it and half on background
-    scores ~0 here however well the kernels of its other column match; for layouts without
-    columns (1, 2 kernels) it is the best similarity.  NaN similarities count as 0.  Raises
-    ``ValueError`` when the number of similarities is not ``num_kernels``."""
+#: Distance between the centres of the left and the right kernel column (4-6 kernels), as
+#: a fraction of the box width: the two columns are equally wide, so their centres are as
+#: far apart as their left edges (0.45).
+COLUMN_SPACING = _HALF[1][0] - _HALF[0][0]
+
+
+def column_best(similarities: np.ndarray, num_kernels: int) -> tuple[float, float]:
+    """The best kernel similarity ``rho_i`` in the left and in the right column of the box
+    (a full-width kernel counts for both; for layouts without columns, 1 and 2 kernels, both
+    are the best similarity).  NaN similarities count as 0.  Raises ``ValueError`` when the
+    number of similarities is not ``num_kernels``."""
     s = np.asarray(similarities, dtype=np.float64).reshape(-1)
     if s.size != num_kernels:
         raise ValueError(f"{s.size} kernel similarities for a {num_kernels}-kernel layout")
@@ -88,7 +92,22 @@ def column_coverage(similarities: np.ndarray, num_kernels: int) -> float:
     for c in (0, 1):
         mine = s[(cols == c) | (cols == -1)]
         best.append(float(mine.max()) if mine.size else 0.0)
-    return min(best)
+    return best[0], best[1]
+
+
+def has_columns(num_kernels: int) -> bool:
+    """Whether the layout has a left and a right kernel column (4, 5 and 6 kernels)."""
+    cols = layout_columns(num_kernels)
+    return bool(np.any(cols == 0) and np.any(cols == 1))
+
+
+def column_coverage(similarities: np.ndarray, num_kernels: int) -> float:
+    """How well the worse-seen column of a target is seen: the lower of the two
+    :func:`column_best` values.  A target whose box lies half on it and half on background
+    scores ~0 here however well the kernels of its other column match; for layouts without
+    columns (1, 2 kernels) it is the best similarity.  Raises ``ValueError`` when the number
+    of similarities is not ``num_kernels``."""
+    return min(column_best(similarities, num_kernels))
 
 
 def kernel_layout(box: BoxLike, num_kernels: int) -> tuple[np.ndarray, np.ndarray]:

@@ -56,7 +56,7 @@ from mk_tracker.association import (AssociationConfig, assign, association_cost,
                                     mahalanobis_matrix)
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
-from mk_tracker.kernel_layouts import column_coverage, layout_columns
+from mk_tracker.kernel_layouts import COLUMN_SPACING, column_best, column_coverage, has_columns
 from mk_tracker.multi_kernel import (SUPPORTED_KERNEL_COUNTS, VISIBILITY_STATISTICS,
                                      MultiKernelConfig, MultiKernelTracker,
                                      visibility_similarity)
@@ -659,17 +659,14 @@ class MultiObjectTracker:
     def _recentre_shift(res: Any, box: np.ndarray) -> float:
         """x shift that puts the seeing kernel column of a one-column result where the
         other column was: a box whose left column lies on the person's right half (whose
-        colours look alike) and whose right column lies on background is ``0.45 w`` (the
-        distance between the column centres, :mod:`mk_tracker.kernel_layouts`) right of the
-        person; 0 for layouts without columns."""
-        s = np.asarray(res.kernel_similarities, dtype=np.float64).reshape(-1)
-        s = np.where(np.isfinite(s), s, 0.0)
-        cols = layout_columns(s.size)
-        if not np.any(cols == 0) or not np.any(cols == 1):
+        colours look alike) and whose right column lies on background is
+        :data:`~mk_tracker.kernel_layouts.COLUMN_SPACING` ``w`` (0.45 w, the distance
+        between the column centres) right of the person; 0 for layouts without columns."""
+        n = np.asarray(res.kernel_similarities).size
+        if not has_columns(n):
             return 0.0
-        left = float(s[(cols == 0) | (cols == -1)].max())
-        right = float(s[(cols == 1) | (cols == -1)].max())
-        step = 0.45 * float(box[2])
+        left, right = column_best(res.kernel_similarities, n)
+        step = COLUMN_SPACING * float(box[2])
         return -step if right < left else step
 
     def _count(self, result: FrameResult) -> None:
