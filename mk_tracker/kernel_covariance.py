@@ -273,12 +273,12 @@ def compiled_level_kernels() -> dict | None:
         _LEVEL_KERNELS.append(None)
         return None
     global _levels_block_covariance, _levels_block_variance
-    _levels_block_covariance = numba.njit(cache=True)(_levels_block_covariance)
-    _levels_block_variance = numba.njit(cache=True)(_levels_block_variance)
+    _levels_block_covariance = numba.njit(cache=True, nogil=True)(_levels_block_covariance)
+    _levels_block_variance = numba.njit(cache=True, nogil=True)(_levels_block_variance)
     kernels = {"block_covariance": _levels_block_covariance,
                "block_variance": _levels_block_variance,
-               "covariance": numba.njit(cache=True)(_levels_covariance_loops),
-               "variance": numba.njit(cache=True)(_levels_variance_loops)}
+               "covariance": numba.njit(cache=True, nogil=True)(_levels_covariance_loops),
+               "variance": numba.njit(cache=True, nogil=True)(_levels_variance_loops)}
     _LEVEL_KERNELS.append(kernels)
     return kernels
 

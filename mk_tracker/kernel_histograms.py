@@ -726,7 +726,7 @@ def compiled_kernels():
         except ImportError:
             _COMPILED.append(None)
         else:
-            kernels = tuple(numba.njit(cache=True)(f) for f in (_quantize_loops, _kernels_loops))
+            kernels = tuple(numba.njit(cache=True, nogil=True)(f) for f in (_quantize_loops, _kernels_loops))
             _warm_up(*kernels)
             _COMPILED.append(kernels)
     return _COMPILED[0]

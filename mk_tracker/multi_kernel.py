@@ -484,7 +484,7 @@ def _compiled_step():
             _COMPILED_STEP.append(None)
         else:
             import numba
-            step = numba.njit(cache=True)(_constrained_step_loops)
+            step = numba.njit(cache=True, nogil=True)(_constrained_step_loops)
             # compile (or load from the disk cache) now rather than on a node's first frame
             step(np.array([[0.0, 0.0], [1.0, 2.0]]), kernel_pairs(2), np.ones(1), np.ones(1),
                  np.zeros(4), np.ones(2), 1.0, True, np.zeros(2), np.zeros(4), np.zeros(4))

@@ -428,11 +428,11 @@ def _compiled_kernel():
         _COMPILED.append(None)
         return None
     global _root_scalar, _minimizer_scalar, _factorize_block, _factorize_block_one_column
-    _root_scalar = numba.njit(cache=True)(_root_scalar)
-    _minimizer_scalar = numba.njit(cache=True)(_minimizer_scalar)
-    _factorize_block_one_column = numba.njit(cache=True)(_factorize_block_one_column)
-    _factorize_block = numba.njit(cache=True)(_factorize_block)
-    kernel = numba.njit(cache=True)(_factorize_loops)
+    _root_scalar = numba.njit(cache=True, nogil=True)(_root_scalar)
+    _minimizer_scalar = numba.njit(cache=True, nogil=True)(_minimizer_scalar)
+    _factorize_block_one_column = numba.njit(cache=True, nogil=True)(_factorize_block_one_column)
+    _factorize_block = numba.njit(cache=True, nogil=True)(_factorize_block)
+    kernel = numba.njit(cache=True, nogil=True)(_factorize_loops)
     _COMPILED.append(kernel)
     return kernel
 

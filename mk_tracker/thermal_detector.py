@@ -448,7 +448,7 @@ def _fused_kernel():
     _levels_block_variance = level["block_variance"]
     _levels_block_covariance = level["block_covariance"]
     _factorize_block = block
-    kernel = numba.njit(cache=True)(_support_loops)
+    kernel = numba.njit(cache=True, nogil=True)(_support_loops)
     _drop_stale_cache(kernel)
     _FUSED.append(kernel)
     return _FUSED[0]
@@ -600,7 +600,7 @@ def _owner_kernel():
             if os.environ.get("MK_TRACKER_NO_NUMBA"):
                 raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
             import numba
-            _OWNER.append(numba.njit(cache=True)(_owned_loops))
+            _OWNER.append(numba.njit(cache=True, nogil=True)(_owned_loops))
         except ImportError:
             _OWNER.append(None)
     return _OWNER[0]
@@ -834,11 +834,11 @@ def _footprint_kernel():
                 raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
             import numba
             global _in_footprint, _footprint_loops, _background_level, _sample_median
-            _sample_median = numba.njit(cache=True)(_sample_median)
-            _in_footprint = numba.njit(cache=True)(_in_footprint)
-            _footprint_loops = numba.njit(cache=True)(_footprint_loops)
-            _background_level = numba.njit(cache=True)(_background_level)
-            _FOOTPRINT.append(numba.njit(cache=True)(_footprint_compiled))
+            _sample_median = numba.njit(cache=True, nogil=True)(_sample_median)
+            _in_footprint = numba.njit(cache=True, nogil=True)(_in_footprint)
+            _footprint_loops = numba.njit(cache=True, nogil=True)(_footprint_loops)
+            _background_level = numba.njit(cache=True, nogil=True)(_background_level)
+            _FOOTPRINT.append(numba.njit(cache=True, nogil=True)(_footprint_compiled))
         except ImportError:
             _FOOTPRINT.append(None)
     return _FOOTPRINT[0]
@@ -916,8 +916,8 @@ def _object_kernel():
             import numba
             global _owned_loops, _footprint_compiled, _near_centres
             _owned_loops, _footprint_compiled = owner, footprint
-            _near_centres = numba.njit(cache=True)(_near_centres)
-            _OBJECT.append(numba.njit(cache=True)(_object_loops))
+            _near_centres = numba.njit(cache=True, nogil=True)(_near_centres)
+            _OBJECT.append(numba.njit(cache=True, nogil=True)(_object_loops))
     return _OBJECT[0]
 
 

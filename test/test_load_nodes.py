@@ -119,11 +119,14 @@ def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(dom
     dropped = [int(line.split(" frames dropped")[0].rsplit(" ", 1)[-1])
                for line in log.splitlines() if " frames dropped" in line]
     # (frames it never processed were either replaced in its newest-frame slot, which it
-    # counts, or overwritten inside DDS by the depth-1 best-effort reader, which it cannot
-    # see; the compiled detector runs ~25 Hz here, and about a third of the unprocessed
-    # frames reach its slot)
+    # counts, or overwritten inside DDS by the depth-1 best-effort reader before its
+    # callback ran, which it cannot see.  The compiled loops release the GIL (nogil), so
+    # the callback runs while a frame is processed and 95-96 % of the skipped frames reach
+    # the slot here (3 runs); while they held the GIL only 17-35 % did, which failed CI at
+    # a 20 % bound.  The count is a lower bound: never more than the frames really skipped.)
     unprocessed = len(sent) - len(processed)
-    assert dropped and dropped[-1] > 0.2 * unprocessed, (unprocessed, log[-2000:])
+    assert dropped and 0.5 * unprocessed < dropped[-1] <= unprocessed, (unprocessed,
+                                                                         log[-2000:])
     # memory flat: after the warm-up the peak stops rising (allocator steps of a few MiB
     # while the first reconfiguration passes run are allowed, steady growth is not)
     settled = [(t, m) for t, m in memory if t >= WARM_UP_S]
