@@ -60,3 +60,26 @@ def compiled_kernels_ready(request):
         from mk_tracker.warm_up import warm_up_detector, warm_up_tracker
         warm_up_tracker()
         warm_up_detector()
+
+
+# Why did a rerun test fail the first time?  pytest-rerunfailures keeps the report of every
+# failed attempt (outcome "rerun") but -rR prints only the test's name; the message of each
+# failed attempt is collected here and printed at the end of the run, so a flake in CI's
+# output can be diagnosed instead of guessed at.
+_RERUN_FAILURES: list[tuple[str, str]] = []
+
+
+def pytest_runtest_logreport(report):
+    if report.outcome == "rerun":
+        crash = getattr(report.longrepr, "reprcrash", None)
+        message = crash.message if crash is not None else str(report.longrepr)
+        _RERUN_FAILURES.append((report.nodeid, message))
+
+
+def pytest_terminal_summary(terminalreporter):
+    if not _RERUN_FAILURES:
+        return
+    terminalreporter.section("why each rerun was needed (first lines of the failure)")
+    for nodeid, message in _RERUN_FAILURES:
+        lines = message.strip().splitlines() or [""]
+        terminalreporter.write_line(f"{nodeid}: {' | '.join(lines[:4])[:600]}")
