@@ -130,16 +130,28 @@ def plan_topics(topics: Sequence[Any], offered: dict[str, list[tuple[str, str]]]
     return played, unplayable
 
 
+#: Seconds the player still waits after every awaited subscriber has matched, so that the
+#: subscribers have matched the player's writers too (see :func:`_wait_for_subscribers`).
+DISCOVERY_SETTLE_S = 0.5
+
+
 def _wait_for_subscribers(publishers: dict[str, Any], minimum: int, timeout_s: float,
                           stop: StopFlag) -> None:
     """Wait until each publisher (output topic -> publisher) has ``minimum`` matched
     subscriptions, or ``timeout_s``; a message published before its subscriber has matched
-    would be lost (volatile) or arrive late."""
+    would be lost (volatile) or arrive late.
+
+    Discovery is not symmetric: this writer can match a reader before that reader has
+    matched the writer, and a reliable sample sent in between reaches the reader only when
+    the writer repairs it after its next heartbeat (Fast DDS: up to 3 s later; seen as a
+    first detection message arriving after the frame it belongs to).  So after the last
+    match the player waits ``DISCOVERY_SETTLE_S`` more."""
     deadline = time.monotonic() + timeout_s
     while not stop.is_set():
         missing = [name for name, pub in publishers.items()
                    if pub.get_subscription_count() < minimum]
         if not missing:
+            stop.sleep(DISCOVERY_SETTLE_S)
             return
         if time.monotonic() >= deadline:
             _log(f"no subscriber after {timeout_s:g} s on {', '.join(missing)}; playing anyway")
@@ -231,7 +243,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="sleep S seconds after creating the publishers")
     parser.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
                         help="wait up to S seconds until every published topic (/clock too) "
-                             "has a subscriber")
+                             "has a subscriber, then 0.5 s for discovery to settle")
     parser.add_argument("--min-subscribers", type=int, default=1, metavar="N",
                         help="subscribers per topic that --wait-for-subscribers waits for")
     parser.add_argument("--wait-topics", nargs="+", default=None, metavar="TOPIC",
