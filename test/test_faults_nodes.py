@@ -77,6 +77,21 @@ def launch(domain, tmp_path):
     assert not any(node.alive() for node in started)
 
 
+def detections_matched(tracker: NodeProcess, times: int = 1, timeout: float = 20.0) -> bool:
+    """Wait until ``tracker`` has logged ``times`` matches of its detections reader with a
+    detector (mk_tracker.ros.subscription_events).  ``Stream.connected`` sees only this
+    process's view; the tracker and detector processes discover each other on their own,
+    which took over 2.5 s in about one of six runs of these tests (the tracker then tracked
+    without detections and the test failed)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if sum(1 for line in tracker.output().splitlines()
+               if "/thermal/detections: " in line and "(gained" in line) >= times:
+            return True
+        time.sleep(0.05)
+    return False
+
+
 class Stream:
     """Publishes scene frames and collects the nodes' outputs by stamp."""
 
@@ -161,6 +176,7 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
     try:
         stream = Stream(peer)
         assert stream.connected()
+        assert detections_matched(tracker), tracker.output()
         before = [stream.frame(i) for i in range(36)]
         ids_before = majority_ids(before[15:])
         assert len(ids_before) == 3 and len(set(ids_before.values())) == 3, (
@@ -172,6 +188,7 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
         coasting = [stream.frame(i, detector_alive=False) for i in range(36, 44)]
         detector = launch(DETECTOR)
         assert stream.connected()
+        assert detections_matched(tracker, times=2), tracker.output()
         after = [stream.frame(i) for i in range(44, 60)]
     finally:
         peer.close()
@@ -200,12 +217,14 @@ def test_tracker_killed_and_restarted_tracks_again(domain, launch):
     try:
         stream = Stream(peer)
         assert stream.connected()
+        assert detections_matched(tracker), tracker.output()
         first = [stream.frame(i) for i in range(20)]
         os.killpg(tracker.proc.pid, signal.SIGKILL)
         tracker.proc.wait(5)
         assert not tracker.alive()
         tracker = launch(TRACKER)
         assert stream.connected()
+        assert detections_matched(tracker), tracker.output()
         second = [stream.frame(i) for i in range(20, 50)]
     finally:
         peer.close()
@@ -227,6 +246,7 @@ def test_stream_loops_back_in_time_state_resets_once_and_logs_it(domain, launch)
     try:
         stream = Stream(peer)
         assert stream.connected()
+        assert detections_matched(tracker), tracker.output()
         first = [stream.frame(i) for i in range(40)]
         second = [stream.frame(i) for i in range(0, 40)]        # the bag starts over
     finally:
@@ -250,6 +270,7 @@ def test_image_topics_stop_for_10_s_and_resume(domain, launch):
     try:
         stream = Stream(peer)
         assert stream.connected()
+        assert detections_matched(tracker), tracker.output()
         first = [stream.frame(i) for i in range(30)]
         peer.spin_for(10.0)                      # nothing published for 10 s
         assert detector.alive() and tracker.alive()
@@ -279,6 +300,7 @@ def test_real_bag_player_looping_resets_the_tracker_once_per_loop(domain, launch
     write_scene_bag(SCENE, bag, "mcap")
     detector = launch(DETECTOR)
     tracker = launch(TRACKER)
+    assert detections_matched(tracker), tracker.output()
     peer = Peer(domain)
     tracks: list = []
     log_path = tmp_path / "bag_player.log"

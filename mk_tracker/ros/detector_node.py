@@ -43,6 +43,7 @@ from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
+from mk_tracker.ros.subscription_events import log_matches
 from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 from mk_tracker.warm_up import warm_up_detector
@@ -132,8 +133,10 @@ class DetectorNode(Node):
                            lambda: warm_up_detector(kernel_cfg))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="detector_node-frames").start()
-        self.create_subscription(Image, cfg.image_topic, self._worker.submit,
-                                 subscription_qos(cfg.image_qos))
+        self.create_subscription(
+            Image, cfg.image_topic, self._worker.submit, subscription_qos(cfg.image_qos),
+            event_callbacks=log_matches(self.get_logger().info,
+                                        self.resolve_topic_name(cfg.image_topic)))
         self.get_logger().info(
             f"detecting people ({cfg.method}) in {self.resolve_topic_name(cfg.image_topic)} -> "
             f"{self.resolve_topic_name(cfg.detections_topic)}")

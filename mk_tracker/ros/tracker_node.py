@@ -60,6 +60,7 @@ from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
+from mk_tracker.ros.subscription_events import log_matches
 from mk_tracker.warm_up import warm_up_tracker
 
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
@@ -176,10 +177,14 @@ class TrackerNode(Node):
                            lambda: warm_up_tracker(tracker_cfg.multi_kernel))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="tracker_node-frames").start()
-        self.create_subscription(Image, cfg.image_topic, self._worker.submit,
-                                 subscription_qos(cfg.image_qos))
-        self.create_subscription(Detection2DArray, cfg.detections_topic,
-                                 self._on_detections, subscription_qos(cfg.detections_qos))
+        log = self.get_logger().info
+        self.create_subscription(
+            Image, cfg.image_topic, self._worker.submit, subscription_qos(cfg.image_qos),
+            event_callbacks=log_matches(log, self.resolve_topic_name(cfg.image_topic)))
+        self.create_subscription(
+            Detection2DArray, cfg.detections_topic, self._on_detections,
+            subscription_qos(cfg.detections_qos),
+            event_callbacks=log_matches(log, self.resolve_topic_name(cfg.detections_topic)))
         # reliable, like ``ros2 topic pub``: a hand-made command should not be lost
         self.create_subscription(Detection2D, "~/start_track", self._on_start_track,
                                  subscription_qos(SubscriptionQosConfig("reliable", 10)))
