@@ -35,9 +35,20 @@ Where the paper is silent, and what we add (each switchable):
 * **Linked support** (``link_gap``): support pixels closer than ``link_gap`` px always belong
   to one object, in addition to (3.13).  With (3.13) alone, ``epsilon_d`` must be of the
   order of (half an object)^2, i.e. a size prior; the link rule and the footprint merge
-  make the default scale-free at the price of merging people who touch (see the crowd
-  rows of docs/benchmark_thermal_detector.md; ``link_gap=0, merge_by_footprint=False``
-  with a large ``merge_distance_sq`` is the paper's rule alone).
+  make the default scale-free at the price of merging people who touch (the optional
+  valley split below separates them again; ``link_gap=0, merge_by_footprint=False`` with a
+  large ``merge_distance_sq`` is the paper's rule alone).
+* **Valley split** (``split_by_valleys``).  A footprint of people who touch is split where
+  its intensity has a valley: going down through its threshold sets, a component whose
+  maximum stands ``r`` above the level is a peak, ``r = sigma sqrt(2 ln 2)`` being the
+  similarity radius of (3.6) (the test that made the pixels foreground against the
+  background); peaks with a small core (``valley_min_peak_fraction``: a person's warm
+  hands beside the head) are dropped; the footprint is flooded from the peaks, highest
+  pixels first (a watershed), one detection per part
+  (:func:`mk_tracker.pixel_clustering.valley_split`, compiled).  Full-frame passes split
+  every footprint; in a tracking pass an object whose box grew by ``valley_grow_ratio``
+  over its last box or its box at the last full-frame pass (it fused with someone it
+  touches) keeps the part nearest its prediction.
 * The (5.2) window is the object's box plus ``window_margin`` pixels plus the distance the
   Kalman velocity covers in the window's time span on each side, snapped to the ``rho``
   grid so that overlapping windows share blocks (their union is factored once).  Support
@@ -97,7 +108,8 @@ from mk_tracker.kernel_covariance import (_levels_block_covariance, _levels_bloc
                                           range_for_variance)
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.pixel_clustering import (PixelObject, cluster_support_pixels, describe_pixels,
-                                         link_groups, merge_linked)
+                                         describe_parts, link_groups, merge_linked,
+                                         valley_split)
 from mk_tracker.sparse_factorization import (_factorize_block, compiled_block_factorizer,
                                              sparse_factorize, zero_factor_threshold)
 from mk_tracker.stamps import checked_stamp
@@ -154,6 +166,25 @@ class ThermalDetectorConfig:
     range_max: float = parameter(255.0, "raw value mapped to 1 (normalization=fixed)")
     merge_by_footprint: bool = parameter(True, "merge clusters whose newest-frame footprints "
                                          "touch (needs current_frame_refinement)")
+    split_by_valleys: bool = parameter(False, "split a footprint where people touch, along "
+                                       "the intensity valleys between peaks that each stand "
+                                       "out of the valley by the kernel's similarity radius "
+                                       "(3.6); in full-frame passes, and in tracking passes "
+                                       "when an object's box grows (valley_grow_ratio); not "
+                                       "in the paper; needs current_frame_refinement")
+    valley_min_peak_fraction: float = parameter(0.4, "split_by_valleys: a peak whose core "
+                                                "(pixels within half the similarity radius "
+                                                "of its top) is smaller than this fraction "
+                                                "of the footprint's largest core is part of "
+                                                "a bigger object (a warm hand beside a "
+                                                "head); a piece of the footprint with one "
+                                                "peak needs this fraction of the pieces' "
+                                                "area per peak", minimum=0.0, maximum=1.0)
+    valley_grow_ratio: float = parameter(1.3, "split_by_valleys in tracking passes: an "
+                                         "object whose box is wider or taller than this "
+                                         "times its last box, or its box at the last "
+                                         "full-frame pass, is split and keeps the part "
+                                         "nearest its prediction", minimum=1.0, maximum=100.0)
     min_valid_fraction: float = parameter(0.5, "frames with fewer finite pixels are skipped",
                                           minimum=0.0, maximum=1.0)
     kalman: KalmanConfig = parameter(KalmanConfig(), "per-object Kalman filter (Sec. 4)")
@@ -509,6 +540,7 @@ class _Track:
     box: tuple[float, float, float, float]
     stamp: float
     missed: int = 0
+    size: tuple[float, float] = (math.inf, math.inf)   # box size at its last full pass
 
 
 @dataclass
@@ -1117,10 +1149,92 @@ class ThermalDetector:
                 groups, footprints = self._merge_by_footprint(frame, result.support, rows,
                                                               cols, groups, bounds)
             for g, fp in zip(groups, footprints):
+                if c.current_frame_refinement and c.split_by_valleys:
+                    candidates.extend(self._valley_candidates(frame, result, rows[g], cols[g],
+                                                              bounds, fp))
+                    continue
                 cand = self._candidate(frame, result, rows[g], cols[g], bounds, footprint=fp)
                 if cand is not None:
                     candidates.append(cand)
         return self._reassociate(candidates)
+
+    def _valley_candidates(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
+                           cols: np.ndarray, bounds: tuple[int, int, int, int],
+                           footprint: Any) -> list[_Candidate]:
+        """Detections of one group's footprint split along its intensity valleys
+        (:meth:`_valley_parts`): touching people whose footprints fused are one part each; a
+        footprint with one peak is one detection, as :meth:`_candidate` gives it."""
+        c = self.config
+        fp = footprint
+        if fp is _UNSET:
+            fp = self._footprint(frame, result.support, rows, cols, bounds)
+        if fp is None:
+            return []
+        score = float(min(1.0, result.variance[rows, cols].mean() / 0.5))
+        parts = self._valley_parts(frame, fp)
+        if parts is None:
+            (y0, x0), mask = fp
+            fr, fc = np.nonzero(mask)
+            if fr.size < c.min_object_pixels:
+                return []
+            now = describe_pixels(fc + x0, fr + y0)
+            parts = [(now.centroid, now.box, now.pixel_count)]
+        return [_Candidate(centroid, box, score, n) for centroid, box, n in parts]
+
+    def _valley_parts(self, frame: np.ndarray, footprint: tuple[tuple[int, int], np.ndarray]
+                      ) -> list[tuple[tuple[float, float], tuple[float, float, float, float],
+                                      int]] | None:
+        """``(centroid, box, pixel_count)`` of each part of a footprint split along its
+        intensity valleys (:func:`mk_tracker.pixel_clustering.valley_split` with depth = the
+        kernel's similarity radius, so each part is dissimilar, k < 1/2, to the valley that
+        separates it); parts smaller than ``min_object_pixels`` are left out.  ``None``
+        when the footprint has one peak (it does not split)."""
+        c = self.config
+        (y0, x0), mask = footprint
+        h, w = mask.shape
+        patch = frame[y0:y0 + h, x0:x0 + w]
+        # the side of the background the footprint is on (all of it is on one side): its
+        # mean against the median of the patch's border pixels off the footprint
+        ring = np.concatenate([patch[0], patch[-1], patch[1:-1, 0], patch[1:-1, -1]])
+        off = ring[~np.concatenate([mask[0], mask[-1], mask[1:-1, 0], mask[1:-1, -1]])]
+        polarity = 1.0
+        if off.size:
+            polarity = 1.0 if float(patch[mask].mean()) >= float(_median(off)) else -1.0
+        depth = _similarity_radius(c.sigma2) / self._map[1]          # window units
+        n, labels = valley_split(patch * np.float32(polarity), mask, depth,
+                                 min_area=c.min_object_pixels,
+                                 min_peak_fraction=c.valley_min_peak_fraction)
+        if n <= 1:
+            return None
+        out = []
+        for cnt, sx, sy, xmin, xmax, ymin, ymax in describe_parts(labels, n).tolist():
+            if cnt < c.min_object_pixels:
+                continue
+            out.append(((sx / cnt + 0.5 + x0, sy / cnt + 0.5 + y0),
+                        (float(xmin + x0), float(ymin + y0), float(xmax + 1 - xmin),
+                         float(ymax + 1 - ymin)), int(cnt)))
+        return out
+
+    def _split_grown(self, frame: np.ndarray, result: SupportResult, regions: list,
+                     centres: np.ndarray, k: int, cand: _Candidate) -> _Candidate:
+        """Tracking pass: object ``k``'s footprint grew past ``valley_grow_ratio`` times its
+        last box or its box at the last full-frame pass (it fused with someone it touches):
+        the part of the footprint, split along its valleys, nearest its prediction
+        (``cand`` when it does not split)."""
+        only = [r if j == k else None for j, r in enumerate(regions)]
+        _, rows, cols = _owned_support(result.support, only, centres)[k]
+        if rows.size < self.config.min_object_pixels:
+            return cand
+        cell = _VoronoiCell(centres, k) if len(centres) > 1 else None
+        fp = self._footprint(frame, result.support, rows, cols, regions[k], cell)
+        if fp is None:
+            return cand
+        parts = self._valley_parts(frame, fp)
+        if not parts:
+            return cand
+        px, py = centres[k]
+        centroid, box, n = min(parts, key=lambda q: math.dist(q[0], (px, py)))
+        return _Candidate(centroid, box, cand.score, n)
 
     def _merge_by_footprint(self, frame: np.ndarray, support: np.ndarray, rows: np.ndarray,
                             cols: np.ndarray, groups: list[np.ndarray],
@@ -1302,10 +1416,11 @@ class ThermalDetector:
                     tr.kf.predict(dt)
                 tr.kf.update(cand.centroid)
                 tr.box, tr.stamp, tr.missed = cand.box, stamp, 0
+                tr.size = cand.box[2:]
             else:
                 tr = _Track(self._next_id,
                             ConstantVelocityKalman.from_config(cand.centroid, self.config.kalman),
-                            cand.box, stamp)
+                            cand.box, stamp, size=cand.box[2:])
                 self._next_id += 1
             new_tracks.append(tr)
             detections.append(self._detection(tr, cand))
@@ -1409,6 +1524,13 @@ class ThermalDetector:
                 if tr.missed <= c.max_missed:
                     kept.append(tr)
                 continue
+            if c.split_by_valleys and c.current_frame_refinement and \
+                    (cand.box[2] > c.valley_grow_ratio * min(tr.box[2], tr.size[0])
+                     or cand.box[3] > c.valley_grow_ratio * min(tr.box[3], tr.size[1])):
+                split = self._split_grown(frame, result, regions, centres, k, cand)
+                if split is cand:
+                    tr.size = cand.box[2:]     # it grew but is one object: its new size
+                cand = split
             tr.kf.update(cand.centroid)
             tr.box, tr.missed = cand.box, 0
             kept.append(tr)

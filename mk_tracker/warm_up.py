@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mk_tracker.multi_kernel import MultiKernelConfig, MultiKernelTracker
+from mk_tracker.pixel_clustering import load_valley_split
 from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
 
 
@@ -75,4 +76,7 @@ def warm_up_detector(config: ThermalDetectorConfig | None = None) -> WarmUp:
         frame = scene.frame(i)
         detector.process(frame.thermal, frame.stamp, encoding="mono8")
         paths.add(detector.last_mode)
+    if cfg.split_by_valleys:
+        load_valley_split()       # the paper scene has nobody who touches
+        paths.add("valley_split")
     return WarmUp(time.perf_counter() - t0, frozenset(paths))

@@ -394,3 +394,124 @@ def test_levels_beyond_the_kernel_table_fall_back_to_the_exponential_path():
         with_table = support_in_frame(window[:, :8, :8] * 0 + 7, cfg, scale, True,
                                       backend="compiled")
         assert not with_table.support.any()
+
+
+def _touching_pair_frames(n_frames: int = 8) -> list[np.ndarray]:
+    """Two warm 'people' (bodies 110 and 125, heads 165) side by side with no gap, walking
+    right 2 px per frame over a background of 40 (mono8)."""
+    frames = []
+    for t in range(n_frames):
+        f = np.full((80, 120), 40, dtype=np.uint8)
+        x = 20 + 2 * t
+        f[25:70, x:x + 14] = 110             # body of the left one
+        f[25:70, x + 14:x + 28] = 125        # body of the right one, touching it
+        f[15:25, x + 3:x + 11] = 165         # heads
+        f[15:25, x + 17:x + 25] = 165
+        frames.append(f)
+    return frames
+
+
+def test_touching_people_are_split_along_the_valley_between_them():
+    """The footprints of two people who touch are one connected region (and one object
+    without the split); split_by_valleys gives one detection per person, each centroid
+    inside that person."""
+    frames = _touching_pair_frames()
+
+    def first_detections(**over):
+        det = ThermalDetector(ThermalDetectorConfig(**over))
+        for t, f in enumerate(frames):
+            out = det.process(f, float(t) / 10.0)
+            if det.last_mode == "startup":
+                return out, 20 + 2 * t
+        raise AssertionError("no start-up pass")
+
+    merged, _ = first_detections(split_by_valleys=False)
+    assert len(merged) == 1
+    split, x = first_detections(split_by_valleys=True)
+    assert len(split) == 2
+    cxs = sorted(d.centroid[0] for d in split)
+    assert x <= cxs[0] < x + 14 <= cxs[1] < x + 28
+
+
+def test_a_single_person_with_warm_hands_is_one_detection():
+    """A person's hands are as warm as its head: small peaks beside a big one are parts of
+    it (valley_min_peak_fraction), not people."""
+    frames = []
+    for t in range(8):
+        f = np.full((80, 120), 40, dtype=np.uint8)
+        x = 30 + 2 * t
+        f[25:70, x:x + 18] = 120
+        f[15:25, x + 5:x + 13] = 165           # head, 80 px
+        f[48:50, x - 2:x] = 165                # hands, 4 px each, at the sides
+        f[48:50, x + 18:x + 20] = 165
+        frames.append(f)
+    det = ThermalDetector(ThermalDetectorConfig(split_by_valleys=True))
+    for t, f in enumerate(frames):
+        out = det.process(f, float(t) / 10.0)
+        if det.last_mode == "startup":
+            assert len(out) == 1
+            break
+    else:
+        raise AssertionError("no start-up pass")
+    det = ThermalDetector(ThermalDetectorConfig(split_by_valleys=True,
+                                                valley_min_peak_fraction=0.0,
+                                                min_object_pixels=1))
+    for t, f in enumerate(frames):
+        out = det.process(f, float(t) / 10.0)
+        if det.last_mode == "startup":
+            assert len(out) > 1            # without the size rule the hands are split off
+            break
+
+
+def test_a_walking_person_passing_one_who_stands_still_keeps_its_own_box():
+    """A person who stands still has no support (no temporal change), but its pixels are
+    foreground: when a tracked person walks up to it, the tracked footprint fuses with it
+    and its box grows; split_by_valleys splits it in the tracking pass and the tracked
+    person keeps its own part.  (Bodies have cooler sides, as optics blur them with the
+    background: the valley where two people touch.)"""
+    def person(f, x, body):
+        f[25:70, x:x + 14] = body
+        f[25:70, x] = f[25:70, x + 13] = 80
+        f[15:25, x + 3:x + 11] = 165
+
+    def frames():
+        for t in range(16):
+            f = np.full((80, 120), 40, dtype=np.uint8)
+            person(f, 70, 110)                     # standing still
+            x = 30 + 2 * t                         # walking right, touching it from t = 13
+            person(f, x, 125)                      # (in front of it)
+            yield t, f, x
+
+    def widths(**over):
+        det = ThermalDetector(ThermalDetectorConfig(**over))
+        out = []
+        for t, f, x in frames():
+            dets = det.process(f, float(t) / 10.0)
+            if t == 5:
+                assert det.last_mode == "startup" and len(dets) == 1
+            if t >= 13:
+                assert det.last_mode == "tracking"
+                assert len(dets) == 1
+                out.append((dets[0].box[2], dets[0].centroid[0], x))
+        return out
+
+    fused = widths(split_by_valleys=False)
+    assert fused and all(w > 20 for w, _, _ in fused)          # both people in one box
+    split = widths(split_by_valleys=True)
+    assert len(split) == len(fused)
+    for w, cx, x in split:
+        assert w <= 16 and x <= cx < x + 14
+
+
+def test_a_small_far_person_of_the_scene_generator_is_never_split():
+    """The scene (seed 2, one person, 320x240) where a coarser valley sweep split a far
+    person into head and hand: one detection at most in every frame."""
+    from mk_tracker.synthetic import crowd_scene
+    scene = crowd_scene(1, seed=2, width=320, height=240, frames=60)
+    det = ThermalDetector(ThermalDetectorConfig(split_by_valleys=True))
+    passes = 0
+    for i in range(len(scene)):
+        fr = scene.frame(i)
+        assert len(det.process(fr.thermal, fr.stamp)) <= 1
+        passes += det.last_mode in ("startup", "reconfiguration")
+    assert passes == 3

@@ -21,3 +21,14 @@ def test_detector_warm_up_reaches_tracking_mode_with_the_given_config(startup, w
     done = warm_up_detector(ThermalDetectorConfig(startup_frames=startup,
                                                   window_frames=window))
     assert {"startup", "tracking"} <= done.paths, done.paths
+
+
+def test_detector_warm_up_loads_the_valley_split_only_when_it_is_on():
+    assert "valley_split" not in warm_up_detector(ThermalDetectorConfig()).paths
+    done = warm_up_detector(ThermalDetectorConfig(split_by_valleys=True))
+    assert "valley_split" in done.paths
+
+
+def test_load_valley_split_splits_its_constructed_pair():
+    from mk_tracker.pixel_clustering import load_valley_split
+    assert load_valley_split() == 2
