@@ -87,7 +87,7 @@ def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(dom
                                        Header(stamp=make_stamp(stamp), frame_id="thermal"),
                                        types=TYPES))
             sent[stamp] = time.monotonic()
-            if i % int(RATE_HZ) == 0:
+            if i % int(RATE_HZ / 4) == 0:                   # 4 samples per second
                 memory.append((time.monotonic() - t0, rss_mib(detector.proc.pid)))
             peer.spin_until(lambda: time.monotonic() >= t0 + (i + 1) / RATE_HZ,
                             max(0.0, t0 + (i + 1) / RATE_HZ - time.monotonic()))
@@ -134,11 +134,16 @@ def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(dom
     middle_peak = max(m for t, m in settled if t < cut)
     late_peak = max(m for t, m in settled if t >= cut)
     assert late_peak <= middle_peak + 8.0, memory
-    # and no large growth over the run: against the peak of its first settled seconds (a
-    # single sample can catch the allocator just after it returned memory: a dip of 15 MiB)
+    # and no large growth over the run: the peak of the last third against the peak of the
+    # first settled seconds.  RSS swings between two levels ~20 MiB apart within a second as
+    # the allocator takes and returns frame buffers (two threads allocate at once since the
+    # compiled loops release the GIL); one sample against one sample failed CI once (+27.6
+    # MiB: the early sample in the low state), and a median can sit in either state; the
+    # peaks of 4 samples per second see the high state in both windows.
     early_peak = max(m for t, m in settled if t < WARM_UP_S + 3.0)
-    assert settled[-1][1] - early_peak < 25.0, memory
+    assert late_peak - early_peak < 25.0, memory
     print(f"load: sent {len(sent)} at {RATE_HZ:g} Hz, processed {len(processed)} "
           f"({rate:.1f} Hz), latency median early {early * 1000:.0f} ms late "
           f"{late * 1000:.0f} ms, dropped (node's report) {dropped[-1]}, RSS MiB "
-          f"{settled[0][1]:.0f} -> {settled[-1][1]:.0f} (peaks {middle_peak:.0f} / {late_peak:.0f})")
+          f"{settled[0][1]:.0f} -> {settled[-1][1]:.0f} (peaks early {early_peak:.0f} middle "
+          f"{middle_peak:.0f} late {late_peak:.0f})")
