@@ -81,8 +81,8 @@ def detections_matched(tracker: NodeProcess, times: int = 1, timeout: float = 20
     """Wait until ``tracker`` has logged ``times`` matches of its detections reader with a
     detector (mk_tracker.ros.subscription_events).  ``Stream.connected`` sees only this
     process's view; the tracker and detector processes discover each other on their own,
-    which took over 2.5 s in about one of six runs of these tests (the tracker then tracked
-    without detections and the test failed)."""
+    which took 1 s to over 2.5 s in 4 of 9 local runs of the kill/restart test on a loaded
+    machine (the tracker then tracked without detections and the test failed)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if sum(1 for line in tracker.output().splitlines()
