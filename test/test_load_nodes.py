@@ -127,19 +127,22 @@ def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(dom
     unprocessed = len(sent) - len(processed)
     assert dropped and 0.5 * unprocessed < dropped[-1] <= unprocessed, (unprocessed,
                                                                          log[-2000:])
-    # memory flat: after the warm-up the peak stops rising (allocator steps of a few MiB
-    # while the first reconfiguration passes run are allowed, steady growth is not)
+    # memory flat: after the warm-up the peak stops rising.  RSS is not a smooth curve here:
+    # sampled 4 times a second it jumps between ~275 and ~312 MiB every 1-3 s (the allocator
+    # taking and returning large temporary buffers; which ones is not pinned down -- the
+    # reconfiguration passes are the likely candidates), keeps the high level for seconds,
+    # sometimes to the end of the run, and its peaks differ by up to ~15 MiB (CI: 312 late vs
+    # 304 in the middle failed an 8 MiB bound).  What this test is for -- frames queued
+    # because the node cannot keep up -- would grow ~10 MiB per second at this overload, far
+    # past both bounds; slow leaks are the soak benchmark's job (docs/soak.md).
     settled = [(t, m) for t, m in memory if t >= WARM_UP_S]
     cut = WARM_UP_S + (SECONDS - WARM_UP_S) * 2 / 3
     middle_peak = max(m for t, m in settled if t < cut)
     late_peak = max(m for t, m in settled if t >= cut)
-    assert late_peak <= middle_peak + 8.0, memory
+    assert late_peak <= middle_peak + 16.0, memory
     # and no large growth over the run: the peak of the last third against the peak of the
-    # first settled seconds.  RSS swings between two levels ~20 MiB apart within a second as
-    # the allocator takes and returns frame buffers (two threads allocate at once since the
-    # compiled loops release the GIL); one sample against one sample failed CI once (+27.6
-    # MiB: the early sample in the low state), and a median can sit in either state; the
-    # peaks of 4 samples per second see the high state in both windows.
+    # first settled seconds (one sample against one sample failed CI once, +27.6 MiB: the
+    # early sample in the low state, the last one in the high state).
     early_peak = max(m for t, m in settled if t < WARM_UP_S + 3.0)
     assert late_peak - early_peak < 25.0, memory
     print(f"load: sent {len(sent)} at {RATE_HZ:g} Hz, processed {len(processed)} "
