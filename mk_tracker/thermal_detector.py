@@ -1216,13 +1216,18 @@ class ThermalDetector:
         return out
 
     def _split_grown(self, frame: np.ndarray, result: SupportResult, regions: list,
-                     centres: np.ndarray, k: int, cand: _Candidate) -> _Candidate:
+                     centres: np.ndarray, k: int, cand: _Candidate,
+                     owned: tuple[int, np.ndarray, np.ndarray] | None = None) -> _Candidate:
         """Tracking pass: object ``k``'s footprint grew past ``valley_grow_ratio`` times its
         last box or its box at the last full-frame pass (it fused with someone it touches):
         the part of the footprint, split along its valleys, nearest its prediction
-        (``cand`` when it does not split)."""
-        only = [r if j == k else None for j, r in enumerate(regions)]
-        _, rows, cols = _owned_support(result.support, only, centres)[k]
+        (``cand`` when it does not split).  ``owned``: object ``k``'s entry of
+        :func:`_owned_support` when the caller has it (the numpy path); the compiled path
+        does not keep the owned pixels, so they are found again here."""
+        if owned is None:
+            only = [r if j == k else None for j, r in enumerate(regions)]
+            owned = _owned_support(result.support, only, centres)[k]
+        _, rows, cols = owned
         if rows.size < self.config.min_object_pixels:
             return cand
         cell = _VoronoiCell(centres, k) if len(centres) > 1 else None
@@ -1527,7 +1532,8 @@ class ThermalDetector:
             if c.split_by_valleys and c.current_frame_refinement and \
                     (cand.box[2] > c.valley_grow_ratio * min(tr.box[2], tr.size[0])
                      or cand.box[3] > c.valley_grow_ratio * min(tr.box[3], tr.size[1])):
-                split = self._split_grown(frame, result, regions, centres, k, cand)
+                split = self._split_grown(frame, result, regions, centres, k, cand,
+                                          owned[k] if compiled is None else None)
                 if split is cand:
                     tr.size = cand.box[2:]     # it grew but is one object: its new size
                 cand = split
