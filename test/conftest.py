@@ -85,3 +85,8 @@ def pytest_terminal_summary(terminalreporter):
     for nodeid, message in _RERUN_FAILURES:
         lines = message.strip().splitlines() or [""]
         terminalreporter.write_line(f"{nodeid}: {' | '.join(lines[:4])[:600]}")
+    # the reruns are a safety net, not a pass: say so where nobody can miss it
+    terminalreporter.write_line(
+        f"WARNING: {len(_RERUN_FAILURES)} rerun(s) were needed: the suite is meant to pass "
+        "with none (issue #12); the failures above are flakes to diagnose", yellow=True,
+        bold=True)

@@ -1,11 +1,20 @@
 """Load: a node fed faster than it can process, as a real process over DDS.
 
-detector_node gets 640x480 thermal frames of a crowd at 60 Hz, about twice what it
-processes on this machine (the test measures its real rate and checks that it is indeed
-overloaded).  It must stay current -- each detections message leaves shortly after its
+detector_node gets 640x480 thermal frames of a crowd.  The test first *measures* how fast
+the node processes them on this machine, in this run (stop-and-wait: one frame, wait for its
+detections, the next frame), then publishes at three times that rate, so the node is
+overloaded on any machine, fast or slow (issue #12: a fixed 60 Hz was no overload on an idle
+fast machine).  It must stay current -- each detections message leaves shortly after its
 image and the delay does not grow over the run, because the node keeps only the newest frame
 (mk_tracker.ros.latest_frame) -- report the frames it dropped in its log, and keep its
 memory flat.
+
+Why the assertions hold on a machine twice as fast or twice as slow: every time bound is a
+multiple of the round trip measured in the same run (``service``), and the input rate is a
+multiple of the measured processing rate; the premise (overload) is checked against the
+rates actually achieved.  A node that queued frames instead of dropping them would fall
+behind by (1 - 1/3) of the run's length, i.e. several seconds, while the bounds are a few
+round trips.
 """
 
 from __future__ import annotations
@@ -32,9 +41,10 @@ from nodes_harness import NodeProcess, Peer, make_stamp, ros_env, stamp_of  # no
 from quiet_domain import quiet_domain  # noqa: E402
 
 TYPES = ros_message_types()
-RATE_HZ = 60.0
-SECONDS = 14.0
-WARM_UP_S = 3.0
+OVERLOAD = 3.0          # input rate / measured processing rate
+MAX_RATE_HZ = 300.0     # what the test's publisher is asked for at most
+LOAD_SECONDS = 10.0     # length of the overloaded run
+MEASURE_FRAMES = 60     # stop-and-wait frames (> 2 reconfiguration periods of 25 frames)
 
 
 def rss_mib(pid: int) -> float:
@@ -54,99 +64,141 @@ def detector(domain, tmp_path):
     node = NodeProcess("mk_tracker.ros.detector_node", ["-p", "report_period:=1.0"],
                        ros_env(domain), tmp_path / "detector_node.log")
     try:
-        assert node.wait_for_output("detecting people", 30.0), node.output()
+        assert node.wait_for_output("detecting people", 60.0), node.output()
         yield node
     finally:
         node.stop()
         assert not node.alive()
 
 
-def test_detector_at_60_hz_stays_current_reports_drops_and_keeps_memory_flat(domain, detector):
-    scene = crowd_scene(n_people=12, seed=3, frames=120)
-    frames = [scene.frame(i).thermal for i in range(0, 120, 2)]   # rendered up front
-    peer = Peer(domain)
-    sent: dict[float, float] = {}          # stamp -> wall time published
-    answered: dict[float, float] = {}      # stamp -> wall time the detections arrived
-    memory: list[tuple[float, float]] = []
-    try:
-        pub = peer.publisher(Image, "thermal/image_raw", QoSProfile(
+class Stream:
+    """The test's side: publishes frames with increasing stamps, records send/answer times."""
+
+    def __init__(self, peer: Peer, frames: list[np.ndarray]) -> None:
+        self.peer = peer
+        self.frames = frames
+        self.sent: dict[float, float] = {}       # stamp -> wall time published
+        self.answered: dict[float, float] = {}   # stamp -> wall time the detections arrived
+        self.count = 0
+        self.pub = peer.publisher(Image, "thermal/image_raw", QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=1,
             reliability=ReliabilityPolicy.BEST_EFFORT))
         peer.node.create_subscription(
             Detection2DArray, "thermal/detections",
-            lambda m: answered.setdefault(round(stamp_of(m), 6), time.monotonic()),
+            lambda m: self.answered.setdefault(round(stamp_of(m), 6), time.monotonic()),
             QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
                        reliability=ReliabilityPolicy.RELIABLE))
-        assert peer.spin_until(lambda: pub.get_subscription_count() > 0
+
+    def publish(self, stamp: float) -> float:
+        stamp = round(stamp, 6)
+        frame = self.frames[self.count % len(self.frames)]
+        self.count += 1
+        self.pub.publish(numpy_to_image(frame, "mono8",
+                                        Header(stamp=make_stamp(stamp), frame_id="thermal"),
+                                        types=TYPES))
+        self.sent[stamp] = time.monotonic()
+        return stamp
+
+
+def measure_round_trips(stream: Stream, stamp0: float, frame_dt: float) -> np.ndarray:
+    """Stop-and-wait: each frame is sent once the previous one was answered; returns the
+    round trips (seconds) after the node's first answer (its start-up pass)."""
+    trips = []
+    stamp = stamp0
+    for i in range(MEASURE_FRAMES + 1):
+        sent = stream.publish(stamp)
+        # generous: the node's very first full-frame pass; later frames take far less
+        assert stream.peer.spin_until(lambda: sent in stream.answered, 60.0), \
+            f"no detections for stop-and-wait frame {i}"
+        if i > 0:
+            trips.append(stream.answered[sent] - stream.sent[sent])
+        stamp += frame_dt
+    return np.array(trips)
+
+
+def test_overloaded_detector_stays_current_reports_drops_and_keeps_memory_flat(domain,
+                                                                               detector):
+    scene = crowd_scene(n_people=12, seed=3, frames=120)
+    frames = [scene.frame(i).thermal for i in range(0, 120, 2)]   # rendered up front
+    peer = Peer(domain)
+    memory: list[tuple[float, float]] = []
+    try:
+        stream = Stream(peer, frames)
+        assert peer.spin_until(lambda: stream.pub.get_subscription_count() > 0
                                and peer.node.count_publishers("thermal/detections") > 0, 20.0)
-        n = int(RATE_HZ * SECONDS)
+        trips = measure_round_trips(stream, 10.0, 1.0 / 30.0)
+        capacity = len(trips) / trips.sum()           # frames per second, stop-and-wait
+        service = float(np.median(trips))
+        rate_hz = min(OVERLOAD * capacity, MAX_RATE_HZ)
+        n = int(rate_hz * LOAD_SECONDS)
+        first_load_stamp = max(stream.sent) + 1.0
         t0 = time.monotonic()
         for i in range(n):
-            stamp = round(10.0 + i / RATE_HZ, 6)
-            pub.publish(numpy_to_image(frames[i % len(frames)], "mono8",
-                                       Header(stamp=make_stamp(stamp), frame_id="thermal"),
-                                       types=TYPES))
-            sent[stamp] = time.monotonic()
-            if i % int(RATE_HZ / 4) == 0:                   # 4 samples per second
+            stream.publish(first_load_stamp + i / rate_hz)
+            if i % max(1, int(rate_hz / 4)) == 0:                 # 4 samples per second
                 memory.append((time.monotonic() - t0, rss_mib(detector.proc.pid)))
-            peer.spin_until(lambda: time.monotonic() >= t0 + (i + 1) / RATE_HZ,
-                            max(0.0, t0 + (i + 1) / RATE_HZ - time.monotonic()))
+            peer.spin_until(lambda: time.monotonic() >= t0 + (i + 1) / rate_hz,
+                            max(0.0, t0 + (i + 1) / rate_hz - time.monotonic()))
         elapsed = time.monotonic() - t0
-        peer.spin_for(2.0)
+        peer.spin_for(max(1.0, 20 * service))
         memory.append((time.monotonic() - t0, rss_mib(detector.proc.pid)))
     finally:
         peer.close()
     assert detector.alive()
-    assert elapsed < SECONDS * 1.2, f"the publisher itself fell behind ({elapsed:.1f} s)"
-    processed = [s for s in sorted(answered) if s in sent]
+    load = sorted(s for s in stream.sent if s >= first_load_stamp)
+    processed = [s for s in load if s in stream.answered]
+    sent_rate = len(load) / elapsed
     rate = len(processed) / elapsed
-    # the first start-up pass over the full frame takes ~2 s here: judge the run after it
-    warm = [s for s in processed if s >= 10.0 + WARM_UP_S]
-    # overloaded: it answers well under the input rate (the premise of this test)
-    assert rate < 0.75 * RATE_HZ, f"detector kept up at {rate:.1f} Hz: no overload"
-    assert rate > 2.0, f"detector answered only {len(processed)} frames"
-    # stays current: latency = answer time - publish time, per answered frame
-    latency = np.array([answered[s] - sent[s] for s in warm])
+    context = (f"stop-and-wait capacity {capacity:.1f} Hz (median round trip "
+               f"{service * 1000:.1f} ms), asked {rate_hz:.1f} Hz, sent {sent_rate:.1f} Hz, "
+               f"processed {rate:.1f} Hz")
+    # the premise, created rather than assumed: the node got far more than it processes
+    assert len(processed) >= 5, context
+    assert sent_rate > 1.5 * rate, f"no overload: {context}"
+    # stays current: latency = answer time - publish time, per answered frame.  Taking the
+    # newest frame, a frame waits at most one processing time before it is taken; a queue
+    # would grow by ~2/3 of the elapsed time (seconds)
+    latency = np.array([stream.answered[s] - stream.sent[s] for s in processed])
     third = len(latency) // 3
     early, late = np.median(latency[:third]), np.median(latency[-third:])
-    assert late < 0.5, f"late-run median latency {late:.3f} s"
-    assert late < early + 0.1, f"latency grew from {early:.3f} s to {late:.3f} s"
-    # processed frames are spread over the whole run (the newest frame is always taken)
-    gaps = np.diff([10.0 + WARM_UP_S] + warm + [10.0 + (len(sent) - 1) / RATE_HZ])
-    assert gaps.max() < 1.0, f"a {gaps.max():.2f} s stretch of input was never processed"
-    # reports its dropped frames
+    bound = 6.0 * service + 0.05
+    assert late < bound, f"late-run median latency {late:.3f} s > {bound:.3f} s; {context}"
+    assert late < early + 3.0 * service + 0.05, (
+        f"latency grew from {early:.3f} s to {late:.3f} s; {context}")
+    # processed frames are spread over the whole run (the newest frame is always taken):
+    # no stretch of input longer than a few of the slowest measured round trips (which
+    # include full-frame reconfiguration passes) goes unprocessed
+    gaps = np.diff([first_load_stamp] + processed + [load[-1]])
+    gap_bound = 4.0 * float(trips.max()) + 0.2
+    assert gaps.max() < gap_bound, (f"a {gaps.max():.2f} s stretch of input was never "
+                                    f"processed (bound {gap_bound:.2f} s); {context}")
+    # reports its dropped frames.  Frames it never processed were either replaced in its
+    # newest-frame slot, which it counts, or overwritten inside DDS by the depth-1
+    # best-effort reader before its callback ran, which it cannot see (the compiled loops
+    # release the GIL, so the callback runs while a frame is processed: 95-98 % reach the
+    # slot).  The count is a lower bound: never more than the frames really skipped.
     log = detector.output()
     dropped = [int(line.split(" frames dropped")[0].rsplit(" ", 1)[-1])
                for line in log.splitlines() if " frames dropped" in line]
-    # (frames it never processed were either replaced in its newest-frame slot, which it
-    # counts, or overwritten inside DDS by the depth-1 best-effort reader before its
-    # callback ran, which it cannot see.  The compiled loops release the GIL (nogil), so
-    # the callback runs while a frame is processed and 95-96 % of the skipped frames reach
-    # the slot here (3 runs); while they held the GIL only 17-35 % did, which failed CI at
-    # a 20 % bound.  The count is a lower bound: never more than the frames really skipped.)
-    unprocessed = len(sent) - len(processed)
-    assert dropped and 0.5 * unprocessed < dropped[-1] <= unprocessed, (unprocessed,
-                                                                         log[-2000:])
-    # memory flat: after the warm-up the peak stops rising.  RSS is not a smooth curve here:
-    # sampled 4 times a second it jumps between ~275 and ~312 MiB every 1-3 s (the allocator
-    # taking and returning large temporary buffers; which ones is not pinned down -- the
-    # reconfiguration passes are the likely candidates), keeps the high level for seconds,
-    # sometimes to the end of the run, and its peaks differ by up to ~15 MiB (CI: 312 late vs
-    # 304 in the middle failed an 8 MiB bound).  What this test is for -- frames queued
-    # because the node cannot keep up -- would grow ~10 MiB per second at this overload, far
-    # past both bounds; slow leaks are the soak benchmark's job (docs/soak.md).
-    settled = [(t, m) for t, m in memory if t >= WARM_UP_S]
-    cut = WARM_UP_S + (SECONDS - WARM_UP_S) * 2 / 3
+    unprocessed = len(stream.sent) - sum(s in stream.answered for s in stream.sent)
+    assert dropped and 0.5 * unprocessed < dropped[-1] <= unprocessed, (
+        unprocessed, dropped[-1:], context, log[-2000:])
+    # memory flat: after the first seconds the peak stops rising.  RSS is not a smooth
+    # curve: sampled 4 times a second it jumps between two levels ~35 MiB apart every 1-3 s
+    # (the allocator taking and returning large temporary buffers) and its peaks differ by
+    # up to ~15 MiB.  What this test is for -- frames queued because the node cannot keep
+    # up -- grows by the excess input rate times 300 KiB per frame: 2/3 of the input, tens
+    # of MiB per second at any overload, far past both bounds.  Slow leaks are the soak
+    # benchmark's job (docs/soak.md).
+    settled = [(t, m) for t, m in memory if t >= 1.0]
+    cut = 1.0 + (LOAD_SECONDS - 1.0) * 2 / 3
     middle_peak = max(m for t, m in settled if t < cut)
     late_peak = max(m for t, m in settled if t >= cut)
     assert late_peak <= middle_peak + 16.0, memory
-    # and no large growth over the run: the peak of the last third against the peak of the
-    # first settled seconds (one sample against one sample failed CI once, +27.6 MiB: the
-    # early sample in the low state, the last one in the high state).
-    early_peak = max(m for t, m in settled if t < WARM_UP_S + 3.0)
+    early_peak = max(m for t, m in settled if t < 4.0)
     assert late_peak - early_peak < 25.0, memory
-    print(f"load: sent {len(sent)} at {RATE_HZ:g} Hz, processed {len(processed)} "
-          f"({rate:.1f} Hz), latency median early {early * 1000:.0f} ms late "
-          f"{late * 1000:.0f} ms, dropped (node's report) {dropped[-1]}, RSS MiB "
-          f"{settled[0][1]:.0f} -> {settled[-1][1]:.0f} (peaks early {early_peak:.0f} middle "
-          f"{middle_peak:.0f} late {late_peak:.0f})")
+    print(f"load: {context}; {len(load)} sent, {len(processed)} processed, latency median "
+          f"early {early * 1000:.0f} ms late {late * 1000:.0f} ms, dropped (node's report) "
+          f"{dropped[-1]} of {unprocessed} unprocessed, RSS MiB {settled[0][1]:.0f} -> "
+          f"{settled[-1][1]:.0f} (peaks early {early_peak:.0f} middle {middle_peak:.0f} "
+          f"late {late_peak:.0f})")
