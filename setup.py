@@ -17,7 +17,7 @@ CONSOLE_SCRIPTS = [
     "bag_player = mk_tracker.ros.bag_player:main",
     "bag_recorder = mk_tracker.ros.bag_recorder:main",
     "mk_launch = mk_tracker.ros.launcher:main",
-    "mk_tracker = mk_tracker.cli:main",
+    "mk_tracker = mk_tracker.tools.cli:main",
 ]
 
 
@@ -30,7 +30,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*"]),
-    package_data={f"{PACKAGE}.message_definitions": ["**/*.msg"]},
+    package_data={f"{PACKAGE}.messages.definitions": ["**/*.msg"]},
     include_package_data=False,
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),

@@ -4,7 +4,7 @@ All three trackers run in the same process on the same detections:
 
 * ``TUD-Campus`` (``../shared/data/mot/TUD-Campus``, 640x480, 71 frames) with its public
   detections (scores divided by the sequence's largest score, so they lie in [0, 1]);
-* generator scenes (:func:`mk_tracker.synthetic.crowd_scene`, 640x480) with 5, 15 and 30
+* generator scenes (:func:`mk_tracker.synthetic.generator.crowd_scene`, 640x480) with 5, 15 and 30
   people walking across each other and behind pillars; detections come from the ground truth:
   people at least ``--min-visible`` visible, box noise, ``--miss`` misses and on average
   ``--false-positives`` false positives per frame, all seeded.
@@ -41,10 +41,10 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from mk_tracker import synthetic  # noqa: E402
-from mk_tracker.datasets import read_mot_sequence  # noqa: E402
-from mk_tracker.evaluation import MotRow, mot_metrics, write_mot_file  # noqa: E402
-from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,  # noqa: E402
+from mk_tracker.synthetic import generator as synthetic  # noqa: E402
+from mk_tracker.bags.datasets import read_mot_sequence  # noqa: E402
+from mk_tracker.evaluation.metrics import MotRow, mot_metrics, write_mot_file  # noqa: E402
+from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,  # noqa: E402
                                              MultiObjectTrackerConfig)
 from mk_tracker.parameters import updated  # noqa: E402
 from peers.norfair_peer import NorfairPeer  # noqa: E402

@@ -1,4 +1,4 @@
-"""Speed and memory of the synthetic scene generator (:mod:`mk_tracker.synthetic`).
+"""Speed and memory of the synthetic scene generator (:mod:`mk_tracker.synthetic.generator`).
 
 In one process, on the same scenes, it measures
 
@@ -8,7 +8,7 @@ In one process, on the same scenes, it measures
   ``scene.ground_truth(i)`` (ground truth only, no images) and a naive baseline that draws
   the same number of people as plain ``cv2`` filled rectangles/ellipses with full-frame
   ``numpy`` Gaussian noise (what a minimal generator costs);
-* bag writing throughput of :func:`mk_tracker.scene_bag.write_scene_bag`, mcap vs sqlite3;
+* bag writing throughput of :func:`mk_tracker.synthetic.scene_bag.write_scene_bag`, mcap vs sqlite3;
 * memory: traced peak while iterating over 2,000 frames of a 10,000-frame scene, against
   the peak of rendering a single frame (a lazy generator keeps the two equal).
 
@@ -33,8 +33,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from mk_tracker import synthetic  # noqa: E402
-from mk_tracker.scene_bag import write_scene_bag  # noqa: E402
+from mk_tracker.synthetic import generator as synthetic  # noqa: E402
+from mk_tracker.synthetic.scene_bag import write_scene_bag  # noqa: E402
 
 
 def timed(fn, repeats: int) -> list[float]:

@@ -3,13 +3,13 @@
 Runs, in one process on the same frames, the projected-gradient multiple-kernel tracker
 (1/2/4/6 kernels, with and without projected gradient, the single-kernel mean shift baseline
 and the paper's eps_J = 0.7N), our full tracker (the multiple-kernel refinement inside the
-Kalman filter of :class:`mk_tracker.multi_object_tracker.MultiObjectTracker`, Chu et al.
+Kalman filter of :class:`mk_tracker.tracking.multi_object_tracker.MultiObjectTracker`, Chu et al.
 Sec. IV-D, one target started by hand, no detector) with its defaults for tracks started by
 hand (``MultiObjectTrackerConfig.manual_track``) and two experimental variants of them, and
 OpenCV's model-free trackers (CamShift and meanShift from the main package; MIL; KCF and CSRT
 when opencv-contrib is installed) on
 
-* the synthetic occlusion scenes of :mod:`mk_tracker.synthetic` (lower-body wall, full
+* the synthetic occlusion scenes of :mod:`mk_tracker.synthetic.generator` (lower-body wall, full
   pillar, crossing people, approach = scale change),
 * ``../shared/data/otb/Crossing``,
 * every person of ``../shared/data/mot/TUD-Campus`` as a single target, initialised from its
@@ -54,16 +54,16 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from mk_tracker.boxes import clip_box  # noqa: E402
-from mk_tracker.datasets import DEFAULT_FRAME_RATE  # noqa: E402
-from mk_tracker.evaluation import read_box_list, read_mot_file, single_target_metrics  # noqa: E402
-from mk_tracker.multi_kernel import (MultiKernelConfig, MultiKernelTracker,  # noqa: E402
+from mk_tracker.bags.datasets import DEFAULT_FRAME_RATE  # noqa: E402
+from mk_tracker.evaluation.metrics import read_box_list, read_mot_file, single_target_metrics  # noqa: E402
+from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker,  # noqa: E402
                                      TrackingInputError, mean_shift_baseline_config,
                                      paper_config)
-from mk_tracker.multi_object_tracker import (ManualTrackConfig,  # noqa: E402
+from mk_tracker.tracking.multi_object_tracker import (ManualTrackConfig,  # noqa: E402
                                               MultiObjectTracker, MultiObjectTrackerConfig,
                                               TrackerInputError, manual_track_multi_kernel)
-from mk_tracker.track import TrackState  # noqa: E402
-from mk_tracker import synthetic  # noqa: E402
+from mk_tracker.tracking.track import TrackState  # noqa: E402
+from mk_tracker.synthetic import generator as synthetic  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 #: a synthetic target counts as hidden in a frame when less than this share of its
@@ -412,7 +412,7 @@ def warm_up(trackers) -> None:
 
 def fast_path() -> str:
     """Which multiple-kernel code path this run measured."""
-    from mk_tracker import kernel_histograms
+    from mk_tracker.tracking import kernel_histograms
     try:
         import numba
         have = f"numba {numba.__version__} importable"
@@ -533,7 +533,7 @@ NOTES = """Notes.
   it cannot have seen.
 * "MK 2 kernels, eps_J=0.7N (paper)" is the paper's stopping threshold: with this K-L cost
   (J_i ~ 0.01-0.3 around the target) Algorithm 1 stops before the first step, so the default
-  of `MultiKernelConfig.epsilon_j_factor` is 0 (see mk_tracker/multi_kernel.py).
+  of `MultiKernelConfig.epsilon_j_factor` is 0 (see mk_tracker/tracking/multi_kernel.py).
 * The bare MK rows use the defaults of `MultiKernelConfig` (2 kernels unless stated): scale
   update gated on the minimum kernel similarity > 0.8 (the 6-kernel row: mean > 0.7, as the
   full tracker's hand-started tracks) and verified against the cost, no model update.

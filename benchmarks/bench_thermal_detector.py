@@ -1,8 +1,8 @@
 """Benchmark of the sparse kernel covariance thermal detector against the threshold baseline.
 
-Runs :class:`mk_tracker.thermal_detector.ThermalDetector` (Algorithm 2) and
-:class:`mk_tracker.threshold_detector.ThresholdDetector` frame by frame over synthetic thermal
-scenes from :mod:`mk_tracker.synthetic` (the paper's Sec. 6 scene, and crowds of 1, 5 and 15
+Runs :class:`mk_tracker.detection.thermal_detector.ThermalDetector` (Algorithm 2) and
+:class:`mk_tracker.detection.threshold_detector.ThresholdDetector` frame by frame over synthetic thermal
+scenes from :mod:`mk_tracker.synthetic.generator` (the paper's Sec. 6 scene, and crowds of 1, 5 and 15
 people at 320x240 and 640x512), and reports
 
 * median milliseconds per frame, separately for full-frame passes (start-up and
@@ -34,11 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mk_tracker.association import assign
-from mk_tracker.pixel_clustering import load_valley_split
-from mk_tracker.synthetic import crowd_scene, paper_scene, static_warm_objects_scene
-from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
-from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+from mk_tracker.tracking.association import assign
+from mk_tracker.detection.pixel_clustering import load_valley_split
+from mk_tracker.synthetic.generator import crowd_scene, paper_scene, static_warm_objects_scene
+from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 
 MIN_VISIBLE = 0.5
 

@@ -1,7 +1,7 @@
 """Memory of the thermal detector library over a long stream, without ROS.
 
 The node soak (benchmarks/soak.py, docs/soak.md) saw detector_node's RSS grow by a few MiB
-per thousand frames.  This script runs :class:`mk_tracker.thermal_detector.ThermalDetector`
+per thousand frames.  This script runs :class:`mk_tracker.detection.thermal_detector.ThermalDetector`
 alone on the same kind of input (640x480 crowd scene, 15 people; 300 rendered frames
 replayed with continuous time stamps) and prints the process RSS and the Python heap
 (tracemalloc) every ``--every`` frames, so a growth can be put on the library or on the
@@ -22,8 +22,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from mk_tracker.synthetic import crowd_scene  # noqa: E402
-from mk_tracker.thermal_detector import ThermalDetector  # noqa: E402
+from mk_tracker.synthetic.generator import crowd_scene  # noqa: E402
+from mk_tracker.detection.thermal_detector import ThermalDetector  # noqa: E402
 
 
 def rss_mib() -> float:

@@ -1,6 +1,6 @@
 """Where the multiple-kernel tracker spends its time, and before/after comparisons.
 
-Runs :class:`mk_tracker.multi_kernel.MultiKernelTracker` (1, 2 and 4 kernels, defaults
+Runs :class:`mk_tracker.tracking.multi_kernel.MultiKernelTracker` (1, 2 and 4 kernels, defaults
 otherwise) on the sequences of ``benchmarks/bench_single_target.py`` -- every TUD-Campus
 person, OTB Crossing and the synthetic 640x480 occlusion scenes -- with the frames decoded
 once beforehand, and prints per group the median CPU milliseconds per ``refine`` (which
@@ -11,8 +11,8 @@ Implementations compared in the same process on the same frames:
 
 * ``compiled``: this working tree, numba kernels (the default when numba is installed);
 * ``numpy``: this working tree with the numpy reference path (``backend="numpy"``);
-* ``REV`` (with ``--baseline REV``): ``mk_tracker/kernel_histograms.py`` and
-  ``mk_tracker/multi_kernel.py`` as they were at git revision ``REV``, loaded under other
+* ``REV`` (with ``--baseline REV``): ``mk_tracker/tracking/kernel_histograms.py`` and
+  ``mk_tracker/tracking/multi_kernel.py`` as they were at git revision ``REV``, loaded under other
   module names (everything else is shared).
 
 With ``--opencv CSRT`` OpenCV's CSRT tracker is timed on the same frames (needs
@@ -54,8 +54,8 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 from bench_single_target import (otb_sequences, synthetic_sequences,  # noqa: E402
                                  tud_sequences)
 from mk_tracker.boxes import clip_box  # noqa: E402
-from mk_tracker import multi_kernel  # noqa: E402
-from mk_tracker.evaluation import single_target_metrics  # noqa: E402
+from mk_tracker.tracking import multi_kernel  # noqa: E402
+from mk_tracker.evaluation.metrics import single_target_metrics  # noqa: E402
 
 KERNEL_COUNTS = (2, 1, 4)
 
@@ -67,7 +67,7 @@ def load_baseline(rev: str, workdir: Path):
         text = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:mk_tracker/{stem}.py"],
                               check=True, capture_output=True, text=True).stdout
         alias = f"baseline_{stem}"
-        text = text.replace("from mk_tracker.kernel_histograms import",
+        text = text.replace("from mk_tracker.tracking.kernel_histograms import",
                             "from baseline_kernel_histograms import")
         path = workdir / f"{alias}.py"
         path.write_text(text, encoding="utf-8")

@@ -1,4 +1,4 @@
-"""Figures and a picture of every preset of :mod:`mk_tracker.synthetic`.
+"""Figures and a picture of every preset of :mod:`mk_tracker.synthetic.generator`.
 
 For each preset it prints and tabulates the frame count, image sizes and thermal encoding,
 the number of targets, the range of box heights (scale change), the smallest visible
@@ -22,8 +22,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from mk_tracker import synthetic  # noqa: E402
-from mk_tracker.image_conversion import to_bgr  # noqa: E402
+from mk_tracker.synthetic import generator as synthetic  # noqa: E402
+from mk_tracker.messages.image_conversion import to_bgr  # noqa: E402
 
 PANE = (256, 192)
 
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     image_path = out.parent / "images" / "synthetic_scenes.jpg"
     lines = ["# Synthetic scene presets", "", "Produced by:", "", "```", command, "```", "",
-             "Presets of `mk_tracker.synthetic` with their default arguments and seed "
+             "Presets of `mk_tracker.synthetic.generator` with their default arguments and seed "
              f"{args.seed} (`crowd`: 15 people).  Heights are box heights in thermal px; "
              "'hidden' counts (target, frame) pairs with visible_fraction < 0.01 while the "
              "box is inside the thermal image.", "",
@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     image_path.parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(image_path), grid, [cv2.IMWRITE_JPEG_QUALITY, 80])
     lines += ["", "Middle frame of each preset, RGB (left) and thermal (right, display "
-              "scaling of `mk_tracker.image_conversion.to_bgr`):", "",
+              "scaling of `mk_tracker.messages.image_conversion.to_bgr`):", "",
               f"![presets](images/{image_path.name})", ""]
     out.write_text("\n".join(lines) + "\n", encoding="utf-8")
     print(f"wrote {out} and {image_path}")

@@ -13,7 +13,7 @@ Figures:
   and at the end, plus the RSS slope over the run (MiB per 1000 frames);
 * frames published, frames answered by each node, frames dropped (the nodes' own counters
   from their shutdown log line, and published minus answered);
-* CLEAR-MOT identity switches (motmetrics via :mod:`mk_tracker.evaluation`) of the tracks
+* CLEAR-MOT identity switches (motmetrics via :mod:`mk_tracker.evaluation.metrics`) of the tracks
   against the RGB ground truth on every frame the tracker answered;
 * whether each node is still alive at the end.
 
@@ -81,11 +81,11 @@ def main(argv: list[str] | None = None) -> int:
     from std_msgs.msg import Header
     from vision_msgs.msg import Detection2DArray
 
-    from mk_tracker.detection_messages import read_detection_array
-    from mk_tracker.evaluation import MotRow, mot_metrics
-    from mk_tracker.image_conversion import numpy_to_image
-    from mk_tracker.message_types import ros_message_types
-    from mk_tracker.synthetic import crowd_scene
+    from mk_tracker.messages.detection_messages import read_detection_array
+    from mk_tracker.evaluation.metrics import MotRow, mot_metrics
+    from mk_tracker.messages.image_conversion import numpy_to_image
+    from mk_tracker.messages.message_types import ros_message_types
+    from mk_tracker.synthetic.generator import crowd_scene
     from nodes_harness import NodeProcess, Peer, make_stamp, ros_env, stamp_of, unique_domain
 
     types = ros_message_types()

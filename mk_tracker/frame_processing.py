@@ -2,13 +2,13 @@
 
 "The offline pipeline and the nodes call the same code": everything the detector node and
 the tracker node decide for one frame, beyond converting messages, lives here, and
-:mod:`mk_tracker.pipeline` (``mk_tracker process``) calls the same functions, so both make
+:mod:`mk_tracker.tools.pipeline` (``mk_tracker process``) calls the same functions, so both make
 identical decisions on the same input.
 
 * Detector side: which detector a ``method`` means (:func:`build_detector`), which image
   encodings it takes (:func:`thermal_input`), the reason a detector skipped a frame
   (:data:`SKIPPED_MODES`) and the conversion of its output into
-  :class:`~mk_tracker.detection_messages.Detection` (:func:`detector_outputs`).
+  :class:`~mk_tracker.messages.detection_messages.Detection` (:func:`detector_outputs`).
 * Tracker side: which image plane a detection message is in, decided by its
   ``header.frame_id`` (:func:`detection_plane`: the RGB image's frame, or the thermal
   camera's frame whose boxes the tracker maps with its homography), which buffered
@@ -30,14 +30,14 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from mk_tracker.boxes import InvalidBoxError, as_box, transform_box
-from mk_tracker.debug_drawing import (KernelEllipse, TrackDrawing, draw_detections,
+from mk_tracker.drawing.debug_image import (KernelEllipse, TrackDrawing, draw_detections,
                                       draw_text_lines, draw_tracks, thermal_to_display)
-from mk_tracker.detection_messages import Detection, DetectionMessageError
-from mk_tracker.image_conversion import ImageConversionError, image_to_numpy, to_bgr
-from mk_tracker.multi_object_tracker import FrameDetection, FrameResult
+from mk_tracker.messages.detection_messages import Detection, DetectionMessageError
+from mk_tracker.messages.image_conversion import ImageConversionError, image_to_numpy, to_bgr
+from mk_tracker.tracking.multi_object_tracker import FrameDetection, FrameResult
 from mk_tracker.parameters import ParameterError
-from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
-from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 
 RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
 THERMAL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1")
@@ -64,7 +64,7 @@ def build_detector(method: str, kernel_config: ThermalDetectorConfig,
 
 def thermal_input(msg: Any) -> np.ndarray:
     """The pixels of a thermal ``sensor_msgs/Image``; raises
-    :class:`~mk_tracker.image_conversion.ImageConversionError` for another encoding or
+    :class:`~mk_tracker.messages.image_conversion.ImageConversionError` for another encoding or
     broken data."""
     if msg.encoding not in THERMAL_ENCODINGS:
         raise ImageConversionError(
@@ -195,7 +195,7 @@ class DetectionBuffer:
 
 def tracker_input(msg: Any) -> np.ndarray:
     """The BGR pixels of an RGB ``sensor_msgs/Image`` (contiguous); raises
-    :class:`~mk_tracker.image_conversion.ImageConversionError` for a non-RGB encoding or
+    :class:`~mk_tracker.messages.image_conversion.ImageConversionError` for a non-RGB encoding or
     broken data."""
     if msg.encoding not in RGB_ENCODINGS:
         raise ImageConversionError(

@@ -1,8 +1,8 @@
 """Compile (or load from numba's on-disk cache) the compiled kernels before the first frame.
 
-The multiple-kernel tracker (:mod:`mk_tracker.kernel_histograms`,
-:mod:`mk_tracker.multi_kernel`) and the thermal detector (:mod:`mk_tracker.kernel_covariance`,
-:mod:`mk_tracker.sparse_factorization`, :mod:`mk_tracker.thermal_detector`) run their inner
+The multiple-kernel tracker (:mod:`mk_tracker.tracking.kernel_histograms`,
+:mod:`mk_tracker.tracking.multi_kernel`) and the thermal detector (:mod:`mk_tracker.detection.kernel_covariance`,
+:mod:`mk_tracker.detection.sparse_factorization`, :mod:`mk_tracker.detection.thermal_detector`) run their inner
 loops as numba functions, compiled on first use: several seconds the first time on a
 machine (numba then caches them next to the modules, or in ``NUMBA_CACHE_DIR``), about a
 second to load from that cache afterwards.  Paid on the first frame, that stall makes a node
@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mk_tracker.multi_kernel import MultiKernelConfig, MultiKernelTracker
-from mk_tracker.pixel_clustering import load_valley_split
-from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.tracking.multi_kernel import MultiKernelConfig, MultiKernelTracker
+from mk_tracker.detection.pixel_clustering import load_valley_split
+from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ def warm_up_tracker(config: MultiKernelConfig | None = None) -> WarmUp:
 def warm_up_detector(config: ThermalDetectorConfig | None = None) -> WarmUp:
     """Run the detector with ``config`` over the first frames of the paper's synthetic scene
     (a start-up pass, then tracking frames)."""
-    from mk_tracker.synthetic import paper_scene
+    from mk_tracker.synthetic.generator import paper_scene
 
     t0 = time.perf_counter()
     cfg = config or ThermalDetectorConfig()

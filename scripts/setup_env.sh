@@ -4,7 +4,7 @@
 #      (downloaded once, when a pinned wheel is missing there),
 #   2. installs mk_tracker itself in editable mode,
 #   3. builds vision_msgs (interfaces/vision_msgs, definitions from
-#      mk_tracker/message_definitions/vision_msgs) with the rosidl generators of the
+#      mk_tracker/messages/definitions/vision_msgs) with the rosidl generators of the
 #      ros-jazzy-* wheels in a separate build environment, packs it as a wheel that is
 #      cached by the hash of its inputs, and installs that wheel into .venv.
 # Idempotent: a stamp holding the hash of every input makes a repeated run a no-op.
@@ -23,7 +23,7 @@ CACHE="${XDG_CACHE_HOME:-$HOME/.cache}/mk_tracker"
 WHEELHOUSE="$CACHE/wheelhouse"
 BUILD_VENV="$CACHE/build-venv"
 REQ="$ROOT/requirements"
-MSG_DIR="$ROOT/mk_tracker/message_definitions/vision_msgs"
+MSG_DIR="$ROOT/mk_tracker/messages/definitions/vision_msgs"
 IFACE_DIR="$ROOT/interfaces/vision_msgs"
 STAMP="$VENV/.mk_tracker_setup_stamp"
 VISION_MSGS_VERSION="4.1.1"

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mk_tracker.bag_io import BagWriter, open_bag
-from mk_tracker.detection_messages import Detection, make_detection_array, read_detection_array
-from mk_tracker.message_types import bag_message_types
+from mk_tracker.bags.bag_io import BagWriter, open_bag
+from mk_tracker.messages.detection_messages import Detection, make_detection_array, read_detection_array
+from mk_tracker.messages.message_types import bag_message_types
 
 
 def detections_bag(scene_bag: Path, dst: Path, offset_ns: int) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from mk_tracker.detection_messages import Detection
+from mk_tracker.messages.detection_messages import Detection
 from mk_tracker.frame_processing import DETECTOR_SILENCE, DetectionBatch, DetectionBuffer
 
 

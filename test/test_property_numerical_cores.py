@@ -27,11 +27,11 @@ from hypothesis import strategies as st
 
 import property_profile  # noqa: F401  (registers and loads the derandomized profile)
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
-from mk_tracker.multi_kernel import MultiKernelConfig, MultiKernelTracker, TrackingInputError
-from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
+from mk_tracker.tracking.multi_kernel import MultiKernelConfig, MultiKernelTracker, TrackingInputError
+from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.parameters import parameter_specs, updated, validate_config
-from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 
 
 def value_in_range(spec, *, cap: float | None = None):

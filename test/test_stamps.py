@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from mk_tracker.multi_object_tracker import MultiObjectTracker, MultiObjectTrackerConfig, \
+from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker, MultiObjectTrackerConfig, \
     TrackerInputError
 from mk_tracker.stamps import checked_stamp
-from mk_tracker.thermal_detector import ThermalDetector
-from mk_tracker.thermal_image import ThermalInputError
-from mk_tracker.threshold_detector import ThresholdDetector
+from mk_tracker.detection.thermal_detector import ThermalDetector
+from mk_tracker.detection.thermal_image import ThermalInputError
+from mk_tracker.detection.threshold_detector import ThresholdDetector
 
 
 class OwnError(ValueError):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from mk_tracker.multi_kernel import MultiKernelConfig
-from mk_tracker.thermal_detector import ThermalDetectorConfig
+from mk_tracker.tracking.multi_kernel import MultiKernelConfig
+from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
 from mk_tracker.warm_up import warm_up_detector, warm_up_tracker
 
 
@@ -30,5 +30,5 @@ def test_detector_warm_up_loads_the_valley_split_only_when_it_is_on():
 
 
 def test_load_valley_split_splits_its_constructed_pair():
-    from mk_tracker.pixel_clustering import load_valley_split
+    from mk_tracker.detection.pixel_clustering import load_valley_split
     assert load_valley_split() == 2

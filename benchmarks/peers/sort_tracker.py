@@ -3,7 +3,7 @@
 Per track a constant-velocity Kalman filter of the box centre
 (:class:`mk_tracker.kalman.ConstantVelocityKalman`) with the box size taken from the last
 assigned detection; detections are assigned to predicted boxes by the Hungarian method on
-``1 - IoU`` (:func:`mk_tracker.association.assign`), with SORT's defaults: a match needs
+``1 - IoU`` (:func:`mk_tracker.tracking.association.assign`), with SORT's defaults: a match needs
 IoU >= 0.3, a track is reported after ``min_hits`` = 3 consecutive hits (or in the first
 frames), and deleted after ``max_age`` = 1 frame without a detection.  No appearance, no
 re-identification: it is the baseline the multiple-kernel tracker must beat.
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mk_tracker.association import assign
+from mk_tracker.tracking.association import assign
 from mk_tracker.boxes import iou_matrix
 from mk_tracker.kalman import ConstantVelocityKalman
 

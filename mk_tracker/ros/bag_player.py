@@ -1,11 +1,11 @@
 """``bag_player``: play a rosbag2 bag over DDS where ``ros2 bag play`` is not installed.
 
 Reads sqlite3 and mcap bags, split bags and bags recorded by real ROS 2 through
-:mod:`mk_tracker.bag_io`, and publishes each message's serialized CDR bytes unchanged
+:mod:`mk_tracker.bags.bag_io`, and publishes each message's serialized CDR bytes unchanged
 (rclpy 7.1 ``Publisher.publish`` accepts a ``bytes`` object and hands it to
 ``rcl_publish_serialized_message``; the message class is still needed for the type support).
 Timing, rate, loop, start offset, topic selection, remapping and ``/clock`` follow
-:mod:`mk_tracker.playback`, which also documents the QoS rule (offered QoS from the bag
+:mod:`mk_tracker.bags.playback`, which also documents the QoS rule (offered QoS from the bag
 metadata when present, else RELIABLE/VOLATILE, depth ``--qos-depth``; ``--qos-override``
 per topic).
 
@@ -34,8 +34,8 @@ from typing import Any, Iterator, Sequence
 import yaml
 from rosbags.typesys import Stores, get_typestore
 
-from mk_tracker import bag_io
-from mk_tracker.playback import (DEFAULT_DEPTH, RELIABLE, TRANSIENT_LOCAL, PlaybackError,
+from mk_tracker.bags import bag_io
+from mk_tracker.bags.playback import (DEFAULT_DEPTH, RELIABLE, TRANSIENT_LOCAL, PlaybackError,
                                  PlaybackOptions, PlaybackPlan, TopicQos,
                                  offered_qos_from_metadata, parse_qos_override, parse_remaps,
                                  resolve_qos)
@@ -109,7 +109,7 @@ def plan_topics(topics: Sequence[Any], offered: dict[str, list[tuple[str, str]]]
                 ) -> tuple[dict[str, PlayedTopic], list[str]]:
     """Playable topics (bag topic -> PlayedTopic) and a description of unplayable ones.
 
-    ``topics`` are :class:`mk_tracker.bag_io.TopicInfo` records.
+    ``topics`` are :class:`mk_tracker.bags.bag_io.TopicInfo` records.
     """
     played: dict[str, PlayedTopic] = {}
     unplayable: list[str] = []

@@ -3,7 +3,7 @@ installed.
 
 Each requested topic is subscribed as soon as it appears in the ROS graph, with the type
 the graph reports, and with ``raw=True``: the serialized CDR bytes are written unchanged
-through :class:`mk_tracker.bag_io.BagWriter` (mcap by default, sqlite3 on request), stamped
+through :class:`mk_tracker.bags.bag_io.BagWriter` (mcap by default, sqlite3 on request), stamped
 with the time the message was received (as ``ros2 bag record`` does).  The subscription QoS
 adapts to the publishers found (as rosbag2 does): RELIABLE if every publisher offers
 RELIABLE, else BEST_EFFORT; TRANSIENT_LOCAL if every publisher offers it, else VOLATILE.
@@ -27,7 +27,7 @@ import threading
 import time
 from typing import Any, Sequence
 
-from mk_tracker import bag_io
+from mk_tracker.bags import bag_io
 from mk_tracker.ros.bag_player import message_class
 
 

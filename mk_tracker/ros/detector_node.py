@@ -1,8 +1,8 @@
 """``detector_node``: people detection in thermal video, as a ROS 2 node.
 
-A thin adapter around :class:`mk_tracker.thermal_detector.ThermalDetector` (sparse kernel
+A thin adapter around :class:`mk_tracker.detection.thermal_detector.ThermalDetector` (sparse kernel
 covariance factorization, Schizas, Maroulas & Ren 2018) and the threshold baseline
-:mod:`mk_tracker.threshold_detector`; the ``method`` parameter selects one.
+:mod:`mk_tracker.detection.threshold_detector`; the ``method`` parameter selects one.
 
 Topics (names are parameters):
 
@@ -11,7 +11,7 @@ Topics (names are parameters):
   counted and reported (:class:`mk_tracker.ros.latest_frame.LatestFrameWorker`);
 * publishes ``thermal/detections`` (vision_msgs/Detection2DArray): header copied from the
   image, ``id`` empty, one result with ``class_id`` and the detector's score
-  (conventions of :mod:`mk_tracker.detection_messages`);
+  (conventions of :mod:`mk_tracker.messages.detection_messages`);
 * publishes ``~/debug_image`` (bgr8, colour-mapped thermal with the boxes) when
   ``publish_debug_image`` is true.
 
@@ -31,12 +31,12 @@ from typing import Any
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
-from mk_tracker.detection_messages import make_detection_array
+from mk_tracker.messages.detection_messages import make_detection_array
 from mk_tracker.frame_processing import (METHODS, build_detector, detector_debug_image,
                                          detector_event, detector_outputs, skipped_reason,
                                          thermal_input)
-from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
-from mk_tracker.message_types import ros_message_types, stamp_to_seconds
+from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
+from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
 from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up, run_node
@@ -44,8 +44,8 @@ from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
 from mk_tracker.ros.subscription_events import log_matches
-from mk_tracker.thermal_detector import ThermalDetector, ThermalDetectorConfig
-from mk_tracker.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 from mk_tracker.warm_up import warm_up_detector
 
 @dataclass(frozen=True)

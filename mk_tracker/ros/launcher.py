@@ -120,7 +120,7 @@ def _bag_topics(bag: str) -> set[str]:
     will report that itself)."""
     from rosbags.typesys import Stores, get_typestore
 
-    from mk_tracker import bag_io
+    from mk_tracker.bags import bag_io
     try:
         with bag_io.open_bag(bag, on_error="skip",
                              typestore=get_typestore(Stores.EMPTY)) as reader:

@@ -1,7 +1,7 @@
 """``tracker_node``: multiple-kernel tracking of people in RGB video, as a ROS 2 node.
 
-A thin adapter around :class:`mk_tracker.multi_object_tracker.MultiObjectTracker` with the
-projected-gradient multiple-kernel refiner (:mod:`mk_tracker.multi_kernel`, Chu et al.
+A thin adapter around :class:`mk_tracker.tracking.multi_object_tracker.MultiObjectTracker` with the
+projected-gradient multiple-kernel refiner (:mod:`mk_tracker.tracking.multi_kernel`, Chu et al.
 2013) and Kalman filtering; every decision (association, staleness of detections, time
 going backwards, lifecycle) is the library's, the per-frame glue is
 :mod:`mk_tracker.frame_processing` (shared with the offline pipeline).
@@ -44,15 +44,15 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image
 
 from mk_tracker.boxes import InvalidBoxError, transform_box
-from mk_tracker.detection_messages import (Detection, DetectionMessageError,
+from mk_tracker.messages.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection,
                                            read_detection_array)
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, detection_plane,
                                          kernel_drawings, tracker_debug_image, tracker_input,
                                          tracker_inputs, tracks_to_detections)
-from mk_tracker.image_conversion import ImageConversionError, numpy_to_image
-from mk_tracker.message_types import ros_message_types, stamp_to_seconds
-from mk_tracker.multi_object_tracker import (FrameDetection, MultiObjectTracker,
+from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
+from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
+from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.parameters import ParameterError, parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker

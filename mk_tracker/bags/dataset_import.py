@@ -1,0 +1,127 @@
+"""``mk_tracker import FOLDER --out BAG``: a MOTChallenge or OTB folder as a rosbag2 bag.
+
+Topics written (project conventions, frame id ``camera``, one message per frame each):
+
+* ``/image_raw``     ``sensor_msgs/msg/Image``, ``bgr8``;
+* ``/ground_truth``  ``vision_msgs/msg/Detection2DArray``: id = ground-truth identity as a
+  string, score 1.0 (an empty array for frames without ground truth);
+* ``/detections``    ``vision_msgs/msg/Detection2DArray`` of the public detections when the
+  sequence has them (MOTChallenge ``det/det.txt``): empty id, score = the raw score.
+
+Every message of frame ``k`` has header stamp and bag time ``start + k / fps``.  Boxes are
+the files' own coordinates (see :mod:`mk_tracker.bags.datasets`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+from typing import Callable
+
+from mk_tracker.bags.bag_io import BagError, BagWriter, make_typestore
+from mk_tracker.bags.datasets import DatasetError, Sequence, read_sequence
+from mk_tracker.messages.detection_messages import Detection, make_detection_array
+from mk_tracker.messages.image_conversion import numpy_to_image
+from mk_tracker.messages.message_types import bag_message_types, make_header
+
+IMAGE_TOPIC = "/image_raw"
+GROUND_TRUTH_TOPIC = "/ground_truth"
+DETECTIONS_TOPIC = "/detections"
+FRAME_ID = "camera"
+
+
+def configure_parser(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("folder", type=Path, help="MOTChallenge or OTB sequence folder")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="bag directory to create (must not exist)")
+    parser.add_argument("--fps", type=float, default=None,
+                        help="frame rate for the time stamps (default: seqinfo.ini's "
+                             "frameRate, else 25)")
+    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap",
+                        help="bag storage format (default mcap)")
+    parser.add_argument("--start-time", type=float, default=0.0,
+                        help="time stamp of the first frame in seconds (default 0)")
+    parser.add_argument("--class-id", default="person",
+                        help="class_id of the ground-truth and detection boxes")
+    parser.add_argument("--quiet", action="store_true", help="no progress output")
+
+
+def import_sequence(sequence: Sequence, out: Path, storage: str = "mcap",
+                    start_ns: int = 0, class_id: str = "person",
+                    progress: Callable[[int, int], None] | None = None) -> dict[str, int]:
+    """Write ``sequence`` to a new bag at ``out``; returns the message count per topic.
+
+    On failure the partly written bag directory is removed and the error re-raised.
+    """
+    store = make_typestore()
+    types = bag_message_types(store)
+    out = Path(out)
+    created = False
+    try:
+        with BagWriter(out, storage, typestore=store) as bag:
+            created = True
+            bag.add_topic(IMAGE_TOPIC, "sensor_msgs/msg/Image")
+            bag.add_topic(GROUND_TRUTH_TOPIC, "vision_msgs/msg/Detection2DArray")
+            if sequence.detections is not None:
+                bag.add_topic(DETECTIONS_TOPIC, "vision_msgs/msg/Detection2DArray")
+            for k in range(len(sequence)):
+                stamp = sequence.timestamp_ns(k, start_ns)
+                header = make_header(types, FRAME_ID, stamp)
+                image = sequence.image(k)
+                bag.write(IMAGE_TOPIC, stamp, numpy_to_image(image, "bgr8", header,
+                                                             types=types))
+                truth = [Detection(box, 1.0, class_id, str(identity))
+                         for identity, box in sorted(sequence.ground_truth[k].items())]
+                bag.write(GROUND_TRUTH_TOPIC, stamp, make_detection_array(truth, header, types))
+                if sequence.detections is not None:
+                    public = [Detection(d.box, d.score, class_id, "")
+                              for d in sequence.detections[k]]
+                    bag.write(DETECTIONS_TOPIC, stamp,
+                              make_detection_array(public, header, types))
+                if progress is not None:
+                    progress(k + 1, len(sequence))
+            counts = dict(bag.counts)
+    except BaseException:
+        if created and out.exists():
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    return counts
+
+
+def run(args: argparse.Namespace) -> int:
+    def fail(message: str) -> int:
+        print(f"mk_tracker import: error: {message}", file=sys.stderr)
+        return 1
+
+    try:
+        sequence = read_sequence(args.folder, args.fps)
+    except DatasetError as exc:
+        return fail(str(exc))
+    if args.out.exists():
+        return fail(f"{args.out} exists already; choose a new --out path")
+    if not (args.start_time >= 0):
+        return fail(f"--start-time must be >= 0, got {args.start_time}")
+    if not args.quiet:
+        n_det = "none" if sequence.detections is None else \
+            str(sum(len(d) for d in sequence.detections))
+        print(f"{sequence.name} ({sequence.layout}): {len(sequence)} frames at "
+              f"{sequence.frame_rate:g} fps, {len(sequence.identities)} identities, "
+              f"{sequence.ground_truth_count} ground-truth boxes, public detections: {n_det}",
+              file=sys.stderr)
+
+    def progress(done: int, total: int) -> None:
+        if done == total or done % 25 == 0:
+            print(f"  {done}/{total} frames", file=sys.stderr)
+
+    try:
+        counts = import_sequence(sequence, args.out, args.storage,
+                                 round(args.start_time * 1e9), args.class_id,
+                                 None if args.quiet else progress)
+    except (DatasetError, BagError) as exc:
+        return fail(str(exc))
+    if not args.quiet:
+        summary = ", ".join(f"{topic} {n}" for topic, n in counts.items())
+        print(f"wrote {args.out} ({args.storage}): {summary}", file=sys.stderr)
+    return 0

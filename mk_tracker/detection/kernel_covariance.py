@@ -1,0 +1,327 @@
+"""Kernel covariance of a window of thermal frames, Schizas et al. (3.1)-(3.6).
+
+For a window of ``F`` frames and pixels ``i, j`` of a block, with the Gaussian RBF kernel
+(3.6) ``k(a, b) = exp(-(a - b)^2 / (2 sigma^2))`` on scalar intensities, (3.5) reads::
+
+    Sigma(i, j) = 1/F   sum_tau        k(x_tau(i), x_tau(j))
+                - 1/F^2 sum_tau,tau'   k(x_tau(i), x_tau'(j))
+
+It is the covariance over the window of the feature vectors ``phi(x_tau(i))`` (3.1): the
+second term is ``<phi_bar(i), phi_bar(j)>`` of the window means (3.3)-(3.4).
+
+Why static pixels and static blocks cost nothing (exactly)
+-------------------------------------------------------------
+*A pixel that does not change over the window has a zero row and column.*  If
+``x_tau(i) = a`` for every ``tau`` then for every ``j``::
+
+    Sigma(i, j) = 1/F sum_tau k(a, x_tau(j)) - 1/F^2 sum_tau' sum_tau k(a, x_tau(j)) = 0,
+
+because the inner sum of the second term does not depend on ``tau'``.  (It is the
+covariance of a constant feature vector.)  A block whose pixels all stay constant therefore
+has ``Sigma = 0``; the cost (3.7) is then ``||M||_F^4 + lambda ||M||_1``, minimised only by
+``M = 0``: the block's factor is zero and it contributes no support pixel.
+
+*More generally, the factor of a block is exactly zero whenever every diagonal entry is
+small.*  Algorithm 1 starts from ``M = 0``.  While all other entries are zero the 1-D cost
+(3.9) of entry ``j`` is ``h^4 - 2 Sigma(j, j) h^2 + lambda |h|``, which is >= 0 = J(0) for all
+``h`` iff ``Sigma(j, j) <= T(lambda) := 3/2 (lambda / 2)^(2/3)``
+(:func:`mk_tracker.detection.sparse_factorization.zero_factor_threshold`).  If that holds for every
+pixel of a block, the first cycle leaves every entry at 0, the stopping rule
+``||M^1 - M^0|| = 0 <= epsilon`` fires, and Algorithm 1 returns ``M = 0`` -- the same result
+as running it.  Skipping such blocks is thus exact, not an approximation.  The diagonal is
+cheap (:func:`pixel_kernel_variance`), and a free bound rules out most pixels first: if a
+pixel's values span a range ``r`` over the window every kernel value is
+``>= exp(-r^2 / (2 sigma^2))``, so ``Sigma(j, j) <= 1 - exp(-r^2 / (2 sigma^2))``
+(:func:`variance_bound_from_range`).
+
+The fast path (:func:`block_kernel_covariance`) evaluates (3.5) for a batch of blocks
+with one ``exp`` per unordered frame pair ``tau <= tau'`` and pixel pair, using the symmetry
+``k(x_tau(i), x_tau'(j)) = k(x_tau'(j), x_tau(i))``.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+
+class KernelCovarianceError(ValueError):
+    """A window or block array the kernel covariance cannot be computed from."""
+
+
+def rbf_kernel(a: np.ndarray, b: np.ndarray, sigma2: float) -> np.ndarray:
+    """Gaussian RBF kernel (3.6) ``exp(-(a - b)^2 / (2 sigma^2))``, elementwise."""
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    return np.exp(-(d * d) / (2.0 * sigma2))
+
+
+def _check_sigma2(sigma2: float) -> float:
+    s = float(sigma2)
+    if not np.isfinite(s) or s <= 0:
+        raise KernelCovarianceError(f"kernel variance sigma^2 must be positive, got {sigma2!r}")
+    return s
+
+
+def block_kernel_covariance(blocks: np.ndarray, sigma2: float,
+                            dtype: type = np.float32) -> np.ndarray:
+    """Kernel covariance (3.5) of each block: ``(B, F, p)`` values -> ``(B, p, p)``.
+
+    ``blocks[b, tau, i]`` is pixel ``i`` of block ``b`` in frame ``tau`` of the window, on
+    the unit intensity scale.  ``dtype`` is the working precision (float32 is ~3x faster;
+    float64 for reference checks).  Returns a symmetric array of that dtype.
+    """
+    x = np.asarray(blocks)
+    if x.ndim != 3:
+        raise KernelCovarianceError(f"blocks must be (B, F, p), got shape {x.shape}")
+    n_blocks, n_frames, p = x.shape
+    if n_frames < 1:
+        raise KernelCovarianceError("the window holds no frame")
+    s2 = _check_sigma2(sigma2)
+    x = x.astype(dtype, copy=False)
+    if not np.all(np.isfinite(x)):
+        raise KernelCovarianceError("blocks hold NaN or infinite values; fill missing pixels")
+    neg_inv = dtype(-1.0 / (2.0 * s2))
+    same = np.zeros((n_blocks, p, p), dtype=dtype)      # sum_tau k(x_tau(i), x_tau(j))
+    cross = np.zeros((n_blocks, p, p), dtype=dtype)     # sum_{tau != tau'} ...
+    for a in range(n_frames):
+        for b in range(a, n_frames):
+            d = x[:, a, :, None] - x[:, b, None, :]
+            np.multiply(d, d, out=d)
+            d *= neg_inv
+            np.exp(d, out=d)
+            if a == b:
+                same += d
+            else:
+                cross += d
+                cross += d.transpose(0, 2, 1)
+    f = dtype(n_frames)
+    # (3.5): 1/F sum_same - 1/F^2 (sum_same + sum_cross)
+    sigma = same * (dtype(1.0) / f - dtype(1.0) / (f * f)) - cross * (dtype(1.0) / (f * f))
+    return sigma
+
+
+def pixel_kernel_variance(window: np.ndarray, sigma2: float,
+                          mask: np.ndarray | None = None) -> np.ndarray:
+    """Diagonal ``Sigma(j, j)`` of (3.5) for every pixel of a ``(F, ...)`` window.
+
+    ``Sigma(j, j) = 2/F^2 sum_{tau < tau'} (1 - k(x_tau(j), x_tau'(j)))``.  With ``mask``
+    (shape of one frame) only the masked pixels are computed; the others are 0.
+    """
+    x = np.asarray(window, dtype=np.float32)
+    if x.ndim < 2:
+        raise KernelCovarianceError(f"window must be (F, ...), got shape {x.shape}")
+    s2 = _check_sigma2(sigma2)
+    n_frames = x.shape[0]
+    out = np.zeros(x.shape[1:], dtype=np.float32)
+    if mask is not None:
+        sel = x[:, mask]
+    else:
+        sel = x.reshape(n_frames, -1)
+    acc = np.zeros(sel.shape[1], dtype=np.float32)
+    neg_inv = np.float32(-1.0 / (2.0 * s2))
+    for a in range(n_frames):
+        for b in range(a + 1, n_frames):
+            d = sel[a] - sel[b]
+            np.multiply(d, d, out=d)
+            d *= neg_inv
+            np.exp(d, out=d)
+            acc += np.float32(1.0) - d
+    acc *= np.float32(2.0 / (n_frames * n_frames))
+    if mask is not None:
+        out[mask] = acc
+    else:
+        out = acc.reshape(x.shape[1:])
+    return out
+
+
+def variance_bound_from_range(value_range: np.ndarray, sigma2: float) -> np.ndarray:
+    """Upper bound ``1 - exp(-r^2 / (2 sigma^2))`` of ``Sigma(j, j)`` from a pixel's range r."""
+    r = np.asarray(value_range, dtype=np.float32)
+    return np.float32(1.0) - np.exp(-(r * r) / np.float32(2.0 * _check_sigma2(sigma2)))
+
+
+def range_for_variance(threshold: float, sigma2: float) -> float:
+    """Largest temporal range ``r`` whose bound :func:`variance_bound_from_range` is <= threshold."""
+    s2 = _check_sigma2(sigma2)
+    if threshold >= 1.0:
+        return float("inf")
+    if threshold <= 0.0:
+        return 0.0
+    return float(np.sqrt(-2.0 * s2 * np.log1p(-threshold)))
+
+
+def active_pixels(window: np.ndarray, sigma2: float, threshold: float) -> np.ndarray:
+    """Boolean map of pixels with ``Sigma(j, j) > threshold`` over a ``(F, H, W)`` window.
+
+    Pixels whose temporal range already bounds their variance below ``threshold`` are
+    decided without any kernel evaluation (see the module docstring).
+    """
+    x = np.asarray(window, dtype=np.float32)
+    if x.ndim != 3:
+        raise KernelCovarianceError(f"window must be (F, H, W), got shape {x.shape}")
+    spread = x.max(axis=0) - x.min(axis=0)
+    r0 = range_for_variance(threshold, sigma2)
+    candidates = spread > np.float32(r0)
+    if not candidates.any():
+        return candidates
+    var = pixel_kernel_variance(x, sigma2, mask=candidates)
+    return var > np.float32(threshold)
+
+
+def frame_blocks(window: np.ndarray, rho: int) -> tuple[np.ndarray, tuple[int, int]]:
+    """Split a ``(F, H, W)`` window with ``H, W`` multiples of ``rho`` into (5.1) blocks.
+
+    Returns ``((nby * nbx, F, rho * rho) array, (nby, nbx))``; block ``b = by * nbx + bx``
+    holds rows ``by*rho ...`` and columns ``bx*rho ...``, pixels in row-major order.
+    """
+    x = np.asarray(window)
+    n_frames, h, w = x.shape
+    if h % rho or w % rho:
+        raise KernelCovarianceError(f"window {h}x{w} is not a multiple of the block size {rho}")
+    nby, nbx = h // rho, w // rho
+    blocks = (x.reshape(n_frames, nby, rho, nbx, rho)
+               .transpose(1, 3, 0, 2, 4)
+               .reshape(nby * nbx, n_frames, rho * rho))
+    return blocks, (nby, nbx)
+
+
+def kernel_table(max_level: int, scale: float, sigma2: float) -> np.ndarray:
+    """``table[d] = k(0, d * scale)`` of (3.6) for integer level differences ``d``.
+
+    For integer-valued frames (mono8 levels with ``scale = 1/255``) the kernel of two pixels
+    depends only on ``|level_i - level_j|``, so a table evaluates (3.6) exactly.
+    """
+    d = np.arange(int(max_level) + 1, dtype=np.float64) * float(scale)
+    return np.exp(-(d * d) / (2.0 * _check_sigma2(sigma2)))
+
+
+def _levels_block_covariance(x, table, same, cross, o):
+    """(3.5) of one block of integer levels ``x`` ``(F, p)`` into ``o`` ``(p, p)``.
+
+    ``same`` and ``cross`` are ``(p, p)`` scratch arrays.  Plain Python, compiled with numba
+    (see :func:`compiled_level_kernels`); the batch function and the detector's fused
+    per-block loop both call it, so there is one implementation.
+    """
+    n_frames, p = x.shape
+    inv_f = 1.0 / n_frames
+    inv_f2 = inv_f * inv_f
+    same[:, :] = 0.0
+    cross[:, :] = 0.0
+    for a in range(n_frames):
+        for i in range(p):
+            xi = x[a, i]
+            for j in range(i + 1, p):
+                same[i, j] += table[abs(xi - x[a, j])]
+        for c in range(a + 1, n_frames):
+            for i in range(p):
+                xi = x[a, i]
+                for j in range(p):
+                    cross[i, j] += table[abs(xi - x[c, j])]
+    for i in range(p):
+        # diagonal: same-frame kernel is 1 for each of the F frames
+        o[i, i] = (n_frames * (inv_f - inv_f2)) - (cross[i, i] + cross[i, i]) * inv_f2
+        for j in range(i + 1, p):
+            v = same[i, j] * (inv_f - inv_f2) - (cross[i, j] + cross[j, i]) * inv_f2
+            o[i, j] = v
+            o[j, i] = v
+
+
+def _levels_block_variance(x, table, out):
+    """Diagonal of (3.5) of one block of integer levels ``x`` ``(F, p)`` into ``out`` ``(p,)``:
+    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])``."""
+    n_frames, p = x.shape
+    scale = 2.0 / (n_frames * n_frames)
+    for i in range(p):
+        acc = 0.0
+        for a in range(n_frames):
+            xa = x[a, i]
+            for c in range(a + 1, n_frames):
+                acc += 1.0 - table[abs(xa - x[c, i])]
+        out[i] = acc * scale
+
+
+def _levels_covariance_loops(levels, table, out):
+    n_blocks, n_frames, p = levels.shape
+    same = np.zeros((p, p))
+    cross = np.zeros((p, p))
+    for b in range(n_blocks):
+        _levels_block_covariance(levels[b], table, same, cross, out[b])
+    return out
+
+
+def _levels_variance_loops(levels, table, out):
+    for b in range(levels.shape[0]):
+        _levels_block_variance(levels[b], table, out[b])
+    return out
+
+
+_LEVEL_KERNELS: list = []
+
+
+def compiled_level_kernels() -> dict | None:
+    """The numba-compiled level kernels (``block_covariance``, ``block_variance``,
+    ``covariance``, ``variance``), or ``None`` without numba or with the environment variable
+    ``MK_TRACKER_NO_NUMBA`` set.  Compiled once per process, cached on disk."""
+    if _LEVEL_KERNELS:
+        return _LEVEL_KERNELS[0]
+    try:
+        if os.environ.get("MK_TRACKER_NO_NUMBA"):
+            raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
+        import numba
+    except ImportError:
+        _LEVEL_KERNELS.append(None)
+        return None
+    global _levels_block_covariance, _levels_block_variance
+    _levels_block_covariance = numba.njit(cache=True, nogil=True)(_levels_block_covariance)
+    _levels_block_variance = numba.njit(cache=True, nogil=True)(_levels_block_variance)
+    kernels = {"block_covariance": _levels_block_covariance,
+               "block_variance": _levels_block_variance,
+               "covariance": numba.njit(cache=True, nogil=True)(_levels_covariance_loops),
+               "variance": numba.njit(cache=True, nogil=True)(_levels_variance_loops)}
+    _LEVEL_KERNELS.append(kernels)
+    return kernels
+
+
+def block_kernel_covariance_levels(levels: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """(3.5) for blocks of integer levels ``(B, F, p)`` with a :func:`kernel_table`; float64.
+
+    Same result as :func:`block_kernel_covariance` on ``levels * scale`` (to rounding), with
+    table look-ups instead of exponentials; compiled with numba when it is installed.
+    """
+    lv = np.ascontiguousarray(levels, dtype=np.int32)
+    if lv.ndim != 3 or lv.shape[1] < 1:
+        raise KernelCovarianceError(f"levels must be (B, F, p), got shape {lv.shape}")
+    tab = np.ascontiguousarray(table, dtype=np.float64)
+    if lv.size and int(lv.max()) - int(lv.min()) >= tab.size:
+        raise KernelCovarianceError("level differences exceed the kernel table")
+    kernels = compiled_level_kernels()
+    out = np.empty((lv.shape[0], lv.shape[2], lv.shape[2]))
+    if kernels is None:      # numpy fallback: the generic path on the scaled values
+        scale = float(np.sqrt(-2.0 * np.log(tab[1]))) if tab.size > 1 and tab[1] < 1 else 1.0
+        # table[1] = exp(-s^2 / 2 sigma^2) -> rebuild values in units where sigma^2 = 1
+        return block_kernel_covariance(lv * scale, 1.0, dtype=np.float64)
+    return kernels["covariance"](lv, tab, out)
+
+
+def block_variance_levels(levels: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """Diagonal ``Sigma(j, j)`` of (3.5) for blocks of integer levels ``(B, F, p)``.
+
+    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])`` with a
+    :func:`kernel_table`; ``(B, p)`` float64.  Compiled with numba when it is installed.
+    """
+    lv = np.ascontiguousarray(levels, dtype=np.int32)
+    if lv.ndim != 3:
+        raise KernelCovarianceError(f"levels must be (B, F, p), got shape {lv.shape}")
+    tab = np.ascontiguousarray(table, dtype=np.float64)
+    if lv.size and int(lv.max()) - int(lv.min()) >= tab.size:
+        raise KernelCovarianceError("level differences exceed the kernel table")
+    kernels = compiled_level_kernels()
+    out = np.zeros((lv.shape[0], lv.shape[2]))
+    if kernels is None:
+        n_frames = lv.shape[1]
+        for a in range(n_frames):
+            for c in range(a + 1, n_frames):
+                out += 1.0 - tab[np.abs(lv[:, a, :] - lv[:, c, :])]
+        return out * (2.0 / (n_frames * n_frames))
+    return kernels["variance"](lv, tab, out)

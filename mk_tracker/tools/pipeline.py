@@ -1,0 +1,843 @@
+"""``mk_tracker process BAG --out DIR``: detection and tracking over a bag, offline.
+
+The same libraries and the same per-frame decisions as ``detector_node`` and
+``tracker_node`` (:mod:`mk_tracker.frame_processing`), without DDS, as fast as the machine
+allows.  Messages are taken in bag-time order; messages of one time stamp are handled in
+the order "scene info, detector inputs and detection messages, ground truth, RGB images", so
+an RGB frame is tracked with the detections of the thermal frame taken at the same instant
+(what the nodes do when the detector answers before the next RGB frame arrives; the demo
+plays slowly enough for that).  As in the tracker node, detection messages are buffered
+(``detection_buffer`` newest) and each RGB frame gets those stamped at or before it, with
+their own stamps; with ``detection_wait`` > 0 an RGB frame is held until a detection message
+stamped at or after it has been read, or until the bag time has moved ``detection_wait``
+past it (:class:`~mk_tracker.frame_processing.DetectionBuffer`, the node's rule with bag
+time as its clock).
+
+Detection source (``--detections``): ``thermal`` runs the detector node's detector
+(``method`` parameter) on ``/thermal/image_raw``; ``topic:NAME`` uses Detection2DArray
+messages already in the bag (e.g. ``/detections`` of a MOTChallenge import); ``none`` tracks
+without detections (single-target runs); ``auto`` picks thermal if the bag has thermal
+images, else a detection topic (``/thermal/detections``, ``/detections``), else none.
+
+Single target (the protocol of Chu et al. 2013, Table I): ``--init x,y,w,h`` starts a track
+on the first frame, ``--init-from-gt [ID]`` on the first ground-truth box of ID (default:
+the first box in the bag); detections default to none then.
+
+Outputs in ``DIR``: ``bag/`` (the input topics plus ``/thermal/detections`` and
+``/tracks``), ``tracks.txt`` (MOTChallenge: frame = 1-based index of the RGB image in the
+bag), ``video.mp4`` (annotated), ``errors.png`` (per-frame errors) and ``summary.json``
+(counts, timings, scores) when the bag carries ``/ground_truth``.  A bad message (broken
+image, undecodable bytes) is logged, counted and skipped; it never ends the run.
+
+Parameters come from the nodes' YAML files: ``config/detector.yaml`` and
+``config/tracker.yaml`` of the package, overridden by each ``--params-file``.  When the
+tracker's homography is the identity and the bag has ``/scene_info`` (a synthetic scene),
+the scene's thermal-to-RGB homography is used.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from mk_tracker.bags.bag_io import BagError, BagWriter, open_bag
+from mk_tracker.boxes import InvalidBoxError, as_box, iou
+from mk_tracker.messages.detection_messages import (Detection, DetectionMessageError,
+                                           make_detection_array, read_detection_array)
+from mk_tracker.evaluation.metrics import (MotRow, center_errors, mot_accumulator, mot_metrics,
+                                   overlaps, single_target_metrics, write_mot_file)
+from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_detector,
+                                         detector_outputs,
+                                         kernel_drawings, skipped_reason, thermal_input,
+                                         tracker_debug_image, tracker_input, tracker_inputs,
+                                         tracks_to_detections)
+from mk_tracker.messages.image_conversion import ImageConversionError
+from mk_tracker.messages.message_types import bag_message_types, stamp_to_nanoseconds, stamp_to_seconds
+from mk_tracker.tracking.multi_object_tracker import (IDENTITY_HOMOGRAPHY, MultiObjectTracker,
+                                             MultiObjectTrackerConfig, TrackerInputError)
+from mk_tracker.parameters import ParameterError, parameter_specs, updated
+from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
+from mk_tracker.detection.threshold_detector import ThresholdDetectorConfig
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+DEFAULT_PARAMS_FILES = ("detector.yaml", "tracker.yaml")
+IMAGE_TOPIC = "/image_raw"
+THERMAL_TOPIC = "/thermal/image_raw"
+DETECTIONS_OUT_TOPIC = "/thermal/detections"
+TRACKS_TOPIC = "/tracks"
+GROUND_TRUTH_TOPIC = "/ground_truth"
+SCENE_INFO_TOPIC = "/scene_info"
+DETECTION_TOPIC_CANDIDATES = ("/thermal/detections", "/detections")
+DETECTION_TYPE = "vision_msgs/msg/Detection2DArray"
+#: node-level parameters the pipeline uses, with the nodes' defaults (a test keeps these
+#: equal to TrackerNodeConfig / DetectorNodeConfig, which live in rclpy modules)
+TRACKER_NODE_DEFAULTS = {"thermal_frame_id": "thermal_camera", "detection_buffer": 5,
+                         "detection_wait": 0.0, "class_id": "person"}
+DETECTOR_NODE_DEFAULTS = {"method": "kernel_covariance", "class_id": "person"}
+
+
+class PipelineError(ValueError):
+    """Bad options or an unusable bag (nothing to track, output exists, ...)."""
+
+
+# -- parameters files -----------------------------------------------------------------------
+
+def _flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(_flatten(value, name + "."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def read_node_parameters(paths: Iterable[str | Path], node_name: str) -> dict[str, Any]:
+    """Dotted parameters of ``node_name`` from ROS 2 parameter files (later files win).
+
+    Sections ``node_name``, ``/node_name`` and the wildcard ``/**`` are read.
+    """
+    import yaml
+
+    params: dict[str, Any] = {}
+    for path in paths:
+        p = Path(path)
+        try:
+            data = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise PipelineError(f"cannot read parameters file {p}: {exc}") from exc
+        if not isinstance(data, Mapping):
+            raise PipelineError(f"{p}: not a ROS 2 parameters file (top level is not a map)")
+        for section in ("/**", node_name, f"/{node_name}"):
+            node = data.get(section)
+            if isinstance(node, Mapping) and isinstance(node.get("ros__parameters"), Mapping):
+                params.update(_flatten(node["ros__parameters"]))
+    return params
+
+
+def split_parameters(params: Mapping[str, Any], configs: Mapping[str, Any]
+                     ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``(configs updated by their prefixed parameters, remaining node-level values)``.
+
+    ``configs`` maps a parameter prefix (``"tracker"``) to a default config; a parameter
+    whose first component is such a prefix is validated into it
+    (:func:`mk_tracker.parameters.updated`), the others are returned as node-level values.
+    """
+    out = dict(configs)
+    changes: dict[str, dict[str, Any]] = {k: {} for k in configs}
+    rest: dict[str, Any] = {}
+    for name, value in params.items():
+        head, _, tail = name.partition(".")
+        if head in configs and tail:
+            changes[head][tail] = value
+        else:
+            rest[name] = value
+    for prefix, config in configs.items():
+        known = {s.name for s in parameter_specs(config)}
+        usable = {k: v for k, v in changes[prefix].items() if k in known}
+        unknown = sorted(set(changes[prefix]) - known)
+        if unknown:
+            print(f"mk_tracker process: ignoring unknown parameter(s) "
+                  f"{', '.join(prefix + '.' + u for u in unknown)}", file=sys.stderr)
+        try:
+            out[prefix] = updated(config, usable)
+        except ParameterError as exc:
+            raise PipelineError(f"parameter {prefix}.{exc}") from exc
+    return out, rest
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Everything the pipeline takes from the parameter files."""
+
+    tracker: MultiObjectTrackerConfig = field(default_factory=MultiObjectTrackerConfig)
+    detector: ThermalDetectorConfig = field(default_factory=ThermalDetectorConfig)
+    threshold: ThresholdDetectorConfig = field(default_factory=ThresholdDetectorConfig)
+    method: str = DETECTOR_NODE_DEFAULTS["method"]
+    detector_class_id: str = DETECTOR_NODE_DEFAULTS["class_id"]
+    thermal_frame_id: str = TRACKER_NODE_DEFAULTS["thermal_frame_id"]
+    detection_buffer: int = TRACKER_NODE_DEFAULTS["detection_buffer"]
+    detection_wait: float = TRACKER_NODE_DEFAULTS["detection_wait"]
+    class_id: str = TRACKER_NODE_DEFAULTS["class_id"]
+
+
+def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
+                         include_defaults: bool = True) -> PipelineConfig:
+    """The package's ``config/*.yaml`` (when present) and then ``params_files``."""
+    files: list[Path] = []
+    if include_defaults:
+        files += [CONFIG_DIR / n for n in DEFAULT_PARAMS_FILES if (CONFIG_DIR / n).is_file()]
+    for p in params_files:
+        if not Path(p).is_file():
+            raise PipelineError(f"parameters file {p} does not exist")
+        files.append(Path(p))
+    det_cfgs, det_rest = split_parameters(
+        read_node_parameters(files, "detector_node"),
+        {"detector": ThermalDetectorConfig(), "threshold": ThresholdDetectorConfig()})
+    trk_cfgs, trk_rest = split_parameters(read_node_parameters(files, "tracker_node"),
+                                          {"tracker": MultiObjectTrackerConfig()})
+    try:
+        buffer = int(trk_rest.get("detection_buffer", TRACKER_NODE_DEFAULTS["detection_buffer"]))
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(f"detection_buffer: {exc}") from exc
+    if buffer < 1:
+        raise PipelineError(f"detection_buffer must be >= 1, got {buffer}")
+    try:
+        wait = float(trk_rest.get("detection_wait", TRACKER_NODE_DEFAULTS["detection_wait"]))
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(f"detection_wait: {exc}") from exc
+    if not (math.isfinite(wait) and 0.0 <= wait <= 2.0):
+        raise PipelineError(f"detection_wait must be in [0, 2] s, got {wait}")
+    config = PipelineConfig(
+        tracker=trk_cfgs["tracker"], detector=det_cfgs["detector"],
+        threshold=det_cfgs["threshold"],
+        method=str(det_rest.get("method", DETECTOR_NODE_DEFAULTS["method"])),
+        detector_class_id=str(det_rest.get("class_id", DETECTOR_NODE_DEFAULTS["class_id"])),
+        thermal_frame_id=str(trk_rest.get("thermal_frame_id",
+                                          TRACKER_NODE_DEFAULTS["thermal_frame_id"])),
+        detection_buffer=buffer,
+        detection_wait=wait,
+        class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])))
+    try:
+        build_detector(config.method, config.detector, config.threshold)
+        MultiObjectTracker(config.tracker)
+    except ValueError as exc:
+        raise PipelineError(f"parameters rejected: {exc}") from exc
+    return config
+
+
+# -- options and results --------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class PipelineOptions:
+    detections: str = "auto"                  # auto | thermal | none | topic:NAME
+    init_box: tuple[float, float, float, float] | None = None
+    init_from_gt: bool = False
+    init_gt_id: int | None = None
+    image_topic: str = IMAGE_TOPIC
+    thermal_topic: str = THERMAL_TOPIC
+    ground_truth_topic: str = GROUND_TRUTH_TOPIC
+    write_bag: bool = True
+    write_video: bool = True
+    write_plots: bool = True
+    storage: str = "mcap"
+    progress: bool = True
+    use_scene_homography: bool = True
+
+    @property
+    def single_target(self) -> bool:
+        return self.init_box is not None or self.init_from_gt
+
+
+@dataclass
+class PipelineResult:
+    """What one run produced; ``tracks`` maps an RGB stamp (ns) to ``[(id, box), ...]``."""
+
+    frames: int = 0
+    tracked_frames: int = 0
+    bad_frames: int = 0
+    bad_messages: int = 0
+    problems: list[str] = field(default_factory=list)
+    detection_source: str = "none"
+    detections: int = 0
+    detection_frames: int = 0
+    rejected_detector_frames: int = 0
+    unknown_frame_batches: int = 0
+    seconds: float = 0.0
+    track_ids: set = field(default_factory=set)
+    tracks: dict[int, list[tuple[int, tuple[float, float, float, float]]]] = \
+        field(default_factory=dict)
+    mot_rows: list[MotRow] = field(default_factory=list)
+    gt_rows: list[MotRow] = field(default_factory=list)
+    frame_stamps: list[int] = field(default_factory=list)
+    single_target_id: int | None = None
+    single_target_gt_id: int | None = None
+    metrics: dict[str, Any] = field(default_factory=dict)
+    files: dict[str, str] = field(default_factory=dict)
+    homography: tuple = IDENTITY_HOMOGRAPHY
+    video_frames: int = 0
+
+    def problem(self, text: str) -> None:
+        self.bad_messages += 1
+        if len(self.problems) < 50:
+            self.problems.append(text)
+        if len(self.problems) <= 10:
+            print(f"mk_tracker process: {text}", file=sys.stderr)
+
+
+def parse_box(text: str) -> tuple[float, float, float, float]:
+    """``"x,y,w,h"`` -> a valid box, or :class:`PipelineError`."""
+    try:
+        values = [float(v) for v in text.replace(" ", ",").split(",") if v]
+        b = as_box(values)
+    except (ValueError, InvalidBoxError) as exc:
+        raise PipelineError(f"--init needs x,y,w,h with w, h > 0, got {text!r}: {exc}") from exc
+    return float(b[0]), float(b[1]), float(b[2]), float(b[3])
+
+
+def choose_detection_source(option: str, topics: Mapping[str, Any], single_target: bool,
+                            thermal_topic: str = THERMAL_TOPIC) -> str:
+    """``"thermal"``, ``"none"`` or ``"topic:NAME"`` for the ``--detections`` option."""
+    if option == "auto":
+        if single_target:
+            return "none"
+        if thermal_topic in topics and topics[thermal_topic].count > 0:
+            return "thermal"
+        for name in DETECTION_TOPIC_CANDIDATES:
+            if (name in topics and topics[name].msgtype == DETECTION_TYPE
+                    and topics[name].count > 0):
+                return f"topic:{name}"
+        return "none"
+    if option == "thermal":
+        if thermal_topic not in topics:
+            raise PipelineError(f"--detections thermal: the bag has no {thermal_topic}")
+        return "thermal"
+    if option == "none":
+        return "none"
+    if option.startswith("topic:"):
+        name = option[len("topic:"):]
+        if name not in topics:
+            raise PipelineError(f"--detections {option}: the bag has no topic {name}")
+        if topics[name].msgtype != DETECTION_TYPE:
+            raise PipelineError(f"--detections {option}: {name} is a {topics[name].msgtype}, "
+                                f"not a {DETECTION_TYPE}")
+        return option
+    raise PipelineError(f"--detections must be auto, thermal, none or topic:NAME, got "
+                        f"{option!r}")
+
+
+def _scene_homography(msg: Any) -> tuple | None:
+    try:
+        info = json.loads(msg.data)
+        h = np.asarray(info["homography"], dtype=float).reshape(9)
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return None
+    return tuple(float(v) for v in h) if np.all(np.isfinite(h)) else None
+
+
+def _median_fps(stamps_ns: Sequence[int], default: float = 10.0) -> float:
+    if len(stamps_ns) < 2:
+        return default
+    d = np.diff(np.asarray(stamps_ns, dtype=np.int64)) / 1e9
+    d = d[d > 0]
+    if d.size == 0:
+        return default
+    fps = 1.0 / float(np.median(d))
+    return fps if math.isfinite(fps) and 0.1 <= fps <= 1000 else default
+
+
+# -- the run --------------------------------------------------------------------------------
+
+_ORDER_SCENE, _ORDER_DETECTION, _ORDER_TRUTH, _ORDER_IMAGE, _ORDER_OTHER = range(5)
+
+
+class _Run:
+    """State of one pipeline run (see :func:`process_bag`)."""
+
+    def __init__(self, bag: Path, out: Path, config: PipelineConfig, options: PipelineOptions):
+        self.bag, self.out, self.config, self.options = bag, out, config, options
+        self.result = PipelineResult()
+        self.tracker: MultiObjectTracker | None = None
+        self.tracker_config = config.tracker
+        self.detector = None
+        self.detections = DetectionBuffer(config.detection_buffer, config.detection_wait)
+        #: RGB images held back for their detections: (message or None when undecodable,
+        #: bag time ns, stamp s, bag time s when read)
+        self.pending: deque[tuple[Any, int, float, float]] = deque()
+        self.now = 0.0                   # bag time (s) of the message being handled
+        self.truth_by_stamp: dict[int, list[Detection]] = {}
+        self.first_truth: dict[int, tuple[int, tuple]] = {}   # gt id -> (stamp, box)
+        self.pending_start: tuple | None = options.init_box
+        self.video = None
+        self.writer: BagWriter | None = None
+        self.types = None
+        self.last_detector_stamp: float | None = None
+
+    # per-topic handlers ------------------------------------------------------------------
+    def scene_info(self, msg: Any) -> None:
+        h = _scene_homography(msg)
+        if (h is not None and self.options.use_scene_homography
+                and tuple(self.tracker_config.homography) == IDENTITY_HOMOGRAPHY
+                and self.tracker is None):
+            self.tracker_config = replace(self.tracker_config, homography=h)
+
+    def thermal_image(self, msg: Any) -> None:
+        r = self.result
+        try:
+            frame = thermal_input(msg)
+        except ImageConversionError as exc:
+            r.problem(f"skipping a thermal image: {exc}")
+            return
+        stamp = stamp_to_seconds(msg.header.stamp)
+        try:
+            found = self.detector.process(frame, stamp, encoding=msg.encoding)
+        except ValueError as exc:
+            r.rejected_detector_frames += 1
+            r.problem(f"detector skipped a frame: {exc}")
+            return
+        reason = skipped_reason(self.detector)
+        if reason:
+            r.rejected_detector_frames += 1
+            r.problem(f"detector skipped the frame of stamp {stamp:.3f}: {reason}")
+        dets, errors = detector_outputs(found, self.config.detector_class_id)
+        for e in errors:
+            r.problem(e)
+        r.detection_frames += 1
+        r.detections += len(dets)
+        if self.writer is not None:
+            self.writer.write(DETECTIONS_OUT_TOPIC, stamp_to_nanoseconds(msg.header.stamp),
+                              make_detection_array(dets, msg.header, self.types))
+        self.detections.add(DetectionBatch(stamp, msg.header.frame_id, dets), self.now)
+
+    def detection_message(self, msg: Any) -> None:
+        try:
+            dets, skipped = read_detection_array(msg, on_error="skip")
+            stamp = stamp_to_seconds(msg.header.stamp)
+        except (DetectionMessageError, ValueError, AttributeError) as exc:
+            self.result.problem(f"skipping a detections message: {exc}")
+            return
+        if skipped:
+            self.result.problem(f"skipped {skipped} bad detection(s) in a message")
+        self.result.detection_frames += 1
+        self.result.detections += len(dets)
+        self.detections.add(DetectionBatch(stamp, msg.header.frame_id, dets), self.now)
+
+    def ground_truth(self, msg: Any) -> None:
+        try:
+            dets, _ = read_detection_array(msg, on_error="skip")
+            ns = stamp_to_nanoseconds(msg.header.stamp)
+        except (DetectionMessageError, ValueError, AttributeError) as exc:
+            self.result.problem(f"skipping a ground-truth message: {exc}")
+            return
+        self.truth_by_stamp[ns] = dets
+
+    def _start_single_target(self, bgr: np.ndarray, stamp: float, ns: int,
+                             truth: list[Detection]) -> None:
+        opts = self.options
+        box = None
+        if opts.init_box is not None and self.pending_start is not None:
+            box = self.pending_start
+            if truth:
+                best = max(truth, key=lambda d: iou(d.box, box))
+                if iou(best.box, box) > 0 and best.id.lstrip("-").isdigit():
+                    self.result.single_target_gt_id = int(best.id)
+        elif opts.init_from_gt and self.pending_start is None:
+            wanted = [d for d in truth if d.id.lstrip("-").isdigit()
+                      and (opts.init_gt_id is None or int(d.id) == opts.init_gt_id)]
+            if wanted:
+                first = min(wanted, key=lambda d: int(d.id)) if opts.init_gt_id is None \
+                    else wanted[0]
+                box = first.box
+                self.result.single_target_gt_id = int(first.id)
+        if box is None:
+            return
+        try:
+            self.result.single_target_id = self.tracker.start_track(bgr, stamp, box)
+        except ValueError as exc:
+            raise PipelineError(f"cannot start the target on {box}: {exc}") from exc
+        self.pending_start = ()   # started (an empty tuple: never again)
+
+    def new_frame(self, ns: int) -> tuple[int, list[Detection]]:
+        """Count an RGB frame (good or bad) and bind its ground truth to its number, so a
+        skipped frame's people count as misses and later frames keep their numbers."""
+        r = self.result
+        r.frames += 1
+        truth = self.truth_by_stamp.pop(ns, [])
+        for d in truth:
+            if d.id.lstrip("-").isdigit():
+                r.gt_rows.append(MotRow(r.frames, int(d.id), d.box))
+        return r.frames, truth
+
+    def rgb_image(self, msg: Any | None, timestamp_ns: int) -> None:
+        """Queue an RGB image (None: an undecodable one) for tracking, in bag order."""
+        try:
+            stamp = stamp_to_seconds(msg.header.stamp)
+        except (AttributeError, TypeError, ValueError):
+            stamp = timestamp_ns * 1e-9
+        self.pending.append((msg, timestamp_ns, stamp, self.now))
+
+    def release_images(self, final: bool = False) -> None:
+        """Track the queued images whose detections are in (or whose wait is over)."""
+        while self.pending:
+            msg, timestamp_ns, stamp, since = self.pending[0]
+            if (not final and msg is not None and self.now - since < self.detections.wait
+                    and self.detections.waiting(stamp, self.now)):
+                return
+            self.pending.popleft()
+            if msg is None:
+                self.new_frame(timestamp_ns)
+                self.result.bad_frames += 1
+            else:
+                self._track_image(msg, timestamp_ns)
+
+    def _track_image(self, msg: Any, timestamp_ns: int) -> None:
+        r = self.result
+        try:
+            ns = stamp_to_nanoseconds(msg.header.stamp)
+        except (AttributeError, TypeError, ValueError):
+            ns = timestamp_ns
+        frame_no, truth = self.new_frame(ns)
+        try:
+            bgr = tracker_input(msg)
+        except ImageConversionError as exc:
+            r.bad_frames += 1
+            r.problem(f"skipping image #{frame_no}: {exc}")
+            return
+        stamp = stamp_to_seconds(msg.header.stamp)
+        if self.tracker is None:
+            try:
+                self.tracker = MultiObjectTracker(self.tracker_config)
+            except TrackerInputError as exc:
+                raise PipelineError(f"tracker configuration rejected: {exc}") from exc
+            r.homography = tuple(self.tracker_config.homography)
+        discarded = self.detections.discarded
+        dets, unknown = tracker_inputs(self.detections.take(stamp), msg.header.frame_id,
+                                       self.config.thermal_frame_id)
+        if self.detections.discarded > discarded:
+            r.problem(f"image #{frame_no}: time went backwards; dropped "
+                      f"{self.detections.discarded - discarded} detection message(s) of the "
+                      f"old time line")
+        for frame_id in unknown:
+            r.unknown_frame_batches += 1
+            r.problem(f"skipping detections in unknown frame {frame_id!r} (image frame "
+                      f"{msg.header.frame_id!r}, thermal_frame_id "
+                      f"{self.config.thermal_frame_id!r})")
+        try:
+            if self.options.single_target and self.pending_start != ():
+                self._start_single_target(bgr, stamp, ns, truth)
+            result = self.tracker.step(bgr, stamp, dets)
+        except (TrackerInputError, ValueError) as exc:
+            if isinstance(exc, PipelineError):
+                raise
+            r.bad_frames += 1
+            r.problem(f"tracker rejected image #{frame_no}: {exc}")
+            return
+        r.tracked_frames += 1
+        r.frame_stamps.append(ns)
+        reported = result.reported()
+        published = tracks_to_detections(reported, self.config.class_id)
+        r.tracks[ns] = [(int(d.id), d.box) for d in published]
+        for d in published:
+            r.track_ids.add(int(d.id))
+            r.mot_rows.append(MotRow(frame_no, int(d.id), d.box, d.score))
+        if self.writer is not None:
+            self.writer.write(TRACKS_TOPIC, timestamp_ns,
+                              make_detection_array(published, msg.header, self.types))
+        if self.video is not None:
+            canvas = tracker_debug_image(
+                bgr, [t for t in reported], kernel_drawings(result), dets,
+                self.tracker.homography, [f"frame {frame_no}  tracks {len(published)}"],
+                ground_truth=[d.box for d in truth])
+            self.video.write(canvas)
+
+
+def _order(topic: str, options: PipelineOptions, source: str) -> int:
+    if topic == SCENE_INFO_TOPIC:
+        return _ORDER_SCENE
+    if (source == "thermal" and topic == options.thermal_topic) or \
+            (source.startswith("topic:") and topic == source[6:]):
+        return _ORDER_DETECTION
+    if topic == options.ground_truth_topic:
+        return _ORDER_TRUTH
+    if topic == options.image_topic:
+        return _ORDER_IMAGE
+    return _ORDER_OTHER
+
+
+def _grouped(messages: Iterable[Any]) -> Iterable[list[Any]]:
+    group: list[Any] = []
+    for m in messages:
+        if group and m.timestamp_ns != group[0].timestamp_ns:
+            yield group
+            group = []
+        group.append(m)
+    if group:
+        yield group
+
+
+def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None = None,
+                options: PipelineOptions | None = None) -> PipelineResult:
+    """Run detection and tracking over ``bag``, writing the outputs into ``out``."""
+    from mk_tracker.drawing.video_output import VideoOutput
+
+    config = config or load_pipeline_config()
+    options = options or PipelineOptions()
+    bag, out = Path(bag), Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if options.write_bag and (out / "bag").exists():
+        raise PipelineError(f"{out / 'bag'} exists already; choose another --out")
+    try:
+        reader = open_bag(bag, on_error="skip")
+    except BagError as exc:
+        raise PipelineError(str(exc)) from exc
+    run = _Run(bag, out, config, options)
+    r = run.result
+    t0 = time.perf_counter()
+    with reader:
+        for text in reader.problems:
+            r.problem(f"bag: {text}")
+        topics = reader.topics
+        if options.image_topic not in topics:
+            raise PipelineError(f"{bag}: no {options.image_topic} topic to track in (topics: "
+                                f"{', '.join(sorted(topics))})")
+        source = choose_detection_source(options.detections, topics, options.single_target,
+                                         options.thermal_topic)
+        r.detection_source = source
+        if source == "thermal":
+            run.detector = build_detector(config.method, config.detector, config.threshold)
+        has_truth = (options.ground_truth_topic in topics
+                     and topics[options.ground_truth_topic].count > 0)
+        if options.init_from_gt and not has_truth:
+            raise PipelineError(f"--init-from-gt: the bag has no {options.ground_truth_topic}")
+        if options.write_bag:
+            run.writer = BagWriter(out / "bag", storage=options.storage,
+                                   typestore=reader.typestore)
+            run.writer.open()
+            run.types = bag_message_types(reader.typestore)
+            for t in topics.values():
+                if t.msgtype and t.name not in (TRACKS_TOPIC,) and not (
+                        source == "thermal" and t.name == DETECTIONS_OUT_TOPIC):
+                    run.writer.add_topic(t.name, t.msgtype)
+            if source == "thermal":
+                run.writer.add_topic(DETECTIONS_OUT_TOPIC, DETECTION_TYPE)
+            run.writer.add_topic(TRACKS_TOPIC, DETECTION_TYPE)
+        image_stamps = []
+        if options.write_video:
+            # the frame rate from the first frames (raw messages, nothing deserialized)
+            image_stamps = [m.timestamp_ns for m in
+                            itertools.islice(reader.messages([options.image_topic]), 25)]
+            run.video = VideoOutput(out / "video.mp4", fps=_median_fps(image_stamps))
+        total = reader.message_count
+        bar = None
+        if options.progress:
+            from tqdm import tqdm
+            bar = tqdm(total=total, desc=f"processing {bag.name}", unit="msg",
+                       file=sys.stderr)
+        try:
+            for group in _grouped(reader.messages()):
+                group.sort(key=lambda m: _order(m.topic, options, source))
+                for m in group:
+                    run.now = m.timestamp_ns * 1e-9
+                    try:
+                        _handle(run, reader, m, source)
+                        run.release_images()
+                    except PipelineError:
+                        raise
+                    except Exception as exc:  # like the nodes' frame workers: log, go on
+                        r.problem(f"processing a {m.topic} message failed "
+                                  f"({type(exc).__name__}: {exc}); message skipped")
+                if bar is not None:
+                    bar.update(len(group))
+            while run.pending:                # the bag has ended: no detection will come
+                try:
+                    run.release_images(final=True)
+                except PipelineError:
+                    raise
+                except Exception as exc:
+                    r.problem(f"processing an image failed ({type(exc).__name__}: {exc}); "
+                              f"image skipped")
+        finally:
+            if bar is not None:
+                bar.close()
+            if run.writer is not None:
+                run.writer.close()
+            if run.video is not None:
+                run.video.close()
+                r.video_frames = run.video.frames
+        for text in reader.problems[len(r.problems):]:
+            r.problem(f"bag: {text}")
+    r.seconds = time.perf_counter() - t0
+    _finish(run, has_truth)
+    return r
+
+
+def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
+    opts = run.options
+    topic = m.topic
+    if run.writer is not None and topic in run.writer.counts:
+        try:
+            run.writer.write_raw(topic, m.timestamp_ns, m.data)
+        except BagError as exc:
+            run.result.problem(f"cannot copy a {topic} message: {exc}")
+    wanted = {SCENE_INFO_TOPIC, opts.ground_truth_topic, opts.image_topic}
+    if source == "thermal":
+        wanted.add(opts.thermal_topic)
+    elif source.startswith("topic:"):
+        wanted.add(source[6:])
+    if topic not in wanted:
+        return
+    try:
+        msg = reader.deserialize(m)
+    except BagError as exc:
+        if topic == opts.image_topic:   # no header to read: the bag time is the stamp
+            run.rgb_image(None, m.timestamp_ns)
+        run.result.problem(f"undecodable message: {exc}")
+        return
+    if topic == SCENE_INFO_TOPIC:
+        run.scene_info(msg)
+    elif topic == opts.image_topic:
+        run.rgb_image(msg, m.timestamp_ns)
+    elif topic == opts.ground_truth_topic:
+        run.ground_truth(msg)
+    elif source == "thermal":
+        run.thermal_image(msg)
+    else:
+        run.detection_message(msg)
+
+
+def _finish(run: _Run, has_truth: bool) -> None:
+    from mk_tracker.evaluation.error_plots import (ErrorPlotError, mot_frame_errors, plot_mot_errors,
+                                        plot_single_target_errors)
+
+    r, out, opts = run.result, run.out, run.options
+    write_mot_file(out / "tracks.txt", r.mot_rows)
+    r.files["tracks"] = str(out / "tracks.txt")
+    if opts.write_bag:
+        r.files["bag"] = str(out / "bag")
+    if opts.write_video and r.video_frames:
+        r.files["video"] = str(out / "video.mp4")
+    if has_truth and r.frames:
+        # the ground truth as a MOTChallenge file: ``mk_tracker eval --gt gt.txt tracks.txt``
+        # scores any result of this bag the same way
+        write_mot_file(out / "gt.txt", r.gt_rows)
+        r.files["ground_truth"] = str(out / "gt.txt")
+        if opts.single_target:
+            tid, gid = r.single_target_id, r.single_target_gt_id
+            predicted = [None] * r.frames
+            for row in r.mot_rows:
+                if row.id == tid:
+                    predicted[row.frame - 1] = row.box
+            truth = [None] * r.frames
+            for row in r.gt_rows:
+                if row.id == gid:
+                    truth[row.frame - 1] = row.box
+            if gid is not None and any(b is not None for b in truth):
+                # OTB-style box lists for ``mk_tracker eval --single-target``
+                _write_box_list(out / "target.txt", predicted)
+                _write_box_list(out / "target_gt.txt", truth)
+                r.files["target"] = str(out / "target.txt")
+                r.files["target_ground_truth"] = str(out / "target_gt.txt")
+                r.metrics = single_target_metrics(predicted, truth)
+                r.metrics["target_id"], r.metrics["ground_truth_id"] = tid, gid
+                if opts.write_plots:
+                    plot_single_target_errors(center_errors(predicted, truth),
+                                              overlaps(predicted, truth),
+                                              out / "errors.png",
+                                              title=f"{run.bag.name}: target {gid}")
+                    r.files["plot"] = str(out / "errors.png")
+        else:
+            frames = list(range(1, r.frames + 1))
+            r.metrics = mot_metrics(r.gt_rows, r.mot_rows)
+            if opts.write_plots:
+                acc = mot_accumulator(r.gt_rows, r.mot_rows, frames=frames)
+                try:
+                    plot_mot_errors(mot_frame_errors(acc), out / "errors.png",
+                                    title=f"{run.bag.name}: per-frame errors")
+                    r.files["plot"] = str(out / "errors.png")
+                except ErrorPlotError as exc:
+                    r.problem(f"no error plot: {exc}")
+    summary = {
+        "bag": str(run.bag), "detection_source": r.detection_source,
+        "frames": r.frames, "tracked_frames": r.tracked_frames, "bad_frames": r.bad_frames,
+        "bad_messages": r.bad_messages, "problems": r.problems,
+        "detections": r.detections, "detection_frames": r.detection_frames,
+        "rejected_detector_frames": r.rejected_detector_frames,
+        "unknown_frame_batches": r.unknown_frame_batches,
+        "tracks": len(r.track_ids), "video_frames": r.video_frames,
+        "seconds": round(r.seconds, 3),
+        "frames_per_second": round(r.frames / r.seconds, 2) if r.seconds > 0 else None,
+        "homography": list(r.homography), "metrics": r.metrics, "files": r.files,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    r.files["summary"] = str(out / "summary.json")
+
+
+def _write_box_list(path: Path, boxes: Sequence[Sequence[float] | None]) -> None:
+    """One ``x,y,w,h`` line per frame (``nan,nan,nan,nan`` without a box), the OTB layout
+    :func:`mk_tracker.evaluation.metrics.read_box_list` reads."""
+    lines = ["nan,nan,nan,nan" if b is None else ",".join(f"{float(v):.2f}" for v in b)
+             for b in boxes]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def format_metrics(metrics: Mapping[str, Any]) -> str:
+    """One line of scores (ratios as percentages)."""
+    parts = []
+    for k, v in metrics.items():
+        if isinstance(v, float) and k in ("mota", "motp", "idf1", "idp", "idr", "precision",
+                                          "recall", "precision_at_20px", "success_auc"):
+            parts.append(f"{k} {100 * v:.1f}%")
+        elif isinstance(v, float):
+            parts.append(f"{k} {v:.2f}")
+        else:
+            parts.append(f"{k} {v}")
+    return ", ".join(parts)
+
+
+# -- command line ---------------------------------------------------------------------------
+
+def configure_parser(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bag", type=Path, help="rosbag2 bag (directory or .mcap/.db3)")
+    parser.add_argument("--out", type=Path, required=True, help="output directory")
+    parser.add_argument("--detections", default="auto", metavar="SOURCE",
+                        help="auto | thermal | none | topic:NAME (default auto)")
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--init", metavar="X,Y,W,H", default=None,
+                       help="single target: start a track on this box in the first frame")
+    group.add_argument("--init-from-gt", nargs="?", const=-1, type=int, default=None,
+                       metavar="ID", help="single target: start on the first ground-truth "
+                       "box (of ID, default the first one in the bag)")
+    parser.add_argument("--params-file", action="append", default=[], type=Path,
+                        help="ROS 2 parameters YAML (repeatable; after config/*.yaml)")
+    parser.add_argument("--image-topic", default=IMAGE_TOPIC)
+    parser.add_argument("--thermal-topic", default=THERMAL_TOPIC)
+    parser.add_argument("--ground-truth-topic", default=GROUND_TRUTH_TOPIC)
+    parser.add_argument("--no-scene-homography", action="store_true",
+                        help="do not take the homography from /scene_info")
+    parser.add_argument("--no-video", action="store_true", help="do not write video.mp4")
+    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def options_from_args(args: argparse.Namespace) -> PipelineOptions:
+    init_box = parse_box(args.init) if args.init else None
+    from_gt = args.init_from_gt is not None
+    gt_id = args.init_from_gt if from_gt and args.init_from_gt >= 0 else None
+    return PipelineOptions(detections=args.detections, init_box=init_box, init_from_gt=from_gt,
+                           init_gt_id=gt_id, image_topic=args.image_topic,
+                           thermal_topic=args.thermal_topic,
+                           ground_truth_topic=args.ground_truth_topic,
+                           write_video=not args.no_video, storage=args.storage,
+                           progress=not args.quiet,
+                           use_scene_homography=not args.no_scene_homography)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        options = options_from_args(args)
+        config = load_pipeline_config(args.params_file)
+        result = process_bag(args.bag, args.out, config, options)
+    except (PipelineError, BagError, ParameterError) as exc:
+        print(f"mk_tracker process: {exc}", file=sys.stderr)
+        return 2
+    fps = result.frames / result.seconds if result.seconds > 0 else float("nan")
+    print(f"processed {result.frames} frames ({result.bad_frames} bad, "
+          f"{result.bad_messages} bad messages) in {result.seconds:.1f} s ({fps:.1f} fps); "
+          f"detections: {result.detection_source} ({result.detections}); "
+          f"{len(result.track_ids)} track ids")
+    if result.metrics:
+        print("scores: " + format_metrics(result.metrics))
+    for name, path in result.files.items():
+        print(f"  {name}: {path}")
+    return 0

@@ -1,0 +1,916 @@
+"""Multi-object tracker: Kalman filtering + multiple-kernel refinement + detection association.
+
+This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
+:meth:`MultiObjectTracker.step` per RGB frame does, in order:
+
+1. **Input checks.**  A time stamp that goes backwards (a bag played in a loop) resets the
+   tracker and says so in ``events``; so does a frame whose size differs from the previous
+   one (a camera that changed resolution: the old boxes mean nothing in the new frame), and
+   the tracker then tracks at the new size (``resets`` counts both, ``totals["size_resets"]``
+   the latter).
+2. **Detections to the frame.**  Each detection carries a box, a score, a stamp and an image
+   plane.  Thermal-plane boxes are mapped into the RGB plane by the configured 3x3 homography
+   (:func:`mk_tracker.boxes.transform_box`); boxes with NaN or non-positive sizes, or
+   entirely outside the image, are skipped and counted; detections whose stamp differs from
+   the frame's by more than ``stale_tolerance`` are dropped and counted; the others are
+   brought to the frame time with each track's Kalman velocity (constant-velocity model
+   (2.1)-(2.2) of Schizas et al. 2018).
+3. **Prediction.**  Every track's Kalman filter is advanced to the frame time, (4.2)-(4.3).
+4. **Association** (:mod:`mk_tracker.tracking.association`): Hungarian assignment of detections to
+   tentative/confirmed/occluded tracks on overlap + Kalman-gated distance; then the
+   remaining detections (and those of still-tentative tracks) against *lost* tracks, where
+   the appearance model must also match (re-acquisition with the old id).  Remaining
+   detections start tentative tracks.
+5. **Multiple-kernel refinement** (Chu et al. 2013, Sec. IV-D): for each confirmed or
+   occluded track with an appearance model and no detection this frame (or every such track
+   with ``refine_when_detected``), the Kalman prediction initialises the multiple-kernel
+   search whose result is a Kalman measurement.  Its visibility statistic
+   (``lifecycle.visibility_statistic``: the plain mean of the kernel similarities or
+   ``sum_i W_i rho_i / N``, :func:`mk_tracker.tracking.multi_kernel.visibility_similarity`) sets the
+   measurement noise (:func:`mk_tracker.tracking.track.measurement_sigma`) and, below
+   ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).  Tracks started
+   by hand (:meth:`MultiObjectTracker.start_track`) use the settings of
+   :class:`ManualTrackConfig` instead (their own refiner, Kalman prior and visibility), and
+   a result of theirs that sees the target with one kernel column only is searched again
+   half a box width towards the seeing column (``MultiObjectTracker._refine``).
+6. **Update and lifecycle** (:mod:`mk_tracker.tracking.track`).
+
+The refiner is any object with ``start(image, box) -> target``,
+``refine(image, target, predicted_center=None) -> result`` (with ``box``, ``similarity``
+and ``lost``) and ``appearance_similarity(image, target, box) -> float``:
+:class:`mk_tracker.tracking.multi_kernel.MultiKernelTracker` in production, a fake in unit tests.
+Per-frame work is proportional to the number of tracks; pixels are only touched by the
+refiner, inside each target's search region.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Iterable, Protocol, Sequence
+
+import numpy as np
+
+from mk_tracker.tracking.association import (AssociationConfig, assign, association_cost,
+                                    mahalanobis_matrix)
+from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
+from mk_tracker.kalman import KalmanConfig
+from mk_tracker.tracking.kernel_layouts import COLUMN_SPACING, column_best, column_coverage, has_columns
+from mk_tracker.tracking.multi_kernel import (SUPPORTED_KERNEL_COUNTS, VISIBILITY_STATISTICS,
+                                     MultiKernelConfig, MultiKernelTracker,
+                                     visibility_similarity)
+from mk_tracker.parameters import ParameterError, parameter, validate_config
+from mk_tracker.stamps import checked_stamp
+from mk_tracker.tracking.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
+                              next_state)
+
+IDENTITY_HOMOGRAPHY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+PLANES = ("rgb", "thermal")
+
+
+class TrackerInputError(ValueError):
+    """An input the tracker cannot use at all (not an image, singular homography, ...)."""
+
+
+@dataclass(frozen=True)
+class ManualTrackConfig:
+    """Settings of tracks started by hand (:meth:`MultiObjectTracker.start_track`: the node's
+    ``initial_box`` and ``~/start_track``, ``mk_tracker process --init-from-gt``).
+
+    Such a track follows one person with no detector to correct it (the single-target
+    protocol of Chu et al. 2013, Sec. V), so the multiple-kernel refinement from the Kalman
+    prediction (Sec. IV-D) is its only measurement.  The defaults for tracks born from
+    detections were chosen for the multi-object benchmark, where a detection corrects the
+    track every frame; here they fail (docs/benchmark_single_target.md, "Findings"):
+
+    * a velocity prior of 50 px/s (``kalman.initial_velocity_var`` 2500) is far below the
+      ~250 px/s at which the TUD-Campus people walk, so the filter has not learnt the speed
+      when it first has to coast;
+    * on real video a matching target scores 0.45-0.65 (plain mean), below the 0.6 of
+      ``lifecycle.occlusion_similarity``, so the track coasts while in plain view;
+    * with one kernel hidden (legs behind a wall) the plain mean halves although the other
+      kernel places the target (hence the ``weighted`` visibility statistic);
+    * the refinement's similarity was mapped to a measurement quality of ~0 (range
+      0.5-0.95, times 0.5 without a detection), so the filter ignored its only measurement
+      and drifted behind a walking person on its own velocity;
+    * two stacked kernels give no left/right structure once the legs are hidden;
+    * a two-column box can settle with one column on the person's half whose colours look
+      like the other half and the other column on background, which the weighted
+      visibility still calls visible (hence ``column_recentre``).
+    * with no detector to come back with, such a track is never lost by coasting time, so a
+      coasting prediction extrapolated the last velocity until the box left the image
+      (hence ``max_coast_position_std``: once the predicted centre's std exceeds the
+      search's reach the track holds its position, :meth:`Track.hold_if_uncertain`).
+
+    Every field replaces one field of the tracker's ``kalman`` / ``lifecycle`` /
+    ``multi_kernel`` sections for these tracks only; the rest of those sections applies to
+    them unchanged.
+    """
+
+    initial_velocity_var: float = parameter(
+        4.0e4, "Initial variance of the velocity of a track started by hand, (px/s)^2 "
+        "(replaces kalman.initial_velocity_var: a walking person may move at ~250 px/s)",
+        minimum=1e-9, maximum=1e12)
+    occlusion_similarity: float = parameter(
+        0.4, "Visibility statistic below which a track started by hand is occluded "
+        "(replaces lifecycle.occlusion_similarity)", minimum=0.0, maximum=1.0)
+    visibility_statistic: str = parameter(
+        "weighted", "Visibility statistic of a track started by hand: mean or weighted "
+        "(replaces lifecycle.visibility_statistic)", choices=VISIBILITY_STATISTICS)
+    refinement_similarity_range: tuple = parameter(
+        (0.2, 0.8), "Visibility statistics (low, high) mapped linearly to match quality 0..1 "
+        "for a track started by hand (replaces refinement_similarity_range: its refinement "
+        "is its only measurement, and on real video a matching target scores 0.45-0.65)")
+    undetected_quality_factor: float = parameter(
+        1.0, "Factor on the refinement's quality of a track started by hand in frames "
+        "without a detection (replaces undetected_quality_factor)", minimum=0.0, maximum=1.0)
+    num_kernels: int = parameter(
+        6, "Kernels of a track started by hand (replaces multi_kernel.num_kernels; 6 = 3 rows "
+        "x 2 columns, Fig. 14b: left/right structure that still places a person whose legs "
+        "are hidden)", choices=SUPPORTED_KERNEL_COUNTS)
+    scale_gate_statistic: str = parameter(
+        "mean", "Scale gate statistic of a track started by hand (replaces "
+        "multi_kernel.scale_gate_statistic; with 6 small kernels the minimum is almost never "
+        "above the gate, so the scale would never follow)", choices=("mean", "min"))
+    scale_similarity_gate: float = parameter(
+        0.7, "Scale gate of a track started by hand (replaces "
+        "multi_kernel.scale_similarity_gate)", minimum=0.0, maximum=1.0)
+    column_recentre: bool = parameter(
+        True, "When the search of a track started by hand sees the target with one kernel "
+        "column only (the other below min_column_similarity), also search from the box "
+        "moved 0.45 w towards the seeing column and keep that result if both its columns "
+        "see the target (a two-column box locked half on the person, half on background)")
+    min_column_similarity: float = parameter(
+        0.2, "A kernel column of a track started by hand sees the target when one of its "
+        "kernels has at least this similarity (column_coverage; 0.2 = the low end of "
+        "refinement_similarity_range, no information; 0 = column_recentre never runs)",
+        minimum=0.0, maximum=1.0)
+    max_coast_position_std: float = parameter(
+        1.0, "A coasting track started by hand stops extrapolating its velocity once the std "
+        "of its predicted centre exceeds this many box widths: it holds that position (box "
+        "still, reported velocity 0, state occluded) and keeps searching from it until the "
+        "refinement sees the target again.  1 = the reach of the search (the start box "
+        "grown by multi_kernel.search_margin 0.5 on each side spans 1 box width either side "
+        "of the predicted centre); 0 = extrapolate until the box leaves the image",
+        minimum=0.0, maximum=100.0)
+
+
+def manual_track_kalman(config: "MultiObjectTrackerConfig") -> KalmanConfig:
+    """The Kalman settings of a track started by hand."""
+    m = config.manual_track
+    return replace(config.kalman, initial_velocity_var=m.initial_velocity_var)
+
+
+def manual_track_lifecycle(config: "MultiObjectTrackerConfig") -> LifecycleConfig:
+    """The lifecycle settings of a track started by hand."""
+    m = config.manual_track
+    return replace(config.lifecycle, occlusion_similarity=m.occlusion_similarity,
+                   visibility_statistic=m.visibility_statistic)
+
+
+def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernelConfig:
+    """The multiple-kernel settings of a track started by hand."""
+    m = config.manual_track
+    return replace(config.multi_kernel, num_kernels=m.num_kernels,
+                   scale_gate_statistic=m.scale_gate_statistic,
+                   scale_similarity_gate=m.scale_similarity_gate)
+
+
+@dataclass(frozen=True)
+class MultiObjectTrackerConfig:
+    """Every constant of the multi-object tracker (nested configs flatten with dots)."""
+
+    kalman: KalmanConfig = parameter(KalmanConfig(), "Constant-velocity Kalman filter")
+    association: AssociationConfig = parameter(AssociationConfig(),
+                                               "Detection-to-track assignment")
+    lifecycle: LifecycleConfig = parameter(LifecycleConfig(), "Track states and smoothing")
+    multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
+                                                "Multiple-kernel refinement (Chu et al. 2013)")
+    manual_track: ManualTrackConfig = parameter(
+        ManualTrackConfig(), "Tracks started by hand (initial_box, ~/start_track): their own "
+        "Kalman, visibility and kernel settings")
+    use_multi_kernel: bool = parameter(
+        True, "Refine every confirmed/occluded track with the multiple-kernel tracker "
+        "(Sec. IV-D); false = detections and Kalman prediction only")
+    homography: tuple = parameter(
+        IDENTITY_HOMOGRAPHY, "Row-major 3x3 homography mapping thermal pixels to RGB pixels")
+    stale_tolerance: float = parameter(
+        0.5, "Detections whose stamp differs from the frame's by more than this many seconds "
+        "are dropped", minimum=0.0, maximum=1e4)
+    backwards_tolerance: float = parameter(
+        1e-6, "A frame stamp earlier than the previous one by more than this (s) resets the "
+        "tracker", minimum=0.0, maximum=1e4)
+    min_detection_score: float = parameter(
+        -1e9, "Detections with a lower score are ignored", minimum=-1e12, maximum=1e12)
+    new_track_score: float = parameter(
+        0.0, "A detection needs at least this score to start a track", minimum=-1e12,
+        maximum=1e12)
+    new_track_max_iou: float = parameter(
+        0.6, "An unassigned detection overlapping a live track by more than this IoU does "
+        "not start a new track (duplicate)", minimum=0.0, maximum=1.0)
+    refine_consistency_iou: float = parameter(
+        0.3, "A refinement is fused with the assigned detection only if their boxes overlap "
+        "by at least this IoU", minimum=0.0, maximum=1.0)
+    reacquire_gate: float = parameter(
+        13.8, "Chi-square gate (2 dof) for a detection to re-acquire a lost track",
+        minimum=0.1, maximum=1e4)
+    reacquire_similarity: float = parameter(
+        0.4, "Appearance similarity a detection needs to re-acquire a lost track",
+        minimum=0.0, maximum=1.0)
+    reacquire_distance_weight: float = parameter(
+        0.5, "Weight of the gated distance (d2 / gate) next to 1 - appearance similarity in "
+        "the re-acquisition cost", minimum=0.0, maximum=100.0)
+    reacquire_hold_time: float = parameter(
+        0.6, "A new track on a detection inside a lost track's gate stays tentative for up "
+        "to this many seconds, so the lost person can take its id back once its appearance "
+        "matches (it may come back part-occluded)", minimum=0.0, maximum=1e4)
+    reacquire_max_size_ratio: float = parameter(
+        1.6, "Largest height ratio between a lost track and a re-acquiring detection",
+        minimum=1.0, maximum=100.0)
+    refinement_similarity_range: tuple = parameter(
+        (0.5, 0.95), "Multiple-kernel similarities (low, high) mapped linearly to match "
+        "quality 0..1; the quality sets the refinement's measurement noise")
+    refine_when_detected: bool = parameter(
+        False, "Also run the multiple-kernel refinement for tracks with an assigned detection "
+        "(slower; fused with the detection at fused_quality_factor)")
+    fused_quality_factor: float = parameter(
+        0.25, "Factor on a refinement's quality when it is fused with an assigned detection "
+        "(the detection sees the whole person; the kernels may see only its visible part)",
+        minimum=0.0, maximum=1.0)
+    undetected_quality_factor: float = parameter(
+        0.5, "Factor on a refinement's quality in frames where no detection confirms the "
+        "track (a part-occluded target still matches its visible kernels well)",
+        minimum=0.0, maximum=1.0)
+    appearance_update_interval: float = parameter(
+        1.0, "Seconds between refreshes of a track's appearance model from an isolated "
+        "detection (0 = every frame)", minimum=0.0, maximum=1e4)
+    appearance_update_similarity: float = parameter(
+        0.8, "Multiple-kernel similarity a track needs for its appearance model to be "
+        "refreshed from its detection", minimum=0.0, maximum=1.0)
+    isolation_iou: float = parameter(
+        0.05, "A detection overlapping another track by more than this IoU is not used to "
+        "refresh an appearance model", minimum=0.0, maximum=1.0)
+    max_reported_coast_time: float = parameter(
+        0.2, "FrameResult.reported() includes an occluded (coasting) track for at most this "
+        "many seconds after its last detection; it stays tracked (and in tracks) for longer",
+        minimum=0.0, maximum=1e4)
+    max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
+                                "not started", minimum=1, maximum=100000)
+
+
+@dataclass(frozen=True)
+class FrameDetection:
+    """A detection as the tracker consumes it.  ``stamp`` None = the frame's stamp."""
+
+    box: tuple[float, float, float, float]
+    score: float = 1.0
+    stamp: float | None = None
+    plane: str = "rgb"
+
+
+class Refiner(Protocol):
+    def start(self, image_bgr: np.ndarray, box: Sequence[float]) -> Any: ...
+
+    def refine(self, image_bgr: np.ndarray, state: Any,
+               predicted_center: Sequence[float] | None = None) -> Any: ...
+
+    def appearance_similarity(self, image_bgr: np.ndarray, state: Any,
+                              box: Sequence[float]) -> float: ...
+
+
+@dataclass(frozen=True)
+class TrackKernels:
+    """The multiple-kernel target of one track after this frame (Chu et al. 2013, Sec. III:
+    kernel centres and half-axes, (2)-(3); ``similarity`` is the target's mean kernel
+    similarity, (5)), in RGB pixels, for drawing."""
+
+    track_id: int
+    centres: tuple[tuple[float, float], ...]
+    half_axes: tuple[tuple[float, float], ...]
+    similarity: float
+
+
+def track_kernels(track: Track) -> TrackKernels | None:
+    """:class:`TrackKernels` of a track whose target has ``centres`` and ``half_axes``
+    (N x 2 each), else None (no refiner, no model yet, or a refiner without kernels)."""
+    target = track.target
+    if target is None:
+        return None
+    try:
+        centres = np.asarray(target.centres, dtype=float).reshape(-1, 2)
+        axes = np.asarray(target.half_axes, dtype=float).reshape(-1, 2)
+        similarity = float(getattr(target, "similarity", math.nan))
+    except (AttributeError, TypeError, ValueError):
+        return None
+    if centres.shape != axes.shape:
+        return None
+    return TrackKernels(track.id, tuple((float(x), float(y)) for x, y in centres),
+                        tuple((float(a), float(b)) for a, b in axes), similarity)
+
+
+@dataclass
+class FrameResult:
+    """Output of one :meth:`MultiObjectTracker.step`.
+
+    ``tracks`` holds every live track (including ``lost`` ones, without a meaningful box);
+    :meth:`reported` only those a consumer should draw or score.  ``kernels`` maps a track
+    id to its multiple-kernel target (:class:`TrackKernels`) for the tracks that have one.
+    Counters are for this frame; :attr:`MultiObjectTracker.totals` accumulates them.
+    """
+
+    stamp: float
+    tracks: list[TrackOutput] = field(default_factory=list)
+    kernels: dict[int, TrackKernels] = field(default_factory=dict)
+    deleted_ids: list[int] = field(default_factory=list)
+    dropped_stale: int = 0
+    skipped_bad_detections: int = 0
+    resets: int = 0
+    events: list[str] = field(default_factory=list)
+
+    max_reported_coast_time: float = float("inf")
+
+    def reported(self) -> list[TrackOutput]:
+        """Tracks to draw or score: confirmed ones, and occluded (coasting) ones for at most
+        ``max_reported_coast_time`` seconds since their last detection (always for tracks
+        started by hand, which have no detector)."""
+        return [t for t in self.tracks if t.state == TrackState.CONFIRMED.value
+                or (t.state == TrackState.OCCLUDED.value
+                    and (t.manual or t.time_since_detection <= self.max_reported_coast_time))]
+
+
+@dataclass
+class _Prepared:
+    box: np.ndarray        # in the RGB plane, at the detection's stamp
+    score: float
+    lag: float             # frame stamp - detection stamp (s)
+
+
+def _homography_matrix(values: Sequence[float]) -> np.ndarray:
+    try:
+        h = np.asarray(values, dtype=np.float64).reshape(3, 3)
+    except (TypeError, ValueError) as exc:
+        raise TrackerInputError(f"homography must be 9 numbers, got {values!r}") from exc
+    if not np.all(np.isfinite(h)):
+        raise TrackerInputError("homography has NaN or infinite values")
+    scale = max(float(np.abs(h).max()), 1e-300)
+    if abs(np.linalg.det(h / scale)) < 1e-12:
+        raise TrackerInputError(f"homography {h.tolist()} is singular")
+    return h
+
+
+def _check_similarity_range(name: str, value: Any) -> None:
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError) as exc:
+        raise TrackerInputError(f"{name} must be two numbers (low, high), got {value!r}") \
+            from exc
+    if not (0.0 <= lo < hi <= 1.0):
+        raise TrackerInputError(f"{name} must satisfy 0 <= low < high <= 1, got {value!r}")
+
+
+def _visibility(result: Any, statistic: str) -> float:
+    """The visibility statistic of a refinement result (:func:`visibility_similarity`) from
+    its ``kernel_similarities`` and ``weights``; a result without them (a refiner that is
+    not multiple-kernel) is judged by its ``similarity``."""
+    sims = getattr(result, "kernel_similarities", None)
+    if statistic == "mean" or sims is None:
+        return float(getattr(result, "similarity", 0.0))
+    try:
+        return visibility_similarity(sims, getattr(result, "weights", None), statistic)
+    except (TypeError, ValueError):
+        return float(getattr(result, "similarity", 0.0))
+
+
+def _quality(score: float) -> float:
+    return min(max(float(score), 0.0), 1.0)
+
+
+class MultiObjectTracker:
+    """Tracks people through occlusion; see the module docstring for one step's work."""
+
+    def __init__(self, config: MultiObjectTrackerConfig | None = None, *,
+                 refiner: Refiner | None = None,
+                 manual_refiner: Refiner | None = None) -> None:
+        """``refiner`` serves tracks born from detections, ``manual_refiner`` tracks started
+        by hand; by default :class:`MultiKernelTracker` with ``multi_kernel`` and with
+        :func:`manual_track_multi_kernel` (the same object when those agree).  A given
+        ``refiner`` without ``manual_refiner`` serves both."""
+        self.config = config or MultiObjectTrackerConfig()
+        try:
+            validate_config(self.config)
+        except ParameterError as exc:
+            raise TrackerInputError(str(exc)) from exc
+        self.homography = _homography_matrix(self.config.homography)
+        for name, cfg in (("refinement_similarity_range", self.config),
+                          ("manual_track.refinement_similarity_range", self.config.manual_track)):
+            _check_similarity_range(name, cfg.refinement_similarity_range)
+        if manual_refiner is None:
+            if refiner is None and self.config.use_multi_kernel:
+                manual_cfg = manual_track_multi_kernel(self.config)
+                if manual_cfg != self.config.multi_kernel:
+                    manual_refiner = MultiKernelTracker(manual_cfg)
+            elif refiner is not None:
+                manual_refiner = refiner
+        if refiner is None and self.config.use_multi_kernel:
+            refiner = MultiKernelTracker(self.config.multi_kernel)
+        self.refiner = refiner
+        self.manual_refiner = manual_refiner if manual_refiner is not None else refiner
+        self._manual_kalman = manual_track_kalman(self.config)
+        self._manual_lifecycle = manual_track_lifecycle(self.config)
+        self._next_id = 1
+        self.tracks: list[Track] = []
+        self.last_stamp: float | None = None
+        self.frame_size: tuple[int, int] | None = None
+        self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
+                       "resets": 0, "size_resets": 0}
+
+    # -- public API -----------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget every track and the previous frame (ids keep counting up, never reused)."""
+        self.tracks = []
+        self.last_stamp = None
+        self.frame_size = None
+
+    def start_track(self, image_bgr: np.ndarray, stamp: float, box: Sequence[float]) -> int:
+        """Start a confirmed track on ``box`` by hand (single-target protocol); returns its id."""
+        self._check_image(image_bgr)
+        try:
+            b = as_box(box)
+        except InvalidBoxError as exc:
+            raise TrackerInputError(str(exc)) from exc
+        stamp = self._check_stamp(stamp)
+        target = None
+        refiner = self.manual_refiner
+        if refiner is not None:
+            try:
+                target = refiner.start(image_bgr, tuple(float(v) for v in b))
+            except ValueError as exc:
+                raise TrackerInputError(f"cannot start a target on {tuple(b)}: {exc}") from exc
+        # its own Kalman and lifecycle settings (config.manual_track)
+        track = self._new_track(b, stamp, 1.0, TrackState.CONFIRMED,
+                                kalman=self._manual_kalman, lifecycle=self._manual_lifecycle)
+        track.hits = self.config.lifecycle.min_hits
+        track.manual = True
+        track.target, track.target_stamp = target, stamp
+        if target is not None:
+            track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b)))
+        if self.frame_size is None:
+            self.frame_size = image_bgr.shape[:2]
+        return track.id
+
+    def step(self, image_bgr: np.ndarray, stamp: float,
+             detections: Iterable[Any] = ()) -> FrameResult:
+        """Process one RGB frame at ``stamp`` (seconds) with its detections."""
+        self._check_image(image_bgr)
+        stamp = self._check_stamp(stamp)
+        result = FrameResult(stamp=stamp,
+                             max_reported_coast_time=self.config.max_reported_coast_time)
+        self.totals["frames"] += 1
+        size = tuple(image_bgr.shape[:2])
+        if self.last_stamp is not None and \
+                stamp < self.last_stamp - self.config.backwards_tolerance:
+            result.events.append(f"time went backwards by {self.last_stamp - stamp:.3f} s: reset")
+            result.resets = 1
+            self.reset()
+        if self.frame_size is not None and size != self.frame_size:
+            # skipping every later frame would stop tracking silently; the old tracks'
+            # boxes are in the old pixel grid, so they go, and tracking restarts here
+            result.events.append(f"frame {size[1]}x{size[0]} differs from the previous "
+                                 f"{self.frame_size[1]}x{self.frame_size[0]}: reset")
+            result.resets = 1
+            self.totals["size_resets"] += 1
+            self.reset()
+        self.frame_size = size
+        self.last_stamp = stamp
+        height, width = size
+
+        dets = self._prepare(detections, stamp, width, height, result)
+        live = [t for t in self.tracks if t.state is not TrackState.DELETED]
+        for t in live:
+            t.predict(stamp)
+
+        # 4a. detections vs tentative / confirmed / occluded tracks
+        active = [t for t in live if t.state is not TrackState.LOST]
+        matched_track: dict[int, int] = {}          # detection index -> track id
+        if active and dets:
+            a = self._match(active, dets, self.config.association.gate)
+            for r, k in a.matches:
+                matched_track[k] = active[r].id
+        # 4b. remaining detections vs lost tracks (re-acquisition)
+        # A person reappearing part-occluded may first be seen by a new tentative track (its
+        # appearance does not match yet); its detections stay candidates until it is
+        # confirmed, and when one re-acquires a lost track the tentative track is dropped.
+        lost = [t for t in live if t.state is TrackState.LOST]
+        tentative = {t.id: t for t in live if t.state is TrackState.TENTATIVE}
+        remaining = [k for k in range(len(dets))
+                     if k not in matched_track or matched_track[k] in tentative]
+        held: set[int] = set()             # tentative tracks not confirmed this frame
+        if lost and remaining:
+            matches, contested = self._reacquire(lost, [dets[k] for k in remaining], image_bgr)
+            for k in contested:
+                tid = matched_track.get(remaining[k])
+                if tid in tentative and stamp - tentative[tid].created < \
+                        self.config.reacquire_hold_time:
+                    held.add(tid)
+            for r, k in matches:
+                previous = matched_track.get(remaining[k])
+                if previous is not None:
+                    tentative[previous].state = TrackState.DELETED
+                    result.events.append(f"tentative track {previous} is lost track "
+                                         f"{lost[r].id} coming back")
+                matched_track[remaining[k]] = lost[r].id
+                result.events.append(f"track {lost[r].id} re-acquired")
+        live = [t for t in live if t.state is not TrackState.DELETED]
+
+        by_id = {t.id: t for t in live}
+        detected: dict[int, _Prepared] = {by_id[tid].id: dets[k]
+                                          for k, tid in matched_track.items()}
+        det_boxes_now = {tid: self._at_frame_time(by_id[tid], d)
+                         for tid, d in detected.items()}
+        # 5. multiple-kernel refinement from the Kalman prediction (Chu et al. Sec. IV-D)
+        # for the tracks no detection was assigned to this frame (missed, part- or fully
+        # occluded), or for all with refine_when_detected.  Keeps the per-frame cost to the
+        # hard cases.
+        refined: dict[int, tuple[np.ndarray, float, bool]] = {}
+        for t in live:
+            t.refined_box = None
+            refiner = self._refiner_for(t)
+            if (refiner is None or t.target is None
+                    or t.state not in (TrackState.CONFIRMED, TrackState.OCCLUDED)
+                    or not self._in_image(t, width, height)):
+                continue
+            if t.id in det_boxes_now and not self.config.refine_when_detected:
+                continue
+            try:
+                found = self._refine(t, refiner, image_bgr)
+            except ValueError as exc:       # the refiner's own input errors
+                result.events.append(f"track {t.id}: refinement failed: {exc}")
+                continue
+            if found is not None:
+                refined[t.id] = found
+                t.refined_box = found[0]
+
+        # 6. updates and lifecycle
+        # boxes other tracks may block an appearance refresh with (computed once per frame)
+        blockers = dict(det_boxes_now)
+        blockers.update({t.id: t.box for t in live
+                         if t.id not in blockers and t.state in OUTPUT_STATES})
+        for t in live:
+            self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
+                               detected.get(t.id), refined.get(t.id), width, height,
+                               blockers, hold=t.id in held)
+        # new tentative tracks
+        live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
+                               and t.state is not TrackState.LOST]).reshape(-1, 4)
+        candidates = [k for k, d in enumerate(dets)
+                      if k not in matched_track and d.score >= self.config.new_track_score]
+        overlap = iou_matrix(np.array([dets[k].box for k in candidates]).reshape(-1, 4),
+                             live_boxes)
+        started: list[np.ndarray] = []
+        for row, k in enumerate(candidates):
+            d = dets[k]
+            if len(live) >= self.config.max_tracks:
+                result.events.append("max_tracks reached: detection not started")
+                break
+            if (overlap.shape[1] and overlap[row].max() > self.config.new_track_max_iou) or \
+                    (started and iou_matrix(d.box[None], np.array(started)).max()
+                     > self.config.new_track_max_iou):
+                continue
+            t = self._new_track(d.box, stamp, d.score, TrackState.TENTATIVE)
+            live.append(t)
+            started.append(t.box)
+            if self.config.lifecycle.min_hits <= 1:
+                t.state = TrackState.CONFIRMED
+                self._refresh_appearance(t, image_bgr, d.box, stamp, force=True)
+        for t in self.tracks:
+            if t.state is TrackState.DELETED:
+                result.deleted_ids.append(t.id)
+        self.tracks = [t for t in self.tracks if t.state is not TrackState.DELETED]
+        result.tracks = [t.output() for t in self.tracks]
+        for t in self.tracks:
+            k = track_kernels(t)
+            if k is not None:
+                result.kernels[t.id] = k
+        self._count(result)
+        return result
+
+    # -- internals ------------------------------------------------------------------------
+    def _refiner_for(self, t: Track) -> Refiner | None:
+        """The refiner of a track: ``manual_refiner`` for tracks started by hand."""
+        return self.manual_refiner if t.manual else self.refiner
+
+    def _judge(self, t: Track, res: Any) -> tuple[np.ndarray, float, bool] | None:
+        """``(box, visibility statistic, visible)`` of a refinement result (visible: the
+        statistic is at least the track's ``occlusion_similarity``), or None when it is lost
+        or not finite."""
+        sim = _visibility(res, t.config.visibility_statistic)
+        box = getattr(res, "box", None)
+        if (getattr(res, "lost", False) or box is None or not math.isfinite(sim)
+                or not all(math.isfinite(float(v)) for v in box)):
+            return None
+        return np.asarray(box, dtype=np.float64), sim, sim >= t.config.occlusion_similarity
+
+    def _covered(self, res: Any) -> bool:
+        """Both kernel columns of a result see the target: :func:`column_coverage` of its
+        kernel similarities >= ``manual_track.min_column_similarity`` (always true for
+        layouts without columns and results without kernel similarities)."""
+        floor = self.config.manual_track.min_column_similarity
+        sims = getattr(res, "kernel_similarities", None)
+        if floor <= 0.0 or sims is None:
+            return True
+        s = np.asarray(sims, dtype=np.float64).reshape(-1)
+        return s.size not in SUPPORTED_KERNEL_COUNTS or column_coverage(s, s.size) >= floor
+
+    def _refine(self, t: Track, refiner: Refiner, image: np.ndarray
+                ) -> tuple[np.ndarray, float, bool] | None:
+        """Multiple-kernel search of one track from its Kalman prediction (Sec. IV-D), and
+        for a track started by hand a second search when the first one sees the target with
+        one kernel column only.
+
+        A two-column layout (4-6 kernels) has a stable wrong optimum: one column on the
+        person's half whose colours look like the other half, the other column on
+        background (rho ~ 0).  The weighted visibility ``sum rho_i^2 / sum rho_i`` follows
+        the seeing kernels and calls it visible, and a box 0.45 w off becomes the track's
+        only measurement.  Side occlusion (the other column behind a pillar) gives the same
+        similarities, so the first result is not rejected; instead the search is repeated
+        from the box moved towards the seeing column (:meth:`_recentre_shift`), and that
+        result is kept (with its target state) only if it is visible and both of its
+        columns see the target (``manual_track.column_recentre``).  Cost: one more
+        refinement in the frames with a one-column result.  Returns :meth:`_judge` of the
+        kept result.
+        """
+        res = refiner.refine(image, t.target, predicted_center=tuple(t.center))
+        found = self._judge(t, res)
+        if t.manual and self.config.manual_track.column_recentre and found is not None \
+                and found[2] and not self._covered(res):
+            shift = self._recentre_shift(res, found[0])
+            if shift != 0.0:
+                moved = copy.deepcopy(t.target)
+                centre = found[0][:2] + found[0][2:] / 2.0
+                alt_res = refiner.refine(image, moved,
+                                         predicted_center=(centre[0] + shift, centre[1]))
+                alt = self._judge(t, alt_res)
+                if alt is not None and alt[2] and self._covered(alt_res):
+                    t.target, found = moved, alt
+        return found
+
+    @staticmethod
+    def _recentre_shift(res: Any, box: np.ndarray) -> float:
+        """x shift that puts the seeing kernel column of a one-column result where the
+        other column was: a box whose left column lies on the person's right half (whose
+        colours look alike) and whose right column lies on background is
+        :data:`~mk_tracker.tracking.kernel_layouts.COLUMN_SPACING` ``w`` (0.45 w, the distance
+        between the column centres) right of the person; 0 for layouts without columns."""
+        n = np.asarray(res.kernel_similarities).size
+        if not has_columns(n):
+            return 0.0
+        left, right = column_best(res.kernel_similarities, n)
+        step = COLUMN_SPACING * float(box[2])
+        return -step if right < left else step
+
+    def _count(self, result: FrameResult) -> None:
+        self.totals["dropped_stale"] += result.dropped_stale
+        self.totals["skipped_bad_detections"] += result.skipped_bad_detections
+        self.totals["resets"] += result.resets
+
+    @staticmethod
+    def _check_image(image: Any) -> None:
+        if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) \
+                or image.shape[0] < 1 or image.shape[1] < 1:
+            raise TrackerInputError(f"image must be an HxW or HxWxC numpy array, got "
+                                    f"{getattr(image, 'shape', type(image).__name__)}")
+
+    @staticmethod
+    def _check_stamp(stamp: Any) -> float:
+        return checked_stamp(stamp, TrackerInputError)
+
+    def _new_track(self, box: np.ndarray, stamp: float, score: float, state: TrackState,
+                   kalman: KalmanConfig | None = None,
+                   lifecycle: LifecycleConfig | None = None) -> Track:
+        t = Track(self._next_id, box, stamp, score=_quality(score),
+                  kalman=self.config.kalman if kalman is None else kalman,
+                  config=self.config.lifecycle if lifecycle is None else lifecycle,
+                  state=state)
+        self._next_id += 1
+        self.tracks.append(t)
+        return t
+
+    def _prepare(self, detections: Iterable[Any], stamp: float, width: int, height: int,
+                 result: FrameResult) -> list[_Prepared]:
+        out: list[_Prepared] = []
+        for det in detections:
+            try:
+                box = as_box(getattr(det, "box"))
+                score = float(getattr(det, "score", 1.0))
+                det_stamp = getattr(det, "stamp", None)
+                det_stamp = stamp if det_stamp is None else float(det_stamp)
+                plane = str(getattr(det, "plane", "rgb") or "rgb").lower()
+                if plane not in PLANES or not math.isfinite(score) \
+                        or not math.isfinite(det_stamp):
+                    raise InvalidBoxError(f"bad plane/score/stamp {plane!r} {score} {det_stamp}")
+                if plane == "thermal":
+                    box = np.asarray(transform_box(box, self.homography))
+            except (InvalidBoxError, AttributeError, TypeError, ValueError):
+                result.skipped_bad_detections += 1
+                continue
+            lag = stamp - det_stamp
+            if abs(lag) > self.config.stale_tolerance:
+                result.dropped_stale += 1
+                continue
+            if score < self.config.min_detection_score:
+                continue
+            clipped = clip_box(box, width, height)
+            if clipped is None:
+                result.skipped_bad_detections += 1
+                continue
+            out.append(_Prepared(box=np.asarray(clipped), score=score, lag=lag))
+        if result.dropped_stale:
+            result.events.append(f"dropped {result.dropped_stale} detection(s) older or newer "
+                                 f"than {self.config.stale_tolerance} s")
+        if result.skipped_bad_detections:
+            result.events.append(f"skipped {result.skipped_bad_detections} bad detection(s) "
+                                 "(NaN, non-positive size, bad plane or outside the image)")
+        return out
+
+    @staticmethod
+    def _in_image(t: Track, width: int, height: int) -> bool:
+        cx, cy = t.center
+        return 0.0 <= cx < width and 0.0 <= cy < height
+
+    def _det_geometry(self, tracks: list[Track], dets: list[_Prepared]
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """Detection boxes per track at the frame time ``(T, D, 4)`` and centres ``(T, D, 2)``.
+
+        When every detection has the frame's stamp the boxes are the same for every track and
+        ``(D, 4)`` / ``(D, 2)`` are returned instead (one IoU matrix for all tracks).
+        """
+        boxes = np.array([d.box for d in dets])                        # (D, 4)
+        lags = np.array([d.lag for d in dets])                         # (D,)
+        if not np.any(lags):
+            return boxes, boxes[:, :2] + boxes[:, 2:] / 2.0
+        vel = np.array([t.kf.velocity for t in tracks]).reshape(-1, 2)  # (T, 2)
+        shift = vel[:, None, :] * lags[None, :, None]                  # (T, D, 2)
+        per_track = np.broadcast_to(boxes[None], (len(tracks),) + boxes.shape).copy()
+        per_track[..., :2] += shift
+        centres = per_track[..., :2] + per_track[..., 2:] / 2.0
+        return per_track, centres
+
+    def _innovation_covs(self, tracks: list[Track]) -> np.ndarray:
+        return np.array([t.innovation_covariance(t.size[1]) for t in tracks]).reshape(-1, 2, 2)
+
+    def _match(self, tracks: list[Track], dets: list[_Prepared], gate: float):
+        boxes, centres = self._det_geometry(tracks, dets)
+        maha = mahalanobis_matrix(np.array([t.center for t in tracks]),
+                                  self._innovation_covs(tracks), centres)
+        track_boxes = np.array([t.box for t in tracks])
+        cost = association_cost(track_boxes, boxes, maha, self.config.association)
+        return assign(cost, self.config.association.max_cost)
+
+    def _reacquire(self, lost: list[Track], dets: list[_Prepared], image: np.ndarray
+                   ) -> tuple[list[tuple[int, int]], set[int]]:
+        """Matches ``(lost index, det index)`` by gated distance, size and appearance.
+
+        Also returns the detections inside some lost track's gate (whatever their
+        appearance): a tentative track on one of those is not confirmed yet, so the lost
+        person coming back part-occluded gets a few frames to match its appearance.
+        """
+        boxes, centres = self._det_geometry(lost, dets)
+        maha = mahalanobis_matrix(np.array([t.center for t in lost]),
+                                  self._innovation_covs(lost), centres)
+        cost = np.full(maha.shape, np.inf)
+        contested: set[int] = set()
+        best_reference: dict[tuple[int, int], int] = {}
+        ratio_max = self.config.reacquire_max_size_ratio
+        for i, t in enumerate(lost):
+            for j, d in enumerate(dets):
+                if maha[i, j] > self.config.reacquire_gate:
+                    continue
+                ratio = d.box[3] / max(t.size[1], 1e-9)
+                if not (1.0 / ratio_max <= ratio <= ratio_max):
+                    continue
+                contested.add(j)
+                sim = 1.0
+                refiner = self._refiner_for(t)
+                if refiner is not None and t.references:
+                    try:
+                        sims = [float(refiner.appearance_similarity(image, ref, tuple(d.box)))
+                                for ref in t.references]
+                    except ValueError:
+                        continue
+                    sim = max(sims)
+                    best_reference[(i, j)] = int(np.argmax(sims))
+                    if not math.isfinite(sim) or sim < self.config.reacquire_similarity:
+                        continue
+                cost[i, j] = (1.0 - sim) + self.config.reacquire_distance_weight * \
+                    maha[i, j] / self.config.reacquire_gate
+        matches = assign(cost, math.inf).matches
+        for i, j in matches:
+            # the working target's models were blended while the person disappeared: restart
+            # it from the frozen model that matched
+            k = best_reference.get((i, j))
+            if k is not None:
+                lost[i].target = copy.deepcopy(lost[i].references[k])
+        return matches, contested
+
+    @staticmethod
+    def _at_frame_time(t: Track, d: _Prepared) -> np.ndarray:
+        box = d.box.copy()
+        box[:2] += t.kf.velocity * d.lag
+        return box
+
+    def _refresh_appearance(self, t: Track, image: np.ndarray, box: np.ndarray, stamp: float,
+                            force: bool = False) -> None:
+        refiner = self._refiner_for(t)
+        if refiner is None:
+            return
+        due = (t.target is None or force or t.target_stamp is None
+               or stamp - t.target_stamp >= self.config.appearance_update_interval)
+        if due:
+            try:
+                t.target = refiner.start(image, tuple(float(v) for v in box))
+                fresh = refiner.start(image, tuple(float(v) for v in box))
+            except ValueError:
+                # e.g. a uniform-colour or mostly out-of-image box: keep the old model (if
+                # any) and try again on a later detection
+                return
+            t.target_stamp = stamp
+            # frozen models for re-acquisition: the first one and the latest clean one (the
+            # working target's models are blended by the refiner frame after frame)
+            if not t.references:
+                t.references.append(fresh)
+            elif len(t.references) == 1:
+                t.references.append(fresh)
+            else:
+                t.references[1] = fresh
+
+    def _update_track(self, t: Track, stamp: float, image: np.ndarray,
+                      det_box: np.ndarray | None, det: _Prepared | None,
+                      refined: tuple[np.ndarray, float, bool] | None, width: int, height: int,
+                      blockers: dict[int, np.ndarray], hold: bool = False) -> None:
+        cfg = t.config            # the tracker's lifecycle, or manual_track's for hand-started
+        was = t.state
+        sim = refined[1] if refined is not None else None
+        visible = refined is not None and refined[2]
+        # a track started by hand maps its refinement to quality by its own settings
+        measurement = self.config.manual_track if t.manual else self.config
+        lo, hi = measurement.refinement_similarity_range
+        quality = 0.0 if sim is None else min(max((sim - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
+        if det_box is not None:
+            if was is TrackState.LOST:
+                # re-acquired: restart the filter's position at the detection, keep velocity
+                t.kf.update(det_box[:2] + det_box[2:] / 2.0, sigma_w=cfg.min_noise_px)
+                t.size = det_box[2:].copy()
+            else:
+                t.correct(det_box, _quality(det.score))
+                if refined is not None and iou(refined[0], det_box) >= \
+                        self.config.refine_consistency_iou:
+                    t.correct(refined[0], quality * self.config.fused_quality_factor,
+                              use_size=False)            # the detection gives the size
+            t.hits += 1
+            t.tentative_misses = 0
+            t.last_detection = stamp
+            t.last_seen = stamp
+            t.score = sim if sim is not None else _quality(det.score)
+        else:
+            t.tentative_misses += 1
+            if visible:
+                t.correct(refined[0], quality * measurement.undetected_quality_factor,
+                          size_weight=cfg.refinement_size_weight)
+                t.last_seen = stamp
+            t.score = sim if sim is not None else 0.0
+        if t.manual:
+            t.hold_if_uncertain(det_box is not None or visible,
+                                self.config.manual_track.max_coast_position_std)
+        new = next_state(was, detected=det_box is not None, visible=visible,
+                         in_image=self._in_image(t, width, height), hits=t.hits,
+                         tentative_misses=t.tentative_misses,
+                         # a track started by hand has no detector to come back with: it
+                         # coasts (and keeps refining) until it leaves the image
+                         unseen_time=0.0 if t.manual else stamp - t.last_seen,
+                         lost_time=0.0 if t.lost_since is None else stamp - t.lost_since,
+                         config=cfg,
+                         undetected_time=0.0 if t.manual else stamp - t.last_detection)
+        if hold and new is TrackState.CONFIRMED and was is TrackState.TENTATIVE:
+            new = TrackState.TENTATIVE
+        if new is TrackState.LOST and was is not TrackState.LOST:
+            t.lost_since = stamp
+        if new is not TrackState.LOST:
+            t.lost_since = None
+        t.state = new
+        if det_box is not None and new is TrackState.CONFIRMED and \
+                self._refiner_for(t) is not None:
+            # refresh only from a clean view: not next to another person, and (when the
+            # refiner ran) a good match, so an occluder's pixels never enter the model; a
+            # re-acquired track keeps the model that just proved to match
+            due = t.target_stamp is None or \
+                stamp - t.target_stamp >= self.config.appearance_update_interval
+            clean = sim is None or sim >= self.config.appearance_update_similarity
+            if t.target is None:
+                self._refresh_appearance(t, image, det_box, stamp, force=True)
+            elif due and clean and was is not TrackState.LOST:
+                others = [b for tid, b in blockers.items() if tid != t.id]
+                if not others or float(iou_matrix(det_box[None], np.array(others)).max()) \
+                        <= self.config.isolation_iou:
+                    self._refresh_appearance(t, image, det_box, stamp)
+        t.finish_frame()

@@ -1,0 +1,159 @@
+"""Coordinate descent of (3.7): exact 1-D updates, monotone cost, support recovery."""
+
+import numpy as np
+import pytest
+
+from mk_tracker.detection.sparse_factorization import (FactorizationError, coordinate_cost,
+                                             coordinate_minimizer, factorization_cost,
+                                             largest_real_root, sparse_factorize,
+                                             zero_factor_threshold)
+from mk_tracker.detection import sparse_factorization as sf
+
+
+def dense_min(c1, c2, lam, lo=-6.0, hi=6.0, n=40001):
+    grid = np.linspace(lo, hi, n)
+    cost = grid ** 4 + c1 * grid ** 2 + c2 * grid + lam * np.abs(grid)
+    return cost.min(), grid[np.argmin(cost)]
+
+
+@pytest.mark.parametrize("scale", [0.01, 1.0, 3.0])
+def test_coordinate_update_attains_the_minimum_of_3_9(scale):
+    rng = np.random.default_rng(int(scale * 100))
+    n = 150
+    c1 = rng.normal(0, 2, n) * scale
+    c2 = rng.normal(0, 2, n) * scale
+    c2[:20] = 0.0                       # symmetric case: two minimisers or zero
+    lam = 0.3 * scale
+    h = coordinate_minimizer(c1, c2, lam)
+    for i in range(n):
+        best, _ = dense_min(c1[i], c2[i], lam, -4 * max(scale, 1), 4 * max(scale, 1))
+        got = coordinate_cost(np.array(h[i]), c1[i], c2[i], lam)
+        assert got <= best + 1e-9, (c1[i], c2[i], h[i])
+
+
+def test_minimizer_candidates_by_hand():
+    # c1 = -2, c2 = 0, lambda = 0: J = h^4 - 2h^2, minima at +-1; the positive one is chosen
+    assert coordinate_minimizer(np.array([-2.0]), np.array([0.0]), 0.0)[0] == pytest.approx(1.0)
+    # c1 = 0, c2 = -4, lambda = 0: J' = 4h^3 - 4 = 0 -> h = 1
+    assert coordinate_minimizer(np.array([0.0]), np.array([-4.0]), 0.0)[0] == pytest.approx(1.0)
+    # same with c2 = +4 -> h = -1
+    assert coordinate_minimizer(np.array([0.0]), np.array([4.0]), 0.0)[0] == pytest.approx(-1.0)
+    # lambda larger than |c2| with c1 >= 0: zero
+    assert coordinate_minimizer(np.array([1.0]), np.array([-0.5]), 1.0)[0] == 0.0
+
+
+def test_largest_real_root_against_numpy_roots():
+    rng = np.random.default_rng(7)
+    p = rng.normal(0, 3, 500)
+    q = rng.normal(0, 3, 500)
+    got = largest_real_root(p, q)
+    for i in range(500):
+        r = np.roots([1.0, 0.0, p[i], q[i]])
+        real = r[np.abs(r.imag) < 1e-7].real
+        assert got[i] == pytest.approx(real.max(), abs=1e-7)
+
+
+def test_zero_factor_threshold_is_tight():
+    lam = 0.2
+    t = zero_factor_threshold(lam)
+    below, _ = dense_min(-2 * (t - 1e-4), 0.0, lam, -2, 2)
+    above, _ = dense_min(-2 * (t + 1e-3), 0.0, lam, -2, 2)
+    assert below >= -1e-12
+    assert above < 0
+
+
+def _random_sigma(rng, n_blocks, p, rank):
+    a = rng.normal(size=(n_blocks, p, rank)) / np.sqrt(p)
+    return a @ a.transpose(0, 2, 1) + 0.01 * np.eye(p)
+
+
+@pytest.mark.parametrize("columns", [1, 2, 3])
+def test_cost_never_increases_over_cycles(columns):
+    rng = np.random.default_rng(columns)
+    sigma = _random_sigma(rng, 12, 10, 3)
+    res = sparse_factorize(sigma, 0.05, columns=columns, max_cycles=15, tol=1e-9,
+                           record_cost=True, backend="numpy")
+    hist = res.cost_history
+    for b in range(hist.shape[0]):
+        h = hist[b][~np.isnan(hist[b])]
+        assert len(h) >= 3
+        assert np.all(np.diff(h) <= 1e-12 * (1 + np.abs(h[:-1])))
+        assert h[-1] < h[0]             # the factorization does something
+
+
+def test_converged_factor_is_coordinate_wise_optimal():
+    rng = np.random.default_rng(11)
+    sigma = _random_sigma(rng, 1, 8, 2)[0]
+    lam = 0.02
+    res = sparse_factorize(sigma, lam, max_cycles=200, tol=1e-12, backend="numpy")
+    m = res.factors[0, :, 0]
+    for j in range(8):
+        others = np.delete(m, j)
+        c1 = 2 * np.sum(others ** 2) - 2 * sigma[j, j]
+        c2 = -4 * np.dot(np.delete(sigma[j], j), others)
+        best, _ = dense_min(c1, c2, lam, -3, 3)
+        assert coordinate_cost(np.array(m[j]), c1, c2, lam) <= best + 1e-8
+
+
+def test_block_diagonal_support_is_recovered():
+    # two correlated groups (pixels 0-3 and 6-9), the rest uncorrelated and quiet
+    p = 12
+    sigma = np.diag(np.full(p, 0.01))
+    sigma[np.ix_(range(4), range(4))] = 0.4
+    sigma[np.ix_(range(6, 10), range(6, 10))] = 0.3
+    res = sparse_factorize(sigma, 0.1, columns=2, backend="numpy")
+    support = res.support()[0]
+    expected = np.zeros(p, bool)
+    expected[:4] = expected[6:10] = True
+    np.testing.assert_array_equal(support, expected)
+    # each column holds one group
+    cols = [set(np.flatnonzero(res.factors[0, :, r])) for r in range(2)]
+    assert {frozenset(c) for c in cols} == {frozenset(range(4)), frozenset(range(6, 10))}
+
+
+def test_factorization_cost_by_hand():
+    sigma = np.array([[1.0, 0.5], [0.5, 2.0]])
+    m = np.array([1.0, -1.0])
+    # residual [[0, 1.5], [1.5, 1]] -> 1.5^2 * 2 + 1 = 5.5; plus lambda * 2
+    assert factorization_cost(sigma, m, 0.25) == pytest.approx(5.5 + 0.5)
+
+
+@pytest.mark.skipif(sf._compiled_kernel() is None, reason="numba not installed")
+@pytest.mark.parametrize("columns", [1, 2])
+def test_compiled_backend_equals_numpy_backend(columns):
+    rng = np.random.default_rng(20 + columns)
+    sigma = _random_sigma(rng, 30, 16, 3)
+    a = sparse_factorize(sigma, 0.05, columns=columns, backend="numpy")
+    b = sparse_factorize(sigma, 0.05, columns=columns, backend="compiled")
+    np.testing.assert_allclose(a.factors, b.factors, atol=1e-10)
+    np.testing.assert_array_equal(a.cycles, b.cycles)
+
+
+@pytest.mark.skipif(sf._compiled_kernel() is None, reason="numba not installed")
+@pytest.mark.parametrize("columns", [1, 2])
+def test_compiled_backend_reads_sigma_like_the_reference_when_it_is_not_symmetric(columns):
+    """The compiled coordinate descent keeps Sigma M from Sigma's columns; on a Sigma that is
+    not symmetric (as float rounding can leave it) it must still use the entries the numpy
+    reference uses, row j for coordinate j: an asymmetry of 1e-2 would show."""
+    rng = np.random.default_rng(40 + columns)
+    sigma = _random_sigma(rng, 20, 16, 3)
+    sigma = sigma + 1e-2 * np.triu(rng.normal(size=sigma.shape), 1)
+    assert np.abs(sigma - sigma.transpose(0, 2, 1)).max() > 1e-3
+    a = sparse_factorize(sigma, 0.05, columns=columns, backend="numpy")
+    b = sparse_factorize(sigma, 0.05, columns=columns, backend="compiled")
+    transposed = sparse_factorize(sigma.transpose(0, 2, 1), 0.05, columns=columns,
+                                  backend="numpy")
+    assert np.abs(a.factors - transposed.factors).max() > 1e-6     # the asymmetry matters
+    np.testing.assert_allclose(a.factors, b.factors, atol=1e-10)
+    np.testing.assert_array_equal(a.cycles, b.cycles)
+
+
+def test_bad_inputs_raise_our_error():
+    with pytest.raises(FactorizationError):
+        sparse_factorize(np.full((3, 3), np.nan), 0.1)
+    with pytest.raises(FactorizationError):
+        sparse_factorize(np.eye(3), -1.0)
+    with pytest.raises(FactorizationError):
+        sparse_factorize(np.zeros((2, 3)), 0.1)
+    with pytest.raises(FactorizationError):
+        sparse_factorize(np.eye(3), 0.1, backend="gpu")

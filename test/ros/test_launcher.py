@@ -1,0 +1,324 @@
+"""mk_launch process management, with small Python stand-in processes (no DDS needed)."""
+
+import argparse
+import io
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from test_bag_player import fresh_domain
+
+from mk_tracker.ros.launcher import (LaunchError, ProcessSpec, build_specs, configure_parser,
+                                     crashed, remapped, ros_args, run_processes)
+
+
+def py(code: str) -> tuple[str, ...]:
+    return (sys.executable, "-u", "-c", code)
+
+
+# Exits 0 on SIGINT after writing a marker file: a well-behaved node.
+POLITE = """
+import signal, sys, time
+print('ready', flush=True)
+def stop(*_):
+    open(sys.argv[1], 'w').write('stopped')
+    sys.exit(0)
+signal.signal(signal.SIGINT, stop)
+while True: time.sleep(0.05)
+"""
+# Ignores SIGINT and SIGTERM: has to be killed.
+STUBBORN = """
+import signal, time
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+signal.signal(signal.SIGTERM, signal.SIG_IGN)
+print('ready', flush=True)
+while True: time.sleep(0.05)
+"""
+
+
+def test_output_is_prefixed_and_sigint_stops_everything_cleanly(tmp_path):
+    marker_a, marker_b = tmp_path / "a", tmp_path / "b"
+    out = io.StringIO()
+    stop = threading.Event()
+    threading.Timer(1.5, stop.set).start()
+    status = run_processes([ProcessSpec("alpha", py(POLITE) + (str(marker_a),)),
+                            ProcessSpec("beta", py(POLITE) + (str(marker_b),))],
+                           out=out, stop_event=stop, grace_s=3.0)
+    text = out.getvalue()
+    assert status == 0, text
+    assert "[alpha] ready" in text and "[beta] ready" in text
+    assert marker_a.read_text() == "stopped" and marker_b.read_text() == "stopped"
+
+
+def test_process_ignoring_signals_is_killed_after_the_grace_period():
+    out = io.StringIO()
+    stop = threading.Event()
+    threading.Timer(1.0, stop.set).start()
+    t0 = time.monotonic()
+    status = run_processes([ProcessSpec("stubborn", py(STUBBORN))], out=out,
+                           stop_event=stop, grace_s=0.5)
+    elapsed = time.monotonic() - t0
+    assert "SIGKILL" in out.getvalue()
+    assert status == 0  # killed by us on purpose: not a crash
+    assert elapsed < 5.0
+
+
+def test_a_crashing_node_stops_the_launch_and_gives_non_zero_status(tmp_path):
+    out = io.StringIO()
+    t0 = time.monotonic()
+    status = run_processes([ProcessSpec("good", py(POLITE) + (str(tmp_path / "m"),)),
+                            ProcessSpec("bad", py("import time; time.sleep(0.5); "
+                                                  "raise SystemExit(3)"))],
+                           out=out, grace_s=3.0, timeout_s=20)
+    text = out.getvalue()
+    assert status == 1
+    assert "bad crashed (status 3)" in text
+    assert (tmp_path / "m").read_text() == "stopped"  # the healthy one was stopped cleanly
+    assert time.monotonic() - t0 < 10
+
+
+def test_launch_ends_after_the_player_finishes_and_linger(tmp_path):
+    out = io.StringIO()
+    t0 = time.monotonic()
+    status = run_processes([ProcessSpec("node", py(POLITE) + (str(tmp_path / "m"),)),
+                            ProcessSpec("player", py("print('played')"), essential=False)],
+                           out=out, linger_s=1.0, grace_s=3.0, timeout_s=20)
+    assert status == 0, out.getvalue()
+    assert "[player] played" in out.getvalue()
+    assert 1.0 <= time.monotonic() - t0 < 8
+
+
+def test_later_processes_wait_for_ready_lines_with_a_timeout():
+    out = io.StringIO()
+    slow = ProcessSpec("slow", py("import time; time.sleep(1.0); print('listening on /x', "
+                                  "flush=True); time.sleep(30)"),
+                       ready_lines=("listening on /x",))
+    t0 = time.monotonic()
+    status = run_processes([slow, ProcessSpec("next", py("print('go')"), essential=False)],
+                           out=out, grace_s=2.0, timeout_s=20)
+    text = out.getvalue()
+    assert status == 0, text
+    assert text.index("[slow] listening on /x") < text.index("started next")
+    assert time.monotonic() - t0 >= 1.0
+    # a process that never gets ready delays the next one only by the timeout
+    out = io.StringIO()
+    never = ProcessSpec("never", py("import time; time.sleep(30)"), ready_lines=("ready",))
+    status = run_processes([never, ProcessSpec("next", py("print('go')"), essential=False)],
+                           out=out, grace_s=2.0, timeout_s=20, ready_timeout_s=0.5)
+    assert status == 0
+    assert "never not ready after 0.5 s" in out.getvalue()
+    assert "[next] go" in out.getvalue()
+
+
+def test_failing_player_is_reported():
+    out = io.StringIO()
+    status = run_processes([ProcessSpec("player", py("raise SystemExit(2)"), essential=False)],
+                           out=out, grace_s=1.0, timeout_s=20)
+    assert status == 1 and "player failed with status 2" in out.getvalue()
+
+
+def test_crash_classification():
+    assert not crashed(0, False)
+    assert crashed(1, False)
+    assert crashed(-signal.SIGSEGV, True)
+    assert not crashed(-signal.SIGINT, True)
+    assert crashed(-signal.SIGINT, False)
+
+
+def test_ros_args_and_specs(tmp_path):
+    assert ros_args(["p.yaml"], ["/image:=/cam"]) == ["--ros-args", "--params-file", "p.yaml",
+                                                      "-r", "/image:=/cam"]
+    assert ros_args() == []
+    with pytest.raises(LaunchError):
+        ros_args([], ["/image"])
+    assert remapped("image_raw", ["/image_raw:=/camera/rgb"]) == "/camera/rgb"
+    assert remapped("thermal/image_raw", ["image_raw:=/x"]) == "/thermal/image_raw"
+    params = tmp_path / "p.yaml"
+    params.write_text("{}\n")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    parser = argparse.ArgumentParser()
+    configure_parser(parser)
+    args = parser.parse_args(["--bag", str(bag), "--params-file", str(params), "--record",
+                              str(tmp_path / "out"), "--record-topics", "/tracks",
+                              "--remap", "image_raw:=/cam"])
+    specs = build_specs(args)
+    assert [s.name for s in specs] == ["detector_node", "tracker_node", "bag_recorder",
+                                       "bag_player"]
+    assert [s.essential for s in specs] == [True, True, True, False]
+    # the player waits for the recorder to subscribe to /tracks (published by the nodes)
+    assert specs[2].ready_lines == ("recording into", "recording /tracks [")
+    assert all(str(params) in s.argv and "image_raw:=/cam" in s.argv for s in specs[:2])
+    # the player waits for the nodes' (remapped) inputs only
+    player = list(specs[-1].argv)
+    waited = player[player.index("--wait-topics") + 1:player.index("--wait-topics") + 3]
+    assert sorted(waited) == ["/cam", "/thermal/image_raw"]
+    assert "use_sim_time:=true" not in specs[0].argv
+    sim = build_specs(parser.parse_args(["--bag", str(bag), "--clock"]))
+    assert all("use_sim_time:=true" in s.argv for s in sim if s.name.endswith("_node"))
+    assert "--clock" in sim[-1].argv
+    with pytest.raises(LaunchError, match="does not exist"):
+        build_specs(parser.parse_args(["--bag", str(tmp_path / "missing")]))
+    with pytest.raises(LaunchError, match="record-topics"):
+        build_specs(parser.parse_args(["--record", str(tmp_path / "o")]))
+
+
+def test_mk_launch_command_stops_children_on_sigint(tmp_path):
+    """The real executable: SIGINT to mk_launch stops a node that then exits cleanly."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(fresh_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    proc = subprocess.Popen([sys.executable, "-m", "mk_tracker.ros.launcher", "--no-detector",
+                             "--no-tracker", "--record", str(tmp_path / "rec"),
+                             "--record-topics", "/nothing", "--grace", "5"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=env, cwd=Path(__file__).resolve().parents[2])
+    try:
+        time.sleep(3.0)
+        proc.send_signal(signal.SIGINT)
+        output, _ = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert "[mk_launch] started bag_recorder" in output
+    assert "all processes stopped" in output and "crashed" not in output, output
+    assert proc.returncode == 0, output
+    assert (tmp_path / "rec" / "metadata.yaml").is_file(), output
+
+
+def test_mk_launch_runs_player_nodes_and_recorder_end_to_end(tmp_path):
+    """A generated scene played through both real nodes; the recorded bag holds their
+    detections and tracks, and mk_launch ends by itself with status 0."""
+    try:
+        import vision_msgs.msg  # noqa: F401
+    except ImportError as exc:
+        pytest.skip(f"vision_msgs is not built into this environment yet ({exc})")
+    from mk_tracker.bags import bag_io
+    from mk_tracker.synthetic.scene_bag import build_preset, write_scene_bag
+
+    scene_bag = tmp_path / "scene"
+    write_scene_bag(build_preset("crowd", seed=1, people=2, frames=15, width=240, height=180),
+                    scene_bag)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(fresh_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    out_bag = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "mk_tracker.ros.launcher", "--bag",
+                           str(scene_bag), "--record", str(out_bag), "--record-topics",
+                           "/tracks", "/thermal/detections", "--linger", "2", "--timeout", "60",
+                           "--wait-for-subscribers", "20"],
+                          capture_output=True, text=True, env=env, timeout=90,
+                          cwd=Path(__file__).resolve().parents[2])
+    out = proc.stdout
+    assert proc.returncode == 0, out + proc.stderr
+    for name in ("detector_node", "tracker_node", "bag_recorder", "bag_player"):
+        assert f"[mk_launch] started {name}" in out
+    assert "[bag_player] played" in out and "[bag_recorder] recorded" in out
+    # the player started once the recorder had subscribed to the nodes' outputs
+    assert out.index("[bag_recorder] recording /tracks [") < out.index("started bag_player")
+    assert out.index("[bag_recorder] recording /thermal/detections [") < out.index(
+        "started bag_player")
+    with bag_io.open_bag(out_bag) as reader:
+        topics = reader.topics
+    assert topics["/tracks"].count >= 1 and topics["/thermal/detections"].count >= 1, out
+    assert topics["/tracks"].msgtype == "vision_msgs/msg/Detection2DArray"
+
+
+def test_children_do_not_outlive_a_killed_mk_launch(tmp_path):
+    """SIGKILL of mk_launch itself (no chance to clean up): its children still end."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(fresh_domain()),
+               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    proc = subprocess.Popen([sys.executable, "-m", "mk_tracker.ros.launcher", "--no-detector",
+                             "--no-tracker", "--record", str(tmp_path / "rec"),
+                             "--record-topics", "/nothing"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=env, cwd=Path(__file__).resolve().parents[2])
+    child = None
+    try:
+        line = proc.stdout.readline()
+        assert "started bag_recorder (pid " in line, line
+        child = int(line.rsplit("pid ", 1)[1].rstrip(")\n"))
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+        deadline = time.monotonic() + 10
+        alive = True
+        while alive and time.monotonic() < deadline:
+            try:
+                os.kill(child, 0)
+                with open(f"/proc/{child}/stat") as f:
+                    alive = f.read().split()[2] != "Z"
+            except (ProcessLookupError, FileNotFoundError):
+                alive = False
+            time.sleep(0.1)
+        assert not alive, "bag_recorder survived its killed launcher"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        if child is not None:
+            try:
+                os.kill(child, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+PRINT_PROFILES = ("import os; print('profiles', os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE'),"
+                  " os.environ.get('FASTDDS_DEFAULT_PROFILES_FILE'))")
+
+
+def _child_profiles(monkeypatch, env: dict, argv: list[str]) -> list[str]:
+    """The two profile variables as each process mk_launch would start sees them."""
+    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"):
+        monkeypatch.delenv(var, raising=False)
+    for var, value in env.items():
+        monkeypatch.setenv(var, value)
+    parser = argparse.ArgumentParser()
+    configure_parser(parser)
+    specs = build_specs(parser.parse_args(argv))
+    assert [s.name for s in specs] == ["detector_node", "tracker_node"]
+    # the same specs (environment included), with a stand-in that prints what it got
+    # (not essential: the launch waits until both have printed and exited)
+    stand_ins = [ProcessSpec(s.name, py(PRINT_PROFILES), essential=False, env=s.env)
+                 for s in specs]
+    out = io.StringIO()
+    assert run_processes(stand_ins, timeout_s=20.0, out=out) == 0, out.getvalue()
+    return [line.split(" profiles ", 1)[1] for line in out.getvalue().splitlines()
+            if " profiles " in line]
+
+
+def test_children_get_the_fastdds_shm_profile_unless_set_or_turned_off(monkeypatch):
+    profile = Path(__file__).resolve().parents[2] / "config" / "fastdds_shm.xml"
+    assert profile.is_file()
+    # default: both variables point at config/fastdds_shm.xml in every child
+    assert _child_profiles(monkeypatch, {}, []) == [f"{profile} {profile}"] * 2
+    # the user's choice wins (either variable set: nothing is added)
+    assert _child_profiles(monkeypatch, {"FASTDDS_DEFAULT_PROFILES_FILE": "/mine.xml"}, []) \
+        == ["None /mine.xml"] * 2
+    assert _child_profiles(monkeypatch, {"FASTRTPS_DEFAULT_PROFILES_FILE": "/old.xml"}, []) \
+        == ["/old.xml None"] * 2
+    # turned off
+    assert _child_profiles(monkeypatch, {}, ["--no-fastdds-shm"]) == ["None None"] * 2
+
+
+def test_launch_file_sets_the_same_profile_variables_by_default():
+    """launch/mk_tracker.launch.py (needs a ROS 2 install to run; checked as source): a
+    ``fastdds_shm`` argument defaulting to true, and SetEnvironmentVariable actions for
+    exactly mk_launch's variables, pointing at the installed config/fastdds_shm.xml."""
+    import ast
+
+    from mk_tracker.ros.launcher import FASTDDS_PROFILE_VARIABLES
+    source = (Path(__file__).resolve().parents[2] / "launch" / "mk_tracker.launch.py").read_text()
+    tree = ast.parse(source)
+    constants = {t.id: ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
+                 for t in n.targets if isinstance(t, ast.Name) and isinstance(n.value, ast.Tuple)}
+    assert constants["FASTDDS_PROFILE_VARIABLES"] == FASTDDS_PROFILE_VARIABLES
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call)]
+    declared = {ast.literal_eval(c.args[0]): {k.arg: k.value for k in c.keywords}
+                for c in calls if getattr(c.func, "id", None) == "DeclareLaunchArgument"
+                and c.args and isinstance(c.args[0], ast.Constant)}
+    assert ast.literal_eval(declared["fastdds_shm"]["default_value"]) == "true"
+    assert any(getattr(c.func, "id", None) == "SetEnvironmentVariable" for c in calls)
+    assert '"fastdds_shm.xml"' in source and "EnvironmentVariable(variable" in source
+    assert "fastdds_shm, detector, tracker" in source      # set before any process starts

@@ -1,0 +1,390 @@
+"""``mk_tracker process``: the offline pipeline over generated bags, each detection mode,
+single-target mode, bad messages, parameter files, and TUD-Campus when the real data exists.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mk_tracker.bags.bag_io import BagWriter, open_bag
+from mk_tracker.boxes import iou
+from mk_tracker.tools.cli import main as cli_main
+from mk_tracker.messages.detection_messages import Detection, make_detection_array, read_detection_array
+from mk_tracker.evaluation.metrics import mot_metrics, read_box_list, read_mot_file, single_target_metrics
+from mk_tracker.messages.message_types import bag_message_types
+from mk_tracker.tools.pipeline import (DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS,
+                                 PipelineError, PipelineOptions, load_pipeline_config,
+                                 process_bag)
+from mk_tracker.synthetic.scene_bag import build_preset, read_scene_info, write_scene_bag
+from mk_tracker.drawing.video_output import count_video_frames
+
+from late_detections import detections_bag
+
+FRAMES = 40
+PEOPLE = 3
+
+
+@pytest.fixture(scope="module")
+def scene_bag(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("scene") / "crowd"
+    scene = build_preset("crowd", seed=0, people=PEOPLE, frames=FRAMES, width=320, height=240)
+    write_scene_bag(scene, path, preset="crowd")
+    return path
+
+
+@pytest.fixture(scope="module")
+def thermal_run(scene_bag, tmp_path_factory):
+    out = tmp_path_factory.mktemp("thermal")
+    result = process_bag(scene_bag, out, options=PipelineOptions(progress=False))
+    return out, result
+
+
+def _count(bag: Path, topic: str) -> int:
+    with open_bag(bag) as reader:
+        return reader.topics[topic].count if topic in reader.topics else 0
+
+
+def _copy_bag(src: Path, dst: Path, change=None) -> None:
+    """Copy ``src`` to ``dst`` message by message; ``change(reader, types, message)`` may
+    return ``(topic, msgtype, data-or-message)`` items to write instead of the message."""
+    with open_bag(src) as reader, BagWriter(dst, typestore=reader.typestore) as writer:
+        types = bag_message_types(reader.typestore)
+        for t in reader.topics.values():
+            writer.add_topic(t.name, t.msgtype)
+        for m in reader.messages():
+            items = change(reader, types, m) if change else None
+            if items is None:
+                items = [(m.topic, m.msgtype, m.data)]
+            for topic, msgtype, payload in items:
+                writer.add_topic(topic, msgtype)
+                writer.write(topic, m.timestamp_ns, payload)
+
+
+def test_thermal_mode_writes_every_output(scene_bag, thermal_run):
+    out, result = thermal_run
+    assert result.detection_source == "thermal"
+    assert result.frames == FRAMES and result.bad_frames == 0
+    # output bag: the inputs plus one /thermal/detections and one /tracks per image
+    bag = out / "bag"
+    assert _count(bag, "/image_raw") == FRAMES
+    assert _count(bag, "/tracks") == FRAMES
+    assert _count(bag, "/thermal/detections") == FRAMES
+    assert _count(bag, "/ground_truth") == FRAMES
+    # the MOT file parses and holds every published box
+    rows = read_mot_file(out / "tracks.txt")
+    assert len(rows) == len(result.mot_rows) > 0
+    assert {r.frame for r in rows} <= set(range(1, FRAMES + 1))
+    with open_bag(bag) as reader:
+        published = sum(len(read_detection_array(msg))
+                        for _, msg in reader.read_messages(["/tracks"]))
+    assert published == len(rows)
+    assert count_video_frames(out / "video.mp4") == FRAMES
+    png = (out / "errors.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["frames"] == FRAMES and summary["video_frames"] == FRAMES
+    # the synthetic scene's thermal -> RGB homography is the tracker's
+    scene_h = np.asarray(read_scene_info(scene_bag)["homography"], dtype=float).reshape(9)
+    assert np.allclose(summary["homography"], scene_h)
+
+
+def test_outputs_can_be_rescored_with_mk_tracker_eval(thermal_run, capsys):
+    out, result = thermal_run
+    gt = read_mot_file(out / "gt.txt", ground_truth=True)
+    assert len(gt) == len(result.gt_rows)
+    rescored = mot_metrics(gt, read_mot_file(out / "tracks.txt"))
+    for name in ("mota", "idf1", "num_switches", "num_misses", "num_false_positives"):
+        assert rescored[name] == pytest.approx(result.metrics[name], abs=1e-9), name
+    assert cli_main(["eval", "--gt", str(out / "gt.txt"), str(out / "tracks.txt")]) == 0
+    assert f"{100 * result.metrics['mota']:.1f}%" in capsys.readouterr().out
+
+
+def test_thermal_mode_scores(thermal_run):
+    # The thermal detector needs its frame window and a track needs min_hits confirmed
+    # frames, so the first ~8 of 40 frames are missed for every person (3 x 8 misses of
+    # 120 ground-truth boxes = 20%): MOTA cannot exceed ~0.8 here.  0.6 leaves room for a
+    # few false positives but fails if detections are mapped into the wrong plane (IoU < 0.5
+    # everywhere gives MOTA <= 0) or if tracks are lost/switched during the scene.
+    m = thermal_run[1].metrics
+    assert m["mota"] >= 0.6, m
+    assert m["idf1"] >= 0.7, m
+    assert m["num_switches"] <= 1, m
+    assert m["mostly_tracked"] >= PEOPLE - 1, m
+
+
+def test_topic_mode_with_ground_truth_as_detections(scene_bag, tmp_path):
+    """A bag without thermal images but with a /detections topic (like a MOTChallenge
+    import): auto picks the topic; perfect detections give a near-perfect score."""
+    def change(reader, types, m):
+        if m.topic == "/thermal/image_raw" or m.topic == "/thermal/ground_truth":
+            return []
+        if m.topic != "/ground_truth":
+            return None
+        msg = reader.deserialize(m)
+        dets = [Detection(d.box, 0.9) for d in read_detection_array(msg)]
+        return [(m.topic, m.msgtype, m.data),
+                ("/detections", m.msgtype, make_detection_array(dets, msg.header, types))]
+
+    bag = tmp_path / "with_detections"
+    _copy_bag(scene_bag, bag, change)
+    result = process_bag(bag, tmp_path / "out", options=PipelineOptions(progress=False))
+    assert result.detection_source == "topic:/detections"
+    assert result.detection_frames == FRAMES
+    # only the confirmation delay (min_hits frames) is missed: >= 0.85
+    assert result.metrics["mota"] >= 0.85, result.metrics
+    assert result.metrics["num_switches"] == 0
+    assert _count(tmp_path / "out" / "bag", "/tracks") == FRAMES
+    assert _count(tmp_path / "out" / "bag", "/thermal/detections") == 0
+
+
+def test_detections_in_an_unknown_frame_are_skipped_and_counted(scene_bag, tmp_path):
+    def change(reader, types, m):
+        if m.topic != "/ground_truth":
+            return None
+        msg = reader.deserialize(m)
+        msg.header.frame_id = "somewhere_else"
+        dets = [Detection(d.box, 0.9) for d in read_detection_array(msg)]
+        return [("/detections", m.msgtype, make_detection_array(dets, msg.header, types))]
+
+    bag = tmp_path / "unknown_frame"
+    _copy_bag(scene_bag, bag, change)
+    result = process_bag(bag, tmp_path / "out", options=PipelineOptions(
+        detections="topic:/detections", progress=False, write_video=False))
+    assert result.unknown_frame_batches == FRAMES
+    assert result.mot_rows == []
+
+
+def test_none_mode_publishes_empty_tracks(scene_bag, tmp_path):
+    result = process_bag(scene_bag, tmp_path, options=PipelineOptions(
+        detections="none", progress=False))
+    assert result.detection_source == "none"
+    assert result.mot_rows == [] and (tmp_path / "tracks.txt").read_text() == ""
+    assert _count(tmp_path / "bag", "/tracks") == FRAMES
+    assert result.metrics["num_misses"] == sum(1 for _ in result.gt_rows)
+    assert count_video_frames(tmp_path / "video.mp4") == FRAMES
+
+
+def test_single_target_from_ground_truth(scene_bag, tmp_path):
+    result = process_bag(scene_bag, tmp_path, options=PipelineOptions(
+        init_from_gt=True, progress=False))
+    first_gt = min(r.id for r in result.gt_rows if r.frame == 1)
+    assert result.detection_source == "none"
+    assert result.single_target_gt_id == first_gt
+    assert {r.id for r in result.mot_rows} == {result.single_target_id}
+    m = result.metrics
+    # OTB thresholds: a kernel tracker following a walking person on a clean synthetic
+    # scene keeps the centre within 20 px (about a third of the person's height) nearly
+    # always; 0.8 allows pillar occlusions to cost a few frames.
+    assert m["precision_at_20px"] >= 0.8, m
+    assert m["success_auc"] >= 0.5, m
+    assert (tmp_path / "errors.png").is_file()
+    # the OTB-style files give the same scores to ``mk_tracker eval --single-target``
+    again = single_target_metrics(read_box_list(tmp_path / "target.txt"),
+                                  read_box_list(tmp_path / "target_gt.txt"))
+    assert again["precision_at_20px"] == pytest.approx(m["precision_at_20px"])
+    assert again["success_auc"] == pytest.approx(m["success_auc"], abs=0.01)
+
+
+def test_single_target_from_a_box(scene_bag, tmp_path):
+    with open_bag(scene_bag) as reader:
+        _, msg = next(iter(reader.read_messages(["/ground_truth"])))
+    truth = read_detection_array(msg)
+    target = max(truth, key=lambda d: int(d.id))
+    x, y, w, h = target.box
+    rc = cli_main(["process", str(scene_bag), "--out", str(tmp_path), "--quiet", "--no-video",
+                   "--init", f"{x},{y},{w},{h}"])
+    assert rc == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["metrics"]["ground_truth_id"] == int(target.id)
+    rows = read_mot_file(tmp_path / "tracks.txt")
+    first = [r for r in rows if r.frame == 1]
+    assert len(first) == 1 and iou(first[0].box, target.box) > 0.7
+    assert summary["metrics"]["precision_at_20px"] >= 0.8
+
+
+def test_corrupted_messages_are_skipped_and_counted(scene_bag, tmp_path):
+    def change(reader, types, m):
+        if m.topic != "/image_raw":
+            return None
+        index = change.seen = getattr(change, "seen", 0) + 1
+        if index == 10:   # image whose data is shorter than height * step
+            msg = reader.deserialize(m)
+            msg.data = np.asarray(msg.data)[: len(msg.data) // 2].copy()
+            return [(m.topic, m.msgtype, msg)]
+        if index == 20:   # bytes that are no CDR Image at all
+            return [(m.topic, m.msgtype, b"\x00\x01\x00\x00garbage")]
+        return None
+
+    bag = tmp_path / "corrupted"
+    _copy_bag(scene_bag, bag, change)
+    out = tmp_path / "out"
+    rc = cli_main(["process", str(bag), "--out", str(out), "--quiet"])
+    assert rc == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["frames"] == FRAMES
+    assert summary["bad_frames"] == 2
+    assert summary["tracked_frames"] == FRAMES - 2
+    assert summary["bad_messages"] >= 2
+    assert count_video_frames(out / "video.mp4") == FRAMES - 2
+    assert _count(out / "bag", "/tracks") == FRAMES - 2
+    # frame numbering follows the bag (the skipped frames leave gaps, not a shift)
+    frames = {r.frame for r in read_mot_file(out / "tracks.txt")}
+    assert 10 not in frames and 20 not in frames and max(frames) == FRAMES
+    assert summary["metrics"]["mota"] >= 0.5
+    # the skipped frames' people are still in the ground truth (as misses)
+    assert summary["metrics"]["num_frames"] == FRAMES
+
+
+def test_bad_options_give_a_clear_error(scene_bag, tmp_path, capsys):
+    assert cli_main(["process", str(scene_bag), "--out", str(tmp_path / "a"),
+                     "--detections", "topic:/nothing"]) == 2
+    assert "no topic /nothing" in capsys.readouterr().err
+    assert cli_main(["process", str(scene_bag), "--out", str(tmp_path / "b"),
+                     "--init", "1,2,0,4"]) == 2
+    assert "--init" in capsys.readouterr().err
+    assert cli_main(["process", str(tmp_path / "missing"), "--out", str(tmp_path / "c")]) == 2
+    with pytest.raises(PipelineError, match="detections must be"):
+        process_bag(scene_bag, tmp_path / "d", options=PipelineOptions(detections="gt"))
+
+
+def test_parameter_files_are_read_like_the_nodes(tmp_path):
+    params = tmp_path / "params.yaml"
+    params.write_text(
+        "detector_node:\n  ros__parameters:\n    method: threshold\n"
+        "tracker_node:\n  ros__parameters:\n    detection_buffer: 7\n"
+        "    tracker:\n      use_multi_kernel: false\n      kalman:\n        sigma_u: 2.5\n")
+    config = load_pipeline_config([params])
+    assert config.method == "threshold"
+    assert config.detection_buffer == 7
+    assert config.tracker.use_multi_kernel is False
+    assert config.tracker.kalman.sigma_u == 2.5
+    params.write_text("tracker_node:\n  ros__parameters:\n    tracker:\n"
+                      "      new_track_max_iou: 7.0\n")
+    with pytest.raises(PipelineError, match="new_track_max_iou"):
+        load_pipeline_config([params])
+
+
+def test_node_level_defaults_match_the_nodes():
+    pytest.importorskip("rclpy")
+    from mk_tracker.ros.detector_node import DetectorNodeConfig
+    from mk_tracker.ros.tracker_node import TrackerNodeConfig
+
+    for name, value in TRACKER_NODE_DEFAULTS.items():
+        assert getattr(TrackerNodeConfig(), name) == value
+    for name, value in DETECTOR_NODE_DEFAULTS.items():
+        assert getattr(DetectorNodeConfig(), name) == value
+
+
+def test_tud_campus_with_public_detections(shared_data, tmp_path):
+    sequence = shared_data / "mot" / "TUD-Campus"
+    if not sequence.is_dir():
+        pytest.skip("TUD-Campus is not in the shared data")
+    bag = tmp_path / "tud"
+    assert cli_main(["import", str(sequence), "--out", str(bag), "--quiet"]) == 0
+    # The public DPM detections of TUD-Campus (scores 0..100) hold many weak and
+    # overlapping boxes; like any tracker run on them we gate the weak ones and suppress
+    # duplicates, through the same tracker parameters a node would get.
+    params = tmp_path / "tud.yaml"
+    params.write_text("tracker_node:\n  ros__parameters:\n    tracker:\n"
+                      "      min_detection_score: 20.0\n      new_track_max_iou: 0.3\n")
+    result = process_bag(bag, tmp_path / "out", config=load_pipeline_config([params]),
+                         options=PipelineOptions(progress=False, write_video=False))
+    assert result.detection_source == "topic:/detections"
+    assert result.frames == 71
+    m = result.metrics
+    # Measured at this commit: MOTA 0.382, IDF1 0.673 (71 frames, 8 people).  Published
+    # MOT15 trackers reach MOTA 0.5-0.7 here, so these are regression guards below our own
+    # figure, not a claim of quality; ungated detections measure MOTA -0.38.
+    assert m["mota"] >= 0.25 and m["idf1"] >= 0.55, m
+
+
+def test_an_unexpected_error_on_one_message_does_not_end_the_run(scene_bag, tmp_path,
+                                                                  monkeypatch):
+    """Like the nodes' frame workers, the pipeline logs a crash on one message and goes on."""
+    import mk_tracker.tools.pipeline as pipeline
+
+    class Exploding:
+        calls = 0
+        last_mode = "tracking"
+
+        def process(self, frame, stamp, encoding=None):
+            Exploding.calls += 1
+            if Exploding.calls == 3:
+                raise RuntimeError("boom")
+            return []
+
+    monkeypatch.setattr(pipeline, "build_detector", lambda *a: Exploding())
+    result = process_bag(scene_bag, tmp_path, options=PipelineOptions(
+        detections="thermal", progress=False, write_video=False))
+    assert Exploding.calls == FRAMES
+    assert result.tracked_frames == FRAMES
+    assert any("RuntimeError: boom" in p for p in result.problems)
+
+
+
+# -- the per-frame decisions shared with the nodes (mk_tracker.frame_processing) -----------
+
+def test_detection_planes_follow_the_frame_id():
+    from mk_tracker.frame_processing import DetectionBatch, tracker_inputs
+
+    box = (1.0, 2.0, 3.0, 4.0)
+    batches = [DetectionBatch(1.0, "camera", [Detection(box, 0.5)]),
+               DetectionBatch(1.1, "thermal_camera", [Detection(box, 0.7), Detection(box, 0.2)]),
+               DetectionBatch(1.2, "lidar", [Detection(box, 0.9)])]
+    dets, unknown = tracker_inputs(batches, "camera", "thermal_camera")
+    assert [(d.plane, d.stamp, d.score) for d in dets] == [
+        ("rgb", 1.0, 0.5), ("thermal", 1.1, 0.7), ("thermal", 1.1, 0.2)]
+    assert unknown == ["lidar"]
+
+
+def test_published_tracks_and_detector_outputs_drop_unusable_boxes():
+    from types import SimpleNamespace as NS
+
+    from mk_tracker.frame_processing import detector_outputs, tracks_to_detections
+
+    tracks = [NS(id=3, box=(1.0, 2.0, 3.0, 4.0), score=1.7),
+              NS(id=4, box=(float("nan"), 2.0, 3.0, 4.0), score=0.5),
+              NS(id=5, box=(1.0, 2.0, 0.0, 4.0), score=0.5),
+              NS(id=6, box=(5.0, 6.0, 7.0, 8.0), score=-0.2)]
+    out = tracks_to_detections(tracks, "person")
+    assert [(d.id, d.score) for d in out] == [("3", 1.0), ("6", 0.0)]
+    found = [NS(box=(1.0, 1.0, 2.0, 2.0), score=0.9), NS(box=(1.0, 1.0, -2.0, 2.0), score=0.9),
+             NS(box=(1.0, 1.0, 2.0, 2.0), score=float("inf"))]
+    dets, errors = detector_outputs(found, "person")
+    assert [d.box for d in dets] == [(1.0, 1.0, 2.0, 2.0)] and dets[0].id == ""
+    assert len(errors) == 2
+
+
+def test_detection_wait_pairs_late_detections_with_their_own_frame(scene_bag, tmp_path):
+    """tracker_node's ``detection_wait`` offline: detections stored after their image (as a
+    detector's answer arrives) are used on their own frame when the frame waits for them,
+    which gives exactly the tracks of detections that arrived first; without waiting they
+    land one frame late."""
+    with open_bag(scene_bag) as reader:
+        ns = [m.timestamp_ns for m in reader.messages(["/image_raw"])]
+    period = int(np.median(np.diff(ns)))
+    early, late = tmp_path / "early", tmp_path / "late"
+    detections_bag(scene_bag, early, -period // 4)
+    detections_bag(scene_bag, late, period // 4)
+
+    def tracks(bag: Path, wait: float, name: str) -> dict:
+        params = tmp_path / f"{name}.yaml"
+        params.write_text(f"tracker_node:\n  ros__parameters:\n    detection_wait: {wait}\n")
+        config = load_pipeline_config([params])
+        assert config.detection_wait == wait
+        result = process_bag(bag, tmp_path / name, config=config,
+                             options=PipelineOptions(progress=False, write_video=False,
+                                                     write_plots=False))
+        assert result.frames == FRAMES - 1 and result.tracked_frames == FRAMES - 1
+        return result.tracks
+
+    reference = tracks(early, 0.0, "early")
+    assert sum(len(v) for v in reference.values()) > FRAMES          # people were tracked
+    waited = tracks(late, period * 1e-9 / 2, "late_waited")
+    assert waited == reference
+    not_waited = tracks(late, 0.0, "late_not_waited")
+    assert not_waited != reference     # every frame got the detections of the frame before

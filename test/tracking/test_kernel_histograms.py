@@ -1,0 +1,365 @@
+"""Colour histograms, K-L cost, mean-shift vector and scale ratio (Chu 2013 App. C, (9)-(10))."""
+
+import numpy as np
+import pytest
+
+from mk_tracker.tracking.kernel_histograms import (InvalidImageError, check_image, evaluate_kernel,
+                                          kernel_histogram, kl_cost, mean_shift_vector,
+                                          number_of_bins, pixel_weights, profile_values,
+                                          quantize, sample_kernel, scale_ratio,
+                                          similarity_from_cost)
+
+BINS = (16, 8, 4)
+M = number_of_bins(BINS)
+RED = (0, 0, 255)
+BLUE = (255, 0, 0)
+GREY = (128, 128, 128)
+
+
+def _image(h=120, w=160, colour=GREY):
+    img = np.empty((h, w, 3), np.uint8)
+    img[:] = colour
+    return img
+
+
+def test_hsv_quantisation_of_pure_colours():
+    img = np.array([[RED, BLUE]], np.uint8)
+    b = quantize(img, "hsv", BINS)
+    # red: hue 0, full saturation and value
+    assert b[0, 0] == (0 * 8 + 7) * 4 + 3
+    # blue: OpenCV hue 120 of 180 -> bin 120*16//180 = 10
+    assert b[0, 1] == (10 * 8 + 7) * 4 + 3
+    assert quantize(img, "bgr", (4, 4, 4))[0, 0] == (0 * 4 + 0) * 4 + 3
+
+
+def test_roof_profile_is_linear_with_constant_g():
+    v = np.array([0.0, 0.25, 0.5, 0.99])
+    k, g = profile_values(v, "roof")
+    assert np.allclose(k, 1 - v) and np.allclose(g, 1.0)
+    k, g = profile_values(v, "gaussian")
+    assert np.all(np.diff(k) < 0) and np.allclose(g, 2 * k)
+
+
+def test_histogram_weights_pixels_by_the_profile():
+    img = _image(colour=BLUE)
+    img[:, :80] = RED                   # left half red, right half blue
+    bins = quantize(img, "hsv", BINS)
+    centred = kernel_histogram(sample_kernel(bins, (0, 0), np.array([80.0, 60.0]),
+                                             np.array([20.0, 20.0])), M)
+    assert centred.sum() == pytest.approx(1.0)
+    red_bin, blue_bin = bins[0, 0], bins[0, 159]
+    assert centred[red_bin] == pytest.approx(0.5, abs=0.03)
+    # moved right: blue dominates, and the few red pixels at the rim weigh little (k ~ 0)
+    right = kernel_histogram(sample_kernel(bins, (0, 0), np.array([95.0, 60.0]),
+                                           np.array([20.0, 20.0])), M)
+    assert right[blue_bin] > 0.9
+
+
+def test_kl_cost_and_similarity():
+    rng = np.random.default_rng(1)
+    q = rng.random(M)
+    q /= q.sum()
+    assert kl_cost(q, q) == pytest.approx(0.0, abs=1e-3)
+    assert similarity_from_cost(kl_cost(q, q)) == pytest.approx(1.0, abs=1e-3)
+    p = rng.random(M)
+    p /= p.sum()
+    assert kl_cost(q, p) > 0.1
+    # a histogram that shares no bin with q: finite cost (smoothing), tiny similarity
+    disjoint = np.zeros(M)
+    disjoint[q.argmin()] = 1.0
+    cost = kl_cost(np.eye(M)[q.argmax()], disjoint)
+    assert np.isfinite(cost) and cost > 5
+    assert 0.0 < similarity_from_cost(cost) < 0.01
+
+
+def _blob_scene():
+    rng = np.random.default_rng(3)
+    img = rng.integers(90, 160, size=(120, 160, 3)).astype(np.uint8)
+    img[:, :, 1] = img[:, :, 0]
+    img[40:80, 70:100] = RED            # the target: a red block centred at (85, 60)
+    return img
+
+
+def test_mean_shift_points_to_the_weighted_mode():
+    img = _blob_scene()
+    bins = quantize(img, "hsv", BINS)
+    axes = np.array([15.0, 20.0])
+    q = kernel_histogram(sample_kernel(bins, (0, 0), np.array([85.0, 60.0]), axes), M)
+    for offset in ([7.0, -5.0], [-6.0, 8.0], [0.0, 9.0]):
+        start = np.array([85.0, 60.0]) + offset
+        s = sample_kernel(bins, (0, 0), start, axes)
+        p = kernel_histogram(s, M)
+        m = mean_shift_vector(s, pixel_weights(s, q, p, 0.01), start)
+        back = -np.asarray(offset)
+        cos = m @ back / (np.linalg.norm(m) * np.linalg.norm(back))
+        assert cos > 0.9 and np.linalg.norm(m) > 1.0
+
+
+def test_mean_shift_is_zero_at_a_symmetric_mode():
+    img = _blob_scene()
+    bins = quantize(img, "hsv", BINS)
+    axes = np.array([15.0, 20.0])
+    centre = np.array([85.0, 60.0])
+    s = sample_kernel(bins, (0, 0), centre, axes)
+    q = kernel_histogram(s, M)
+    m = mean_shift_vector(s, pixel_weights(s, q, q, 0.01), centre)
+    assert np.linalg.norm(m) < 0.5
+
+
+def _disc_scene(radius):
+    yy, xx = np.mgrid[0:200, 0:200]
+    img = _image(200, 200, BLUE)
+    img[(xx + 0.5 - 100) ** 2 + (yy + 0.5 - 100) ** 2 < radius ** 2] = RED
+    return quantize(img, "hsv", BINS)
+
+
+def test_scale_ratio_sign_follows_the_size_change():
+    axes = np.array([40.0, 40.0])
+    centre = np.array([100.0, 100.0])
+    q = kernel_histogram(sample_kernel(_disc_scene(30), (0, 0), centre, axes), M)
+    ratios = {}
+    for radius in (24, 30, 36):
+        bins = _disc_scene(radius)
+        s = sample_kernel(bins, (0, 0), centre, axes)
+        p = kernel_histogram(s, M)
+        ratios[radius] = scale_ratio(s, pixel_weights(s, q, p, 0.01), axes)
+    assert ratios[36] > 0 > ratios[24]
+    assert abs(ratios[30]) < 0.2 * min(abs(ratios[36]), abs(ratios[24]))
+
+
+def test_a_kernel_outside_the_region_is_empty_not_an_error():
+    bins = quantize(_image(), "hsv", BINS)
+    q = np.full(M, 1.0 / M)
+    ev = evaluate_kernel(bins, (0, 0), np.array([500.0, 500.0]), np.array([10.0, 10.0]), q)
+    assert ev.similarity == 0.0 and ev.cost == np.inf and ev.n_pixels == 0
+    assert np.all(ev.mean_shift == 0)
+
+
+def test_sample_only_reads_the_roi_with_its_origin():
+    img = _blob_scene()
+    full = quantize(img, "hsv", BINS)
+    roi = full[30:90, 60:110]
+    a = sample_kernel(full, (0, 0), np.array([85.3, 60.7]), np.array([12.0, 18.0]))
+    b = sample_kernel(roi, (60, 30), np.array([85.3, 60.7]), np.array([12.0, 18.0]))
+    assert np.array_equal(a.bins, b.bins) and np.allclose(a.xs, b.xs) and np.allclose(a.k, b.k)
+
+
+@pytest.mark.parametrize("bad", [np.zeros((10, 10), np.uint8), np.zeros((0, 5, 3), np.uint8),
+                                 np.zeros((4, 4, 3), np.int64), [[1, 2, 3]]])
+def test_bad_images_raise_our_error(bad):
+    with pytest.raises(InvalidImageError):
+        check_image(bad)
+
+
+@pytest.mark.parametrize("stride", [1, 2, 3])
+def test_template_fast_path_matches_the_direct_evaluation(stride):
+    from mk_tracker.tracking.kernel_histograms import KernelTemplate, PaddedBins
+    img = _blob_scene()
+    origin = (8, 4)                          # ROI starts at image pixel (8, 4)
+    roi = img[origin[1]::stride, origin[0]::stride]
+    bins = quantize(roi, "hsv", BINS)
+    axes = np.array([15.0, 20.0])
+    q = kernel_histogram(sample_kernel(bins, origin, np.array([85.5, 60.5]), axes,
+                                       stride=stride), M)
+    template = KernelTemplate(axes, stride)
+    padded = PaddedBins(bins, origin, stride, M, template.reach)
+    right = origin[0] + stride * (bins.shape[1] - 1)
+    bottom = origin[1] + stride * (bins.shape[0] - 1)
+    # off-grid centres, one so close to the ROI corner that part of the kernel is outside
+    for centre in ([85.5, 60.5], [71.3, 49.8], [30.9, 22.2], [right - 0.3, bottom + 0.4]):
+        centre = np.array(centre)
+        direct = evaluate_kernel(bins, origin, centre, axes, q, stride=stride)
+        fast = padded.evaluate(template, centre, q)
+        assert fast.n_pixels == direct.n_pixels > 0
+        assert fast.cost == pytest.approx(direct.cost, abs=1e-12)
+        assert np.allclose(fast.mean_shift, direct.mean_shift)
+        assert fast.scale_ratio == pytest.approx(direct.scale_ratio, abs=1e-12)
+    # a kernel too large for the padding is refused rather than read out of bounds
+    with pytest.raises(ValueError, match="padding"):
+        padded.evaluate(KernelTemplate(axes * 2, stride), np.array([40.5, 40.5]), q)
+
+
+def test_batched_evaluation_equals_one_kernel_at_a_time():
+    from mk_tracker.tracking.kernel_histograms import KernelTemplate, PaddedBins
+    img = _blob_scene()
+    stride = 2
+    bins = quantize(img[::stride, ::stride], "hsv", BINS)
+    axes = [np.array([15.0, 20.0]), np.array([9.0, 12.0]), np.array([6.0, 6.0])]
+    centres = np.array([[85.3, 60.7], [70.1, 95.5], [900.0, 900.0]])   # the last is outside
+    rng = np.random.default_rng(4)
+    models = rng.random((3, M))
+    models /= models.sum(axis=1, keepdims=True)
+    templates = [KernelTemplate(a, stride) for a in axes]
+    padded = PaddedBins(bins, (0, 0), stride, M, templates[0].reach)
+    batch = padded.evaluate_many(templates, centres, models)
+    for i in range(2):
+        direct = evaluate_kernel(bins, (0, 0), centres[i], axes[i], models[i], stride=stride)
+        assert batch[i].n_pixels == direct.n_pixels > 0
+        assert batch[i].cost == pytest.approx(direct.cost, abs=1e-12)
+        assert np.allclose(batch[i].p, direct.p)
+        assert np.allclose(batch[i].mean_shift, direct.mean_shift)
+        assert batch[i].scale_ratio == pytest.approx(direct.scale_ratio, abs=1e-12)
+    assert batch[2].n_pixels == 0 and batch[2].similarity == 0.0
+
+
+# -- compiled fast path (numba) against the numpy reference --------------------------------
+
+from mk_tracker.tracking.kernel_histograms import (KernelBackendError, SearchRegion,  # noqa: E402
+                                          bin_lookup_tables, compiled_kernels,
+                                          quantize_region, resolve_backend)
+
+needs_numba = pytest.mark.skipif(compiled_kernels() is None,
+                                 reason="numba not installed or MK_TRACKER_NO_NUMBA set")
+
+
+def test_lookup_tables_give_the_hsv_bins_of_opencv():
+    import cv2
+    rng = np.random.default_rng(8)
+    img = rng.integers(0, 256, size=(64, 64, 3)).astype(np.uint8)
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV).astype(np.int64)
+    h_bin = np.minimum(hsv[..., 0] * 16 // 180, 15)
+    expected = (h_bin * 8 + (hsv[..., 1] * 8 >> 8)) * 4 + (hsv[..., 2] * 4 >> 8)
+    assert np.array_equal(quantize(img, "hsv", BINS), expected)
+    assert bin_lookup_tables("bgr", (4, 4, 4))[0, 255] == 3 * 16
+    with pytest.raises(ValueError):
+        bin_lookup_tables("lab", BINS)
+
+
+def test_backend_names_are_checked():
+    assert resolve_backend("numpy") == "numpy"
+    assert resolve_backend("auto") in ("numpy", "compiled")
+    with pytest.raises(KernelBackendError):
+        resolve_backend("gpu")
+    assert issubclass(KernelBackendError, ValueError)
+
+
+def test_without_numba_auto_falls_back_and_compiled_is_refused():
+    import os
+    import subprocess
+    import sys
+    code = ("from mk_tracker.tracking.kernel_histograms import *\n"
+            "assert compiled_kernels() is None and resolve_backend('auto') == 'numpy'\n"
+            "try:\n    resolve_backend('compiled')\nexcept KernelBackendError:\n    print('refused')\n")
+    env = dict(os.environ, MK_TRACKER_NO_NUMBA="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "refused"
+
+
+@needs_numba
+def test_compiled_hsv_bins_equal_opencv_on_every_colour():
+    import cv2
+    level = np.arange(256, dtype=np.uint8)
+    img = np.empty((256, 256, 256, 3), np.uint8)
+    img[..., 0] = level[:, None, None]
+    img[..., 1] = level[None, :, None]
+    img[..., 2] = level[None, None, :]
+    img = img.reshape(4096, 4096, 3)
+    # one bin per HSV level: the bin index spells out the converted pixel
+    fast = quantize_region(img, (0, 0, 4096, 4096), 1, "hsv", (180, 256, 256), "compiled")
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    for channel, shift in ((0, 16), (1, 8), (2, 0)):
+        assert np.array_equal((fast >> shift) & 255, hsv[..., channel])
+
+
+@needs_numba
+@pytest.mark.parametrize("stride", [1, 2, 3])
+def test_compiled_quantisation_equals_numpy(stride):
+    rng = np.random.default_rng(stride)
+    img = rng.integers(0, 256, size=(90, 130, 3)).astype(np.uint8)
+    for region in [(0, 0, 130, 90), (stride * 3, stride * 2, 101, 77), (5, 7, 6, 8)]:
+        for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2))]:
+            a = quantize_region(img, region, stride, cs, bins, "compiled")
+            b = quantize_region(img, region, stride, cs, bins, "numpy")
+            assert a.dtype == np.int32 and np.array_equal(a, b)
+            x0, y0, x1, y1 = region
+            assert np.array_equal(b, quantize(img[y0:y1:stride, x0:x1:stride], cs, bins))
+    bad = img.astype(np.float32)
+    bad[10, 10] = np.nan
+    for backend in ("compiled", "numpy"):
+        assert quantize_region(bad, (0, 0, 130, 90), 1, "hsv", BINS, backend) is None
+        assert np.array_equal(quantize_region(img.astype(np.float64), (0, 0, 130, 90), 2,
+                                              "hsv", BINS, backend),
+                              quantize_region(img, (0, 0, 130, 90), 2, "hsv", BINS, "numpy"))
+
+
+def _random_case(rng, trial):
+    stride = int(rng.integers(1, 4))
+    img = rng.integers(0, 256, size=(150, 200, 3)).astype(np.uint8)
+    img[40:100, 60:120] = rng.integers(0, 256, 3)          # a blob so histograms differ
+    x0 = int(rng.integers(0, 30)) // stride * stride
+    y0 = int(rng.integers(0, 30)) // stride * stride
+    bins = quantize_region(img, (x0, y0, 200, 150), stride, "hsv", BINS, "numpy")
+    n_k = int(rng.integers(1, 6))
+    axes = rng.uniform(2.0, 35.0, size=(n_k, 2))
+    centres = rng.uniform(-20.0, 220.0, size=(n_k, 2))     # some kernels partly or all outside
+    models = rng.random((n_k, M)) * (rng.random((n_k, M)) < 0.3)
+    models /= models.sum(axis=1, keepdims=True)
+    profile = PROFILES_[trial % 2]
+    weighting = WEIGHTINGS_[(trial // 2) % 2]
+    return bins, (x0, y0), stride, axes, centres, models, profile, weighting
+
+
+PROFILES_ = ("roof", "gaussian")
+WEIGHTINGS_ = ("kl", "bhattacharyya")
+
+
+@needs_numba
+def test_compiled_kernel_evaluation_equals_the_numpy_reference():
+    rng = np.random.default_rng(12)
+    seen_empty = seen_full = 0
+    for trial in range(60):
+        bins, origin, stride, axes, centres, models, profile, weighting = \
+            _random_case(rng, trial)
+        results = [SearchRegion(bins, origin, stride, M, profile, backend).evaluate(
+            axes, centres, models, 0.01, weighting) for backend in ("compiled", "numpy")]
+        a, b = results
+        assert np.array_equal(a.n_pixels, b.n_pixels)
+        assert np.array_equal(np.isinf(a.costs), a.n_pixels == 0)
+        assert np.array_equal(np.isinf(b.costs), b.n_pixels == 0)
+        seen_empty += int(np.sum(a.n_pixels == 0))
+        seen_full += int(np.sum(a.n_pixels > 0))
+        for name in ("p", "similarities", "mean_shift", "scale_ratios"):
+            assert np.allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-9), name
+        fin = np.isfinite(b.costs)
+        assert np.allclose(a.costs[fin], b.costs[fin], rtol=0, atol=1e-9)
+    assert seen_empty > 0 and seen_full > 50      # both cases were exercised
+
+
+def test_search_region_equals_the_direct_per_kernel_evaluation():
+    from mk_tracker.tracking.kernel_histograms import evaluate_kernel
+    rng = np.random.default_rng(13)
+    for trial in range(12):
+        bins, origin, stride, axes, centres, models, profile, weighting = \
+            _random_case(rng, trial)
+        centres = rng.uniform(40.0, 160.0, size=centres.shape)   # inside the ROI
+        for backend in ("numpy", "auto"):
+            batch = SearchRegion(bins, origin, stride, M, profile, backend).evaluate(
+                axes, centres, models, 0.01, weighting)
+            for i in range(len(axes)):
+                d = evaluate_kernel(bins, origin, centres[i], axes[i], models[i],
+                                    profile=profile, weighting=weighting, stride=stride)
+                assert batch.n_pixels[i] == d.n_pixels
+                if d.n_pixels == 0:                  # a thin kernel between grid nodes
+                    assert batch.similarities[i] == 0.0 and np.isinf(batch.costs[i])
+                    continue
+                assert batch.costs[i] == pytest.approx(d.cost, abs=1e-9)
+                assert np.allclose(batch.p[i], d.p, atol=1e-12)
+                assert np.allclose(batch.mean_shift[i], d.mean_shift, atol=1e-9)
+                assert batch.scale_ratios[i] == pytest.approx(d.scale_ratio, abs=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "auto"])
+def test_search_region_refuses_bins_and_models_that_do_not_fit(backend):
+    from mk_tracker.tracking.kernel_histograms import BinMismatchError
+    bins = quantize(_blob_scene(), "hsv", BINS)
+    with pytest.raises(BinMismatchError):
+        SearchRegion(bins, (0, 0), 1, 64, backend=backend)          # indices up to 511
+    with pytest.raises(BinMismatchError):
+        SearchRegion(bins - 600, (0, 0), 1, M, backend=backend)
+    region = SearchRegion(bins, (0, 0), 1, M, backend=backend)
+    with pytest.raises(BinMismatchError):
+        region.evaluate(np.ones((2, 2)) * 10, np.ones((2, 2)) * 50, np.full((2, 64), 1 / 64))
+    with pytest.raises(BinMismatchError):
+        region.evaluate(np.ones((2, 2)) * 10, np.ones((3, 2)) * 50, np.full((2, M), 1 / M))
+    assert issubclass(BinMismatchError, ValueError)
