@@ -76,3 +76,117 @@ def test_assign_empty_and_nan():
     assert a.matches == [] and a.unmatched_cols == [0, 1, 2]
     with pytest.raises(AssociationError):
         assign(np.array([[np.nan]]), max_cost=1.0)
+
+
+def test_mahalanobis_correlation_term_with_a_residual_in_both_axes():
+    # S = [[4, 1], [1, 2]], det 7, inverse [[2, -1], [-1, 4]] / 7.  Residual (2, 1):
+    # (2 * 2^2 - 2 * 1 * 2 * 1 + 4 * 1^2) / 7 = (8 - 4 + 4) / 7 = 8 / 7.
+    # Residual (2, -1) flips the sign of the cross term: (8 + 4 + 4) / 7 = 16 / 7.
+    s = np.array([[4.0, 1.0], [1.0, 2.0]])
+    d = mahalanobis_matrix([[1.0, 1.0]], [s], [[3.0, 2.0], [3.0, 0.0]])
+    assert d[0, 0] == pytest.approx(8.0 / 7.0)
+    assert d[0, 1] == pytest.approx(16.0 / 7.0)
+
+
+def test_mahalanobis_per_track_covariances_are_not_mixed_up():
+    # track 0: S = diag(1, 4), residual (2, 2) -> 4 + 1 = 5
+    # track 1: S = diag(4, 1), residual (2, 2) -> 1 + 4 = 5; residual (0, 1) -> 1 and 1/4
+    d = mahalanobis_matrix([[0.0, 0.0], [10.0, 10.0]], [np.diag([1.0, 4.0]), np.diag([4.0, 1.0])],
+                           np.array([[[2.0, 2.0], [0.0, 1.0]], [[12.0, 12.0], [10.0, 11.0]]]))
+    np.testing.assert_allclose(d, [[5.0, 0.25], [5.0, 1.0]])
+
+
+@pytest.mark.parametrize("cov", [
+    np.array([[1.0, 2.0], [2.0, 1.0]]),          # det = 1 - 4 < 0: indefinite
+    np.array([[1.0, 1.0], [1.0, 1.0]]),          # det = 0: singular
+    np.array([[np.nan, 0.0], [0.0, 1.0]]),       # det NaN
+    np.array([[np.inf, 0.0], [0.0, 1.0]]),       # det infinite
+])
+def test_mahalanobis_rejects_covariances_that_are_not_positive_definite(cov):
+    with pytest.raises(AssociationError):
+        mahalanobis_matrix([[0.0, 0.0]], [cov], [[1.0, 1.0]])
+
+
+def test_mahalanobis_shapes():
+    assert mahalanobis_matrix(np.zeros((0, 2)), np.zeros((0, 2, 2)), [[1.0, 1.0]]).shape == (0, 1)
+    assert mahalanobis_matrix([[0.0, 0.0]], [np.eye(2)], np.zeros((0, 2))).shape == (1, 0)
+    with pytest.raises(AssociationError):        # two centres, one covariance
+        mahalanobis_matrix([[0, 0], [1, 1]], [np.eye(2)], [[1.0, 1.0]])
+    with pytest.raises(AssociationError):        # per-track points for 3 tracks, 2 tracks
+        mahalanobis_matrix([[0, 0], [1, 1]], [np.eye(2)] * 2, np.zeros((3, 1, 2)))
+    with pytest.raises(AssociationError):        # points of 3 coordinates
+        mahalanobis_matrix([[0, 0]], [np.eye(2)], np.zeros((1, 2, 3)))
+
+
+def test_min_iou_boundary_is_inclusive():
+    # track x 0..10, y 0..10 (100); detection x 0..10, y 0..5 (50): IoU = 50 / 100 = 0.5
+    t = np.array([[0, 0, 10, 10]], float)
+    d = np.array([[0, 0, 10, 5]], float)
+    at = association_cost(t, d, np.zeros((1, 1)), AssociationConfig(overlap_weight=0.5,
+                                                                     min_iou=0.5))
+    assert at[0, 0] == pytest.approx(0.5 * 0.5)
+    above = association_cost(t, d, np.zeros((1, 1)), AssociationConfig(min_iou=0.5000001))
+    assert math.isinf(above[0, 0])
+
+
+def test_gate_boundary_is_inclusive():
+    # d2 == gate is inside (distance term 1); just above is forbidden.  IoU 1 (same box).
+    cfg = AssociationConfig(overlap_weight=0.4, gate=9.0)
+    t = np.array([[0, 0, 4, 8]], float)
+    cost = association_cost(t, t, np.array([[9.0]]), cfg)
+    assert cost[0, 0] == pytest.approx(0.6)
+    assert math.isinf(association_cost(t, t, np.array([[9.000001]]), cfg)[0, 0])
+
+
+def test_extra_cost_is_added_and_does_not_open_forbidden_pairs():
+    # IoU (0,0,10,10) vs (5,0,10,10) = 1/3; d2 = 2 of gate 8.
+    # base = 0.5 * (2/3) + 0.5 * (2/8) = 1/3 + 1/8 = 11/24
+    cfg = AssociationConfig(overlap_weight=0.5, gate=8.0)
+    t = np.array([[0, 0, 10, 10], [50, 50, 10, 10]], float)
+    d = np.array([[5, 0, 10, 10]], float)
+    maha = np.array([[2.0], [100.0]])
+    extra = np.array([[0.25], [-5.0]])
+    cost = association_cost(t, d, maha, cfg, extra_cost=extra)
+    assert cost[0, 0] == pytest.approx(11.0 / 24.0 + 0.25)
+    assert math.isinf(cost[1, 0])                      # outside the gate whatever the extra
+    with pytest.raises(AssociationError):
+        association_cost(t, d, maha, cfg, extra_cost=np.zeros((1, 2)))
+
+
+def test_cost_with_per_track_detection_boxes():
+    # track 0 sees the detection at x 0..4, y 0..2 (its own box: IoU 1);
+    # track 1 (x 0..2, y 0..2, area 4) sees it at x 1..5, y 0..2 (area 8):
+    # overlap x 1..2 -> 2, union 4 + 8 - 2 = 10, IoU 0.2
+    cfg = AssociationConfig(overlap_weight=1.0)
+    t = np.array([[0, 0, 4, 2], [0, 0, 2, 2]], float)
+    d = np.array([[[0, 0, 4, 2]], [[1, 0, 4, 2]]], float)
+    cost = association_cost(t, d, np.zeros((2, 1)), cfg)
+    np.testing.assert_allclose(cost, [[0.0], [0.8]], atol=1e-12)
+    empty = association_cost(np.zeros((0, 4)), np.zeros((0, 3, 4)), np.zeros((0, 3)), cfg)
+    assert empty.shape == (0, 3)
+    with pytest.raises(AssociationError):              # boxes for 3 tracks, 2 tracks
+        association_cost(t, np.zeros((3, 1, 4)), np.zeros((2, 1)), cfg)
+
+
+def test_cost_rejects_mismatched_or_nan_distances():
+    cfg = AssociationConfig()
+    t = np.array([[0, 0, 4, 2]], float)
+    d = np.array([[0, 0, 4, 2], [1, 1, 2, 2]], float)
+    with pytest.raises(AssociationError):
+        association_cost(t, d, np.zeros((1, 3)), cfg)
+    with pytest.raises(AssociationError):
+        association_cost(t, d, np.array([[0.0, np.nan]]), cfg)
+
+
+def test_assign_keeps_a_pair_whose_cost_equals_max_cost():
+    a = assign(np.array([[0.85, np.inf], [np.inf, 0.8500001]]), max_cost=0.85)
+    assert a.matches == [(0, 0)]
+    assert a.unmatched_rows == [1] and a.unmatched_cols == [1]
+
+
+def test_assign_never_matches_an_impossible_pair_even_without_a_cost_limit():
+    a = assign(np.array([[np.inf, 1.0], [np.inf, np.inf]]), max_cost=math.inf)
+    assert a.matches == [(0, 1)]
+    assert a.unmatched_rows == [1] and a.unmatched_cols == [0]
+    with pytest.raises(AssociationError):
+        assign(np.zeros(3), max_cost=1.0)
