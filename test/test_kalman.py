@@ -158,3 +158,71 @@ def test_repeated_step_uses_the_same_matrices_and_they_cannot_be_changed():
     cached_a, _ = _step_matrices(0.25, 1.5)
     with pytest.raises(ValueError):
         cached_a[0, 2] = 1.0
+
+
+@pytest.mark.parametrize("z", [
+    (float("nan"), 1.0), (1.0, float("nan")),          # the tuple-of-floats fast path
+    (float("inf"), 1.0), (1.0, float("-inf")),
+    [float("nan"), 1.0], np.array([1.0, np.nan]),      # the general path
+    (1.0, 2.0, 3.0), (1.0,),
+])
+def test_innovation_distance_rejects_a_bad_measurement(z):
+    # a NaN in one coordinate must not come out as a NaN distance (it would fail every
+    # gate comparison silently)
+    kf = _filter()
+    with pytest.raises(KalmanError):
+        kf.innovation_distance(z)
+
+
+def test_innovation_distance_with_correlated_covariance_by_hand():
+    # predict/update from a diagonal start never correlate x and y (the model is separable),
+    # so the correlated covariance is set directly
+    kf = _filter()
+    kf._cov = np.array([[4.0, 1.0, 0, 0], [1.0, 2.0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    # S = [[4, 1], [1, 2]] + 4 I = [[8, 1], [1, 6]], det 47, S^-1 = [[6, -1], [-1, 8]] / 47
+    # residual (2, 1): (6 * 4 - 2 * 1 * 2 * 1 + 8 * 1) / 47 = 28 / 47
+    assert kf.innovation_distance((12.0, 21.0)) == pytest.approx(28.0 / 47.0)
+    # residual (2, -1): (24 + 4 + 8) / 47 = 36 / 47
+    assert kf.innovation_distance((12.0, 19.0)) == pytest.approx(36.0 / 47.0)
+    np.testing.assert_allclose(kf.innovation_covariance(), [[8.0, 1.0], [1.0, 6.0]])
+    # per-call sigma_w = 1: S = [[5, 1], [1, 3]]
+    np.testing.assert_allclose(kf.innovation_covariance(1.0), [[5.0, 1.0], [1.0, 3.0]])
+
+
+def test_update_with_correlated_covariance_by_hand():
+    # P = [[4, 1, 0, 0], [1, 2, 0, 0], 0, diag(1, 1)] and sigma_w = 2: S = [[8, 1], [1, 6]],
+    # S^-1 = [[6, -1], [-1, 8]] / 47; gain (position rows) = P_pos S^-1
+    # = [[4, 1], [1, 2]] [[6, -1], [-1, 8]] / 47 = [[23, 4], [4, 15]] / 47; velocity rows 0
+    kf = _filter()
+    kf._cov = np.array([[4.0, 1.0, 0, 0], [1.0, 2.0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    s = kf.update((12.0, 21.0))                  # residual (2, 1)
+    # x: 10 + (23 * 2 + 4 * 1) / 47 = 10 + 50/47; y: 20 + (4 * 2 + 15 * 1) / 47 = 20 + 23/47
+    np.testing.assert_allclose(s, [10 + 50 / 47, 20 + 23 / 47, 0.0, 0.0])
+    # P_pos - G P_pos = [[4, 1], [1, 2]] - [[23, 4], [4, 15]] [[4, 1], [1, 2]] / 47
+    # G P = [[96, 31], [31, 34]] / 47 -> [[92/47, 16/47], [16/47, 60/47]]
+    np.testing.assert_allclose(kf.covariance[:2, :2],
+                               np.array([[92.0, 16.0], [16.0, 60.0]]) / 47.0)
+    np.testing.assert_allclose(kf.covariance[2:, 2:], np.eye(2))
+
+
+def test_update_with_a_covariance_that_is_not_positive_definite_is_refused():
+    kf = _filter()
+    kf._cov = np.diag([-4.0, 1.0, 1.0, 1.0])      # S = diag(0, 5): singular
+    state = kf.state
+    with pytest.raises(KalmanError):
+        kf.update((12.0, 21.0))
+    np.testing.assert_array_equal(kf.state, state)
+    kf._cov = np.diag([1.0, 1.0, np.inf, 1.0])    # finite S, but the new covariance is not
+    with pytest.raises(KalmanError):
+        kf.update((12.0, 21.0))
+    np.testing.assert_array_equal(kf.state, state)
+
+
+def test_step_matrix_cache_is_bounded_and_keyed_by_sigma_u():
+    from mk_tracker.kalman import _STEP_MATRICES, _step_matrices
+    a1, q1 = _step_matrices(0.5, 1.0)
+    a2, q2 = _step_matrices(0.5, 2.0)
+    np.testing.assert_allclose(q2, 4.0 * q1)          # sigma_u doubled: Q times 4
+    for k in range(40):
+        _step_matrices(1.0 + k, 1.0)
+    assert len(_STEP_MATRICES) <= 16
