@@ -157,3 +157,162 @@ def test_bad_inputs_raise_our_error():
         sparse_factorize(np.zeros((2, 3)), 0.1)
     with pytest.raises(FactorizationError):
         sparse_factorize(np.eye(3), 0.1, backend="gpu")
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_single_bad_entry_in_sigma_is_refused(bad):
+    sigma = np.eye(3)
+    sigma[1, 2] = bad
+    with pytest.raises(FactorizationError):
+        sparse_factorize(sigma, 0.1, backend="numpy")
+    batch = np.stack([np.eye(3), sigma])            # one bad block in a batch
+    with pytest.raises(FactorizationError):
+        sparse_factorize(batch, 0.1, backend="numpy")
+
+
+@pytest.mark.parametrize("lam", [np.nan, np.inf, -1e-9])
+def test_bad_lambda_is_refused(lam):
+    with pytest.raises(FactorizationError):
+        sparse_factorize(np.eye(2), lam, backend="numpy")
+
+
+@pytest.mark.parametrize("kwargs", [dict(columns=0), dict(max_cycles=0), dict(tol=-1e-9),
+                                    dict(tol=float("nan"))])
+def test_bad_settings_are_refused(kwargs):
+    with pytest.raises(FactorizationError):
+        sparse_factorize(np.eye(2), 0.1, backend="numpy", **kwargs)
+
+
+def test_compiled_backend_without_numba_is_refused(monkeypatch):
+    monkeypatch.setattr(sf, "_compiled_kernel", lambda: None)
+    with pytest.raises(FactorizationError):
+        sparse_factorize(np.eye(2), 0.1, backend="compiled")
+    # "auto" falls back to the numpy reference
+    res = sparse_factorize(np.diag([4.0, 1.0]), 0.0, backend="auto")
+    np.testing.assert_allclose(res.factors[0, :, 0], [2.0, 0.0])
+
+
+# Two blocks traced by hand with lambda = 0 (the plain rank-R fit, no sparsity term).
+# diag(4, 1), one column, from M = 0:
+#   j = 0: c1 = 0 - 2*4 = -8, c2 = 0 -> h^4 - 8 h^2, minimisers +-2, the positive one kept
+#   j = 1: c1 = 2*4 - 2*1 = 6, c2 = -4 * Sigma(1,0) * 2 = 0 -> h = 0
+#   cycle 2 changes nothing: ||M^2 - M^1|| = 0 <= tol, so 2 cycles, converged.
+# [[1, 1], [1, 1]] = v v^T, v = (1, 1):
+#   j = 0: c1 = -2, c2 = 0 -> h^4 - 2 h^2 -> h = 1
+#   j = 1: c1 = 2*1 - 2*1 = 0, c2 = -4 * 1 * 1 = -4 -> 4 h^3 = 4 -> h = 1
+#   cycle 2 changes nothing: 2 cycles, factor (1, 1), cost 0.
+HAND_BLOCKS = [(np.diag([4.0, 1.0]), [2.0, 0.0], 1.0),
+               (np.ones((2, 2)), [1.0, 1.0], 0.0)]
+
+
+@pytest.mark.parametrize("backend", ["numpy", "auto"])
+@pytest.mark.parametrize("sigma, factor, cost", HAND_BLOCKS)
+def test_lambda_zero_by_hand(backend, sigma, factor, cost):
+    res = sparse_factorize(sigma, 0.0, tol=1e-9, max_cycles=10, backend=backend)
+    np.testing.assert_allclose(res.factors[0, :, 0], factor, atol=1e-12)
+    assert res.cycles.tolist() == [2]
+    assert res.converged.tolist() == [True]
+    assert factorization_cost(sigma, res.factors[0], 0.0) == pytest.approx(cost, abs=1e-12)
+
+
+def test_cycle_cap_stops_without_convergence():
+    # diag(4, 1) needs a second cycle to see that nothing changes: one cycle is not enough
+    res = sparse_factorize(np.diag([4.0, 1.0]), 0.0, max_cycles=1, backend="numpy")
+    np.testing.assert_allclose(res.factors[0, :, 0], [2.0, 0.0])
+    assert res.cycles.tolist() == [1] and res.converged.tolist() == [False]
+
+
+def test_blocks_of_a_batch_keep_their_own_cycle_counts():
+    # block 0 converges after 2 cycles (traced above); block 1 needs more: a batch must
+    # stop updating block 0 and still report block 1's own count
+    rng = np.random.default_rng(5)
+    hard = _random_sigma(rng, 1, 8, 3)[0]
+    alone = sparse_factorize(hard, 0.0, max_cycles=30, tol=1e-9, backend="numpy")
+    assert alone.cycles[0] > 2
+    batch = sparse_factorize(np.stack([np.diag([4.0] + [1.0] * 7), hard]), 0.0,
+                             max_cycles=30, tol=1e-9, backend="numpy")
+    assert batch.cycles.tolist() == [2, alone.cycles[0]]
+    np.testing.assert_allclose(batch.factors[0, :, 0], [2.0] + [0.0] * 7, atol=1e-12)
+    np.testing.assert_allclose(batch.factors[1], alone.factors[0], atol=1e-12)
+
+
+def test_two_columns_by_hand():
+    # diag(4, 1), lambda 0, two columns: column 0 takes pixel 0 (h = 2 as above); column 1
+    # at pixel 0 sees the residual 4 - 2^2 = 0, so stays 0; at pixel 1 column 0 sees
+    # c1 = 2*4 - 2*1 = 6 -> 0, column 1 sees c1 = 0 - 2*1 = -2 -> h = 1.  M = [[2, 0], [0, 1]]
+    # fits exactly; cycle 2 changes nothing.
+    for backend in ("numpy", "auto"):
+        res = sparse_factorize(np.diag([4.0, 1.0]), 0.0, columns=2, tol=1e-9, backend=backend)
+        np.testing.assert_allclose(res.factors[0], [[2.0, 0.0], [0.0, 1.0]], atol=1e-12)
+        assert res.cycles.tolist() == [2]
+
+
+def _call_block(sigma, lam, n_cols, max_cycles, tol):
+    """The fused per-block factoriser (compiled when numba is there, else plain Python)."""
+    block = sf.compiled_block_factorizer() or sf._factorize_block
+    p = sigma.shape[0]
+    m = np.zeros((p, n_cols))
+    cycles, converged = block(np.ascontiguousarray(sigma.T), m, np.zeros((n_cols, p)),
+                              np.zeros(n_cols), np.zeros((n_cols, n_cols)), lam, n_cols,
+                              max_cycles, tol)
+    return m, int(cycles), bool(converged)
+
+
+@pytest.mark.parametrize("n_cols", [1, 2])
+def test_fused_block_factorizer_cycle_count_by_hand(n_cols):
+    m, cycles, converged = _call_block(np.diag([4.0, 1.0]), 0.0, n_cols, 10, 1e-9)
+    assert (cycles, converged) == (2, True)
+    expected = [[2.0], [0.0]] if n_cols == 1 else [[2.0, 0.0], [0.0, 1.0]]
+    np.testing.assert_allclose(m, expected, atol=1e-12)
+    m, cycles, converged = _call_block(np.diag([4.0, 1.0]), 0.0, n_cols, 1, 1e-9)
+    assert (cycles, converged) == (1, False)
+
+
+@pytest.mark.parametrize("n_cols", [1, 2, 3])
+def test_fused_block_factorizer_matches_the_reference(n_cols):
+    rng = np.random.default_rng(60 + n_cols)
+    sigmas = _random_sigma(rng, 6, 9, 3)
+    sigmas = sigmas + 1e-2 * np.triu(rng.normal(size=sigmas.shape), 1)   # not symmetric
+    ref = sparse_factorize(sigmas, 0.03, columns=n_cols, max_cycles=12, tol=1e-6,
+                           backend="numpy")
+    for b in range(sigmas.shape[0]):
+        m, cycles, converged = _call_block(sigmas[b], 0.03, n_cols, 12, 1e-6)
+        np.testing.assert_allclose(m, ref.factors[b], atol=1e-10)
+        assert cycles == ref.cycles[b] and converged == ref.converged[b]
+
+
+def test_plain_python_loops_match_the_reference():
+    """The loops that numba compiles, run as they are (so that their arithmetic is tested
+    where numba is absent or disabled, e.g. MK_TRACKER_NO_NUMBA=1 in make mutation)."""
+    rng = np.random.default_rng(70)
+    sigmas = _random_sigma(rng, 5, 7, 2)
+    for n_cols in (1, 2):
+        ref = sparse_factorize(sigmas, 0.05, columns=n_cols, max_cycles=8, tol=1e-6,
+                               backend="numpy")
+        out, cycles, converged = sf._factorize_loops(sigmas, 0.05, n_cols, 8, 1e-6)
+        np.testing.assert_allclose(out, ref.factors, atol=1e-10)
+        np.testing.assert_array_equal(cycles, ref.cycles)
+        np.testing.assert_array_equal(converged, ref.converged)
+
+
+def test_scalar_root_and_minimizer_match_the_vectorised_ones():
+    rng = np.random.default_rng(80)
+    p = np.concatenate([rng.normal(0, 3, 300), [0.0, -3.0, 3.0, 0.0]])
+    q = np.concatenate([rng.normal(0, 3, 300), [0.0, 2.0, 0.0, -1.0]])
+    roots = largest_real_root(p, q)
+    for i in range(p.size):
+        assert sf._root_scalar(p[i], q[i]) == pytest.approx(roots[i], abs=1e-9)
+    c1 = np.concatenate([rng.normal(0, 2, 300), [-2.0, 0.0, 0.0, 1.0]])
+    c2 = np.concatenate([rng.normal(0, 2, 300), [0.0, -4.0, 4.0, -0.5]])
+    for lam in (0.0, 0.3):
+        h = coordinate_minimizer(c1, c2, lam)
+        for i in range(c1.size):
+            assert sf._minimizer_scalar(c1[i], c2[i], lam) == pytest.approx(h[i], abs=1e-9)
+
+
+def test_empty_batches():
+    res = sparse_factorize(np.zeros((0, 3, 3)), 0.1, columns=2, backend="numpy")
+    assert res.factors.shape == (0, 3, 2) and res.cycles.shape == (0,)
+    res = sparse_factorize(np.zeros((2, 0, 0)), 0.1, backend="numpy", record_cost=True)
+    assert res.factors.shape == (2, 0, 1)
+    np.testing.assert_array_equal(res.cost_history[:, 0], [0.0, 0.0])
