@@ -1,26 +1,28 @@
 """The newest-frame worker: drops and counts overwritten frames, survives exceptions."""
 
 import threading
-import time
 
 from mk_tracker.ros.latest_frame import LatestFrameWorker
 
 
 def test_slow_consumer_sees_the_newest_frame_and_counts_the_overwritten_ones():
+    """No timing assumed: the test waits until the worker is inside ``process`` (an event it
+    sets) before offering more items.  It used to sleep 50 ms and assume the worker thread
+    had taken item 0 by then (``idle()`` turns False at ``submit``, not when the item is
+    taken), which a loaded or single-core machine need not do."""
     processed = []
     gate = threading.Event()
+    started = threading.Event()
 
     def process(item):
-        gate.wait(5.0)
+        started.set()
+        gate.wait(30.0)
         processed.append(item)
 
     worker = LatestFrameWorker(process).start()
     try:
-        worker.submit(0)                 # taken at once; the worker blocks on the gate
-        deadline = time.monotonic() + 5.0
-        while worker.idle() and time.monotonic() < deadline:
-            time.sleep(0.005)
-        time.sleep(0.05)
+        worker.submit(0)                 # taken by the worker, which blocks on the gate
+        assert started.wait(30.0), "the worker never took the first item"
         replaced = [worker.submit(i) for i in range(1, 6)]   # 1..4 are overwritten by 5
         assert replaced == [False, True, True, True, True]
         gate.set()
