@@ -277,7 +277,7 @@ def test_compiled_support_equals_the_numpy_reference(h, w, offset):
     the support and the kernel variance of the numpy reference: whole frame, a block mask,
     frame sizes that are not multiples of rho (padding), and negative levels (an offset
     above some pixels, as mono16 normalisation produces)."""
-    from mk_tracker.detection.thermal_detector import _fused_kernel, support_in_frame
+    from mk_tracker.detection.block_support import _fused_kernel, support_in_frame
     if _fused_kernel() is None:
         pytest.skip("numba not installed")
     rng = np.random.default_rng(h * w + offset)
@@ -306,10 +306,11 @@ def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
     (MK_TRACKER_NO_NUMBA)."""
     import mk_tracker.detection.kernel_covariance as kc
     import mk_tracker.detection.sparse_factorization as sf
-    import mk_tracker.detection.thermal_detector as td
+    import mk_tracker.detection.block_support as bs
+    import mk_tracker.detection.footprint as fp
     from mk_tracker.synthetic.generator import crowd_scene
-    if td._fused_kernel() is None or td._footprint_kernel() is None or \
-            td._owner_kernel() is None:
+    if bs._fused_kernel() is None or fp._footprint_kernel() is None or \
+            fp._owner_kernel() is None:
         pytest.skip("numba not installed")
     scene = crowd_scene(5, seed=3, width=320, height=240, frames=36)
     frames = [scene.frame(i) for i in range(len(scene))]
@@ -323,10 +324,10 @@ def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
         return out
 
     fast = run()
-    for module, name in ((td, "_FUSED"), (td, "_FOOTPRINT"), (td, "_OWNER"),
+    for module, name in ((bs, "_FUSED"), (fp, "_FOOTPRINT"), (fp, "_OWNER"),
                          (sf, "_COMPILED"), (kc, "_LEVEL_KERNELS")):
         monkeypatch.setattr(module, name, [None])
-    assert td._fused_kernel() is None and sf._compiled_kernel() is None
+    assert bs._fused_kernel() is None and sf._compiled_kernel() is None
     ref = run()
     assert sum(len(f) for f in ref) > 60            # people were found
     assert len(fast) == len(ref)
@@ -340,8 +341,8 @@ def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
 def test_compiled_background_median_equals_numpy_median():
     """The footprint's background level: counting (integer levels) and partition (other
     values) give np.median's value exactly, odd and even sample sizes."""
-    import mk_tracker.detection.thermal_detector as td
-    if td._footprint_kernel() is None:
+    import mk_tracker.detection.footprint as fp
+    if fp._footprint_kernel() is None:
         pytest.skip("numba not installed")
     rng = np.random.default_rng(11)
     samples = [rng.integers(0, 256, n).astype(np.float32) for n in (1, 2, 7, 8, 2047, 2048)]
@@ -350,14 +351,14 @@ def test_compiled_background_median_equals_numpy_median():
     samples += [rng.normal(300.0, 2.0, n).astype(np.float32) for n in (5, 64, 999)]
     for sample in samples:
         expected = np.float32(np.median(sample))
-        assert td._sample_median(sample) == expected, sample[:8]
-        assert td._median(sample) == expected
+        assert fp._sample_median(sample) == expected, sample[:8]
+        assert fp._median(sample) == expected
 
 
 def test_stale_compiled_support_cache_is_dropped(tmp_path):
     """The fused support loop embeds code of two other modules, which numba's cache does
     not track: a changed digest of their sources flushes the cache, an unchanged one not."""
-    from mk_tracker.detection.thermal_detector import _drop_stale_cache
+    from mk_tracker.detection.block_support import _drop_stale_cache
 
     class FakeCache:
         cache_path = str(tmp_path)
@@ -372,7 +373,7 @@ def test_stale_compiled_support_cache_is_dropped(tmp_path):
     kernel = FakeKernel()
     assert _drop_stale_cache(kernel) and kernel._cache.flushed == 1     # no digest yet
     assert not _drop_stale_cache(kernel) and kernel._cache.flushed == 1
-    (tmp_path / "thermal_detector._support_loops.deps").write_text("0" * 64)
+    (tmp_path / "block_support._support_loops.deps").write_text("0" * 64)
     assert _drop_stale_cache(kernel) and kernel._cache.flushed == 2     # sources changed
     assert not _drop_stale_cache(kernel)
 
@@ -380,7 +381,7 @@ def test_stale_compiled_support_cache_is_dropped(tmp_path):
 def test_levels_beyond_the_kernel_table_fall_back_to_the_exponential_path():
     """mono16 counts spanning more than the table inside one block: the compiled loop
     declines (-1) and the numpy path with exponentials gives the support."""
-    from mk_tracker.detection.thermal_detector import TABLE_LEVELS, _fused_kernel, support_in_frame
+    from mk_tracker.detection.block_support import TABLE_LEVELS, _fused_kernel, support_in_frame
     rng = np.random.default_rng(5)
     window = _moving_blob_levels(rng, 5, 24, 32, lo=100, hi=100 + TABLE_LEVELS + 900)
     cfg = ThermalDetectorConfig()
