@@ -107,7 +107,45 @@ def test_thermal_display_handles_nan_and_16_bit():
     assert gray[0, 0, 0] == 0 and gray[7, 7, 0] == 255
 
 
-def test_text_lines_are_written_top_left():
-    out = draw_text_lines(_black(), ["frames 10", "dropped 2"])
-    rows, cols = np.nonzero(out.any(axis=2))
-    assert rows.max() < 40 and cols.min() < 10
+def _bands(mask_rows):
+    """Runs of consecutive True values in a 1-D mask, as (first, last) index pairs."""
+    bands, start = [], None
+    for i, on in enumerate(mask_rows):
+        if on and start is None:
+            start = i
+        if not on and start is not None:
+            bands.append((start, i - 1))
+            start = None
+    if start is not None:
+        bands.append((start, len(mask_rows) - 1))
+    return bands
+
+
+def test_text_lines_are_written_top_left_one_below_the_other_in_the_colour():
+    image = _black()
+    out = draw_text_lines(image, ["frames 10", "dropped 2"], color=(0, 255, 0))
+    assert not image.any()                                  # the input is untouched
+    ink = out.any(axis=2)
+    rows, cols = np.nonzero(ink)
+    assert rows.max() < 40 and cols.min() < 10              # top-left corner
+    assert not ink[:, 100:].any() and not ink[60:].any()    # nothing elsewhere
+    # two lines: two bands of text rows with blank rows between them, each band a
+    # plausible text height (a few to ~20 px at this font scale)
+    bands = _bands(ink.any(axis=1))
+    assert len(bands) == 2, bands
+    assert all(3 <= last - first + 1 <= 20 for first, last in bands), bands
+    # green text on black (anti-aliased: shades of green only), full green in the strokes
+    assert not out[..., 0].any() and not out[..., 2].any()
+    assert out[..., 1].max() == 255
+
+
+def test_text_lines_get_a_dark_background_as_wide_as_the_text():
+    white = np.full((60, 200, 3), 255, np.uint8)
+    short = draw_text_lines(white, ["ab"])
+    long = draw_text_lines(white, ["ab ab ab ab ab"])
+    # on a white image the background box shows as black pixels around the text
+    short_dark = np.nonzero((short == 0).all(axis=2).any(axis=0))[0]
+    long_dark = np.nonzero((long == 0).all(axis=2).any(axis=0))[0]
+    assert short_dark.size > 0 and short_dark.min() < 10
+    assert long_dark.max() > short_dark.max() + 20          # 12 more characters
+    assert (short[50:, :] == 255).all() and (short[:, 150:] == 255).all()
