@@ -11,6 +11,9 @@
   stops them all at the end; :data:`READY` is each node's ready line.
 * :func:`reliable_qos`, :func:`latest_at` -- the peer's QoS and the lock-step look-up of the
   answer to one stamp.
+* :func:`publishers_matched`, :meth:`Peer.wait_matched` -- wait until both ends of every
+  connection between the test and the nodes have matched (discovery is not symmetric; see
+  :meth:`Peer.wait_matched`).
 * :func:`start_bag_player`, :func:`stop_process_group` -- our ``bag_player`` playing a bag
   into the test's domain, and its clean-up.
 * Fixtures ``domain`` (own ROS_DOMAIN_ID, also in the test process) and ``peer``: a test
@@ -114,6 +117,33 @@ class NodeProcess:
         return self.proc.returncode
 
 
+#: Upper bound of a wait for DDS discovery (normally 0.1-3 s on localhost, even loaded).
+MATCH_TIMEOUT_S = 30.0
+
+
+def publishers_matched(node: "NodeProcess", topic: str) -> int:
+    """How many publishers ``node``'s subscription of ``topic`` (resolved name, e.g.
+    ``/thermal/detections``) has matched, by its latest matched-event log line (0 before
+    the first one)."""
+    count = 0
+    for line in node.output().splitlines():
+        _, sep, rest = line.partition(f" {topic}: ")
+        if not sep:
+            continue
+        if rest.startswith("no publisher matched"):
+            count = 0
+        elif " matched (" in rest:
+            count = int(rest.split(" ", 1)[0])
+    return count
+
+
+def matched_events(node: "NodeProcess", topic: str) -> int:
+    """How many times ``node``'s subscription of ``topic`` logged that it gained a
+    publisher (a restarted peer node is a new match)."""
+    return sum(1 for line in node.output().splitlines()
+               if f" {topic}: " in line and "(gained" in line)
+
+
 class Peer:
     """An rclpy node in the test process, on its own context."""
 
@@ -129,6 +159,7 @@ class Peer:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.received: dict[str, list] = {}
+        self.subscriptions: dict[str, Any] = {}
 
     def publisher(self, msg_type: Any, topic: str, qos: Any) -> Any:
         return self.node.create_publisher(msg_type, topic, qos)
@@ -136,8 +167,45 @@ class Peer:
     def collect(self, msg_type: Any, topic: str, qos: Any) -> list:
         """Subscribe ``topic``; its messages are appended to the returned list."""
         store = self.received.setdefault(topic, [])
-        self.node.create_subscription(msg_type, topic, store.append, qos)
+        self.subscriptions[topic] = self.node.create_subscription(msg_type, topic,
+                                                                  store.append, qos)
         return store
+
+    def wait_matched(self, publishers: Sequence[Any] = (), subscriptions: Sequence[Any] = (),
+                     node_inputs: Sequence[tuple["NodeProcess", str]] = (),
+                     timeout: float = MATCH_TIMEOUT_S) -> bool:
+        """Spin until every connection the test will use is matched at both ends it can see:
+
+        * each of ``publishers`` (the peer's) has a matched subscription, and each node of
+          ``node_inputs`` (node, topic) has logged that its reader of ``topic`` matched a
+          publisher (mk_tracker.ros.subscription_events) -- both ends of peer -> node;
+        * each of ``subscriptions`` (the peer's; a topic name means the one :meth:`collect`
+          made) has a matched publisher -- the reader's end of node -> peer.
+
+        Discovery is not symmetric: a writer can match a reader before the reader has
+        matched it; a reliable sample sent in between is dropped by the reader and repaired
+        only after the writer's next heartbeat (Fast DDS: up to ~3 s later), so the first
+        answer of a lock-step test arrived late or, with a short timeout, "never".  Checking
+        the peer's publisher alone (``get_subscription_count``) was the cause of late first
+        messages.  The remaining end (a node's writer matching the peer's reader) is not
+        observable from here; it is announced in the same discovery exchange, so once the
+        visible ends matched the peer spins a settle time more: half the time the visible
+        matches took in this run, at least 0.5 s (as ``bag_player`` does), at most 3 s --
+        longer on a machine where discovery was slow.
+
+        ``timeout`` only bounds a wait for something that must happen; discovery on
+        localhost took 0.1-3 s here, idle or loaded."""
+        subs = [self.subscriptions[s] if isinstance(s, str) else s for s in subscriptions]
+
+        def matched() -> bool:
+            return (all(p.get_subscription_count() > 0 for p in publishers)
+                    and all(s.get_publisher_count() > 0 for s in subs)
+                    and all(publishers_matched(node, topic) > 0 for node, topic in node_inputs))
+        t0 = time.monotonic()
+        if not self.spin_until(matched, timeout):
+            return False
+        self.spin_for(min(3.0, max(0.5, (time.monotonic() - t0) / 2)))
+        return True
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
         deadline = time.monotonic() + timeout

@@ -4,6 +4,13 @@ The test process publishes the thermal frames of the paper's synthetic scene (Sc
 al. 2018, Sec. 6: three 10x10 objects crossing a 100x100 mono8 frame; mk_tracker.synthetic.generator)
 and waits for the detections of each stamp (lock-step), then compares them with the
 ground-truth boxes.
+
+Timing (issue #12): before the first frame the test waits until both ends of the image and
+detections connections have matched (``Peer.wait_matched``); every later wait is lock-step
+(a frame is sent once the previous one was answered) or waits for a log line.  Timeouts
+only bound waits for something that must happen, at 10-100x the observed times (a 100x100
+frame is answered in a few ms; the first, with the detector's start-up pass, in < 1 s), so
+the tests hold on a machine twice as fast or twice as slow, pinned or loaded.
 """
 
 from __future__ import annotations
@@ -23,9 +30,9 @@ from mk_tracker.boxes import iou  # noqa: E402
 from mk_tracker.messages.detection_messages import read_detection_array  # noqa: E402
 from mk_tracker.messages.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.messages.message_types import ros_message_types  # noqa: E402
-from mk_tracker.synthetic.generator import paper_scene  # noqa: E402
+from mk_tracker.synthetic.presets import paper_scene  # noqa: E402
 
-from nodes_harness import (Peer, domain, latest_at, make_stamp, node_group,  # noqa: E402,F401
+from nodes_harness import (NodeProcess, Peer, domain, latest_at, make_stamp, node_group,  # noqa: E402,F401
                            peer, reliable_qos, stamp_of)
 
 TYPES = ros_message_types()
@@ -39,15 +46,17 @@ def start_detector(node_group):
 
 
 class ThermalPlayer:
-    def __init__(self, peer: Peer):
+    def __init__(self, peer: Peer, node: NodeProcess):
         self.peer = peer
+        self.node = node
         self.pub = peer.publisher(Image, "thermal/image_raw", RELIABLE)
         self.detections = peer.collect(Detection2DArray, "thermal/detections", RELIABLE)
 
     def wait_connected(self):
-        assert self.peer.spin_until(
-            lambda: self.pub.get_subscription_count() > 0
-            and self.peer.node.count_publishers("thermal/detections") > 0, 15.0)
+        """Both ends of images (peer -> node) and of detections (node -> peer)."""
+        assert self.peer.wait_matched(
+            publishers=[self.pub], subscriptions=["thermal/detections"],
+            node_inputs=[(self.node, "/thermal/image_raw")]), self.node.output()
 
     def at(self, stamp, first=0):
         """The newest detections message of ``stamp`` among those from index ``first``."""
@@ -83,8 +92,8 @@ def _quality(results, warmup: int):
 
 def test_detects_the_papers_synthetic_objects(peer, start_detector):
     scene = paper_scene()
-    start_detector("-p", "image_qos.reliability:=reliable")
-    player = ThermalPlayer(peer)
+    node = start_detector("-p", "image_qos.reliability:=reliable")
+    player = ThermalPlayer(peer, node)
     player.wait_connected()
     results = _play(player, scene, range(len(scene)))
     ious, counts = _quality(results, warmup=8)
@@ -105,12 +114,12 @@ def test_method_switch_and_parameter_checks(peer, start_detector):
     from rclpy.parameter_client import AsyncParameterClient
 
     scene = paper_scene()
-    start_detector("--params-file", "config/detector.yaml",
-                   "-p", "image_qos.reliability:=reliable")
-    player = ThermalPlayer(peer)
+    node = start_detector("--params-file", "config/detector.yaml",
+                          "-p", "image_qos.reliability:=reliable")
+    player = ThermalPlayer(peer, node)
     player.wait_connected()
     client = AsyncParameterClient(peer.node, "detector_node")
-    assert client.wait_for_services(10.0)
+    assert client.wait_for_services(30.0)      # a generous bound on discovery
 
     def set_one(name, value):
         future = client.set_parameters([Parameter(name, value=value)])
@@ -129,10 +138,9 @@ def test_method_switch_and_parameter_checks(peer, start_detector):
     assert r.successful, r.reason
     assert set_one("publish_debug_image", True).successful
     debug = peer.collect(Image, "/detector_node/debug_image", RELIABLE)
-    peer.spin_until(lambda: peer.node.count_publishers("/detector_node/debug_image") > 0, 5.0)
-    peer.spin_for(0.3)
+    assert peer.wait_matched(subscriptions=["/detector_node/debug_image"])
     results = _play(player, scene, range(0, 20))
-    peer.spin_until(lambda: len(debug) > 0, 3.0)
+    peer.spin_until(lambda: len(debug) > 0, 30.0)
     assert debug and debug[-1].encoding == "bgr8"
     assert (debug[-1].width, debug[-1].height) == (100, 100)
     ious, counts = _quality(results, warmup=0)       # stateless: no warm-up
@@ -148,19 +156,23 @@ def _image(encoding, height, width, data, step, stamp):
 def test_bad_input_is_logged_and_skipped(peer, start_detector):
     scene = paper_scene()
     node = start_detector("-p", "image_qos.reliability:=reliable")
-    player = ThermalPlayer(peer)
+    player = ThermalPlayer(peer, node)
     player.wait_connected()
     _play(player, scene, range(0, 12))
     stamp = scene.frame(12).stamp
     nan_frame = np.full((100, 100), np.nan, np.float32)
     bad = [
-        _image("rgb8", 100, 100, bytes(30000), 300, stamp),          # not a thermal encoding
-        _image("mono8", 100, 100, bytes(50), 100, stamp),             # data too short
-        _image("mono16", 0, 0, b"", 0, stamp),                        # empty
+        (_image("rgb8", 100, 100, bytes(30000), 300, stamp),
+         "'rgb8' is not a thermal detector input"),
+        (_image("mono8", 100, 100, bytes(50), 100, stamp), "fewer than step*height"),
+        (_image("mono16", 0, 0, b"", 0, stamp), "zero size"),
     ]
-    for msg in bad:
+    # one at a time, each once the node has logged the previous one: it keeps only the
+    # newest unprocessed frame, so a fixed spacing (was 0.15 s) assumed its speed
+    for msg, text in bad:
         player.pub.publish(msg)
-        peer.spin_for(0.15)
+        assert peer.spin_until(lambda: text in node.output(), 30.0), \
+            f"{text!r} not logged:\n{node.output()}"
     back = player.step(scene.frame(2).thermal, scene.frame(2).stamp)  # time goes backwards
     assert back is not None and len(back.detections) == 0
     nan = player.step(nan_frame, stamp, encoding="32FC1")             # NaN-filled
