@@ -4,7 +4,7 @@ All three trackers run in the same process on the same detections:
 
 * ``TUD-Campus`` (``../shared/data/mot/TUD-Campus``, 640x480, 71 frames) with its public
   detections (scores divided by the sequence's largest score, so they lie in [0, 1]);
-* generator scenes (:func:`mk_tracker.synthetic.generator.crowd_scene`, 640x480) with 5, 15 and 30
+* generator scenes (:func:`mk_tracker.synthetic.presets.crowd_scene`, 640x480) with 5, 15 and 30
   people walking across each other and behind pillars; detections come from the ground truth:
   people at least ``--min-visible`` visible, box noise, ``--miss`` misses and on average
   ``--false-positives`` false positives per frame, all seeded.
@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from mk_tracker.synthetic import generator as synthetic  # noqa: E402
+from mk_tracker.synthetic.presets import crowd_scene  # noqa: E402
 from mk_tracker.bags.datasets import read_mot_sequence  # noqa: E402
 from mk_tracker.evaluation.metrics import MotRow, mot_metrics, write_mot_file  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,  # noqa: E402
@@ -122,7 +122,7 @@ def tud_frames(folder: Path):
 
 
 def crowd_frames(n_people, seed, n_frames, min_visible, miss, false_positives, noise):
-    scene = synthetic.crowd_scene(n_people, seed=seed, frames=n_frames)
+    scene = crowd_scene(n_people, seed=seed, frames=n_frames)
     rng = np.random.default_rng([seed, n_people, 7])
     frames = []
     for k in range(len(scene)):

@@ -1,4 +1,4 @@
-"""Speed and memory of the synthetic scene generator (:mod:`mk_tracker.synthetic.generator`).
+"""Speed and memory of the synthetic scene generator (:mod:`mk_tracker.synthetic.scene`).
 
 In one process, on the same scenes, it measures
 
@@ -33,7 +33,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from mk_tracker.synthetic import generator as synthetic  # noqa: E402
+from mk_tracker.synthetic.presets import PRESETS, crowd_scene  # noqa: E402
 from mk_tracker.synthetic.scene_bag import write_scene_bag  # noqa: E402
 
 
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
               "|---|---|---|"]
     for n in (5, 15, 30):
         for frames in (300, 10_000):
-            t = timed(lambda _: synthetic.crowd_scene(n, seed=1, frames=frames), 1)[0]
+            t = timed(lambda _: crowd_scene(n, seed=1, frames=frames), 1)[0]
             print(f"set-up  {n:2d} people {frames:5d} frames: {t:8.1f} ms")
             lines.append(f"| {n} | {frames} | {t:.0f} |")
 
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
               "| people | frame() median / p90 | ground_truth() median / p90 | "
               "naive cv2 peer median / p90 |", "|---|---|---|---|"]
     for n in (5, 15, 30):
-        scene = synthetic.crowd_scene(n, seed=1, frames=max(args.frames, 1))
+        scene = crowd_scene(n, seed=1, frames=max(args.frames, 1))
         scene.frame(0)
         f = timed(lambda r: scene.frame(r % len(scene)), args.frames)
         g = timed(lambda r: scene.ground_truth(r % len(scene)), args.frames)
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     # -- other presets ---------------------------------------------------------------------
     lines += ["", "## Per frame, other presets", "", "| preset | size | frame() median ms |",
               "|---|---|---|"]
-    for name, factory in synthetic.PRESETS.items():
+    for name, factory in PRESETS.items():
         if name == "crowd":
             continue
         scene = factory()
@@ -117,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="scene_bench_"))
     try:
         for storage in ("mcap", "sqlite3"):
-            scene = synthetic.crowd_scene(5, seed=1, frames=100)
+            scene = crowd_scene(5, seed=1, frames=100)
             path = tmp / storage
             t0 = time.perf_counter()
             write_scene_bag(scene, path, storage=storage)
@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         shutil.rmtree(tmp, ignore_errors=True)
 
     # -- memory ------------------------------------------------------------------------------
-    scene = synthetic.crowd_scene(15, seed=2, frames=10_000)
+    scene = crowd_scene(15, seed=2, frames=10_000)
     tracemalloc.start()
     scene.frame(0)
     _, single = tracemalloc.get_traced_memory()

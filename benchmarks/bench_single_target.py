@@ -9,7 +9,7 @@ hand (``MultiObjectTrackerConfig.manual_track``) and two experimental variants o
 OpenCV's model-free trackers (CamShift and meanShift from the main package; MIL; KCF and CSRT
 when opencv-contrib is installed) on
 
-* the synthetic occlusion scenes of :mod:`mk_tracker.synthetic.generator` (lower-body wall, full
+* the synthetic occlusion scenes of :mod:`mk_tracker.synthetic.presets` (lower-body wall, full
   pillar, crossing people, approach = scale change),
 * ``../shared/data/otb/Crossing``,
 * every person of ``../shared/data/mot/TUD-Campus`` as a single target, initialised from its
@@ -63,7 +63,8 @@ from mk_tracker.tracking.multi_object_tracker import (ManualTrackConfig,  # noqa
                                               MultiObjectTracker, MultiObjectTrackerConfig,
                                               TrackerInputError, manual_track_multi_kernel)
 from mk_tracker.tracking.track import TrackState  # noqa: E402
-from mk_tracker.synthetic import generator as synthetic  # noqa: E402
+from mk_tracker.synthetic.presets import (approach_scene, crossing_scene,  # noqa: E402
+                                          crowd_scene, occlusion_scene)
 
 DATA = REPO.parent / "shared" / "data"
 #: a synthetic target counts as hidden in a frame when less than this share of its
@@ -115,11 +116,11 @@ def synthetic_sequence(name: str, scene, object_id: int) -> Sequence:
 
 def synthetic_sequences() -> list[Sequence]:
     return [
-        synthetic_sequence("synthetic lower-body wall", synthetic.occlusion_scene(full=False), 1),
-        synthetic_sequence("synthetic full pillar", synthetic.occlusion_scene(full=True), 1),
-        synthetic_sequence("synthetic crossing (near)", synthetic.crossing_scene(), 1),
-        synthetic_sequence("synthetic crossing (far)", synthetic.crossing_scene(), 2),
-        synthetic_sequence("synthetic approach (scale)", synthetic.approach_scene(), 1),
+        synthetic_sequence("synthetic lower-body wall", occlusion_scene(full=False), 1),
+        synthetic_sequence("synthetic full pillar", occlusion_scene(full=True), 1),
+        synthetic_sequence("synthetic crossing (near)", crossing_scene(), 1),
+        synthetic_sequence("synthetic crossing (far)", crossing_scene(), 2),
+        synthetic_sequence("synthetic approach (scale)", approach_scene(), 1),
     ]
 
 
@@ -134,7 +135,7 @@ def held_out_sequences(seeds: tuple[int, ...] = HELD_OUT_SEEDS) -> list[Sequence
     (``--held-out-seeds``) gives other scenes for a fresh check."""
     out = []
     for seed in seeds:
-        scene = synthetic.crowd_scene(n_people=5, seed=seed, frames=150)
+        scene = crowd_scene(n_people=5, seed=seed, frames=150)
         for pid in range(1, 6):
             seq = synthetic_sequence(f"held-out crowd seed {seed} person {pid}", scene, pid)
             if seq.truth[0] is not None:
@@ -403,7 +404,7 @@ def run_repeated(seq: Sequence, factory, repeats: int) -> tuple[dict, float]:
 def warm_up(trackers) -> None:
     """Runs every tracker on a few frames of a small scene, untimed, so one-off costs (numba
     compilation or cache loading, OpenCV's first calls, imports) are not timed."""
-    scene = synthetic.crossing_scene(frames=8)
+    scene = crossing_scene(frames=8)
     seq = synthetic_sequence("warm-up", scene, 1)
     for _, factory in trackers:
         if factory is not None:
@@ -519,7 +520,7 @@ NOTES = """Notes.
   `manual_track`: back to every setting of detection-born tracks (the full tracker as it
   was before this section existed), or back to their 2-kernel layout and scale gate only.
 * "held-out crowd persons": every person of two generator crowd scenes
-  (`synthetic.crowd_scene(5, seed=11 / 12, frames=150)`: random turns, crossings, pillars),
+  (`crowd_scene(5, seed=11 / 12, frames=150)`: random turns, crossings, pillars),
   each as a single target from its first box.  No setting was chosen on them (the
   `manual_track` defaults were chosen on the synthetic occlusion scenes and TUD-Campus), so
   they show whether those settings carry over.  Not part of the goal.

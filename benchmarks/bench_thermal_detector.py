@@ -2,7 +2,7 @@
 
 Runs :class:`mk_tracker.detection.thermal_detector.ThermalDetector` (Algorithm 2) and
 :class:`mk_tracker.detection.threshold_detector.ThresholdDetector` frame by frame over synthetic thermal
-scenes from :mod:`mk_tracker.synthetic.generator` (the paper's Sec. 6 scene, and crowds of 1, 5 and 15
+scenes from :mod:`mk_tracker.synthetic.presets` (the paper's Sec. 6 scene, and crowds of 1, 5 and 15
 people at 320x240 and 640x512), and reports
 
 * median milliseconds per frame, separately for full-frame passes (start-up and
@@ -36,7 +36,7 @@ import numpy as np
 
 from mk_tracker.tracking.association import assign
 from mk_tracker.detection.pixel_clustering import load_valley_split
-from mk_tracker.synthetic.generator import crowd_scene, paper_scene, static_warm_objects_scene
+from mk_tracker.synthetic.presets import crowd_scene, paper_scene, static_warm_objects_scene
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 

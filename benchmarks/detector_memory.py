@@ -22,7 +22,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from mk_tracker.synthetic.generator import crowd_scene  # noqa: E402
+from mk_tracker.synthetic.presets import crowd_scene  # noqa: E402
 from mk_tracker.detection.thermal_detector import ThermalDetector  # noqa: E402
 
 

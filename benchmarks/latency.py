@@ -94,7 +94,7 @@ def render_messages(n_people: int, seed: int, frames: int) -> tuple[list[tuple],
 
     from mk_tracker.messages.image_conversion import numpy_to_image
     from mk_tracker.messages.message_types import ros_message_types
-    from mk_tracker.synthetic.generator import crowd_scene
+    from mk_tracker.synthetic.presets import crowd_scene
 
     types = ros_message_types()
     scene = crowd_scene(n_people=n_people, seed=seed, width=640, height=480, frames=frames)

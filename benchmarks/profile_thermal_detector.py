@@ -1,6 +1,6 @@
 """Where a thermal detector frame spends its time, and how it compares with an older version.
 
-Feeds synthetic crowds (:func:`mk_tracker.synthetic.generator.crowd_scene`, built as the benchmark
+Feeds synthetic crowds (:func:`mk_tracker.synthetic.presets.crowd_scene`, built as the benchmark
 builds them) to :class:`mk_tracker.detection.thermal_detector.ThermalDetector` and reports
 
 * per mode (tracking frame, full-frame pass) the median CPU time (``time.process_time``),
@@ -42,7 +42,7 @@ def measure(people: int, width: int, height: int, frames: int, seed: int,
             repeats: int) -> dict:
     """Per-mode CPU medians (ms) of the ``mk_tracker`` importable in this process."""
     import mk_tracker
-    from mk_tracker.synthetic.generator import crowd_scene, paper_scene
+    from mk_tracker.synthetic.presets import crowd_scene, paper_scene
     from mk_tracker.detection.thermal_detector import ThermalDetector
 
     warm = ThermalDetector()
@@ -87,10 +87,10 @@ def run_worker(path: str | None, args: argparse.Namespace, people: int) -> dict:
 
 def profile(people: int, args: argparse.Namespace, top: int) -> dict[str, str]:
     """cProfile text (own time) per mode of the current version."""
-    from mk_tracker.synthetic.generator import crowd_scene
+    from mk_tracker.synthetic.presets import crowd_scene
     from mk_tracker.detection.thermal_detector import ThermalDetector
 
-    from mk_tracker.synthetic.generator import paper_scene
+    from mk_tracker.synthetic.presets import paper_scene
     warm = ThermalDetector()                    # numba caches loaded before profiling
     ps = paper_scene(99)
     for i in range(10):

@@ -1,4 +1,4 @@
-"""Figures and a picture of every preset of :mod:`mk_tracker.synthetic.generator`.
+"""Figures and a picture of every preset of :mod:`mk_tracker.synthetic.presets`.
 
 For each preset it prints and tabulates the frame count, image sizes and thermal encoding,
 the number of targets, the range of box heights (scale change), the smallest visible
@@ -22,13 +22,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from mk_tracker.synthetic import generator as synthetic  # noqa: E402
+from mk_tracker.synthetic.presets import PRESETS  # noqa: E402
+from mk_tracker.synthetic.scene_config import SceneFrame  # noqa: E402
 from mk_tracker.messages.image_conversion import to_bgr  # noqa: E402
 
 PANE = (256, 192)
 
 
-def pane(frame: synthetic.SceneFrame, encoding: str, title: str) -> np.ndarray:
+def pane(frame: SceneFrame, encoding: str, title: str) -> np.ndarray:
     rgb = cv2.resize(frame.rgb, PANE, interpolation=cv2.INTER_AREA)
     thermal = cv2.resize(to_bgr(np.nan_to_num(frame.thermal), encoding), PANE,
                          interpolation=cv2.INTER_AREA)
@@ -50,14 +51,14 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     image_path = out.parent / "images" / "synthetic_scenes.jpg"
     lines = ["# Synthetic scene presets", "", "Produced by:", "", "```", command, "```", "",
-             "Presets of `mk_tracker.synthetic.generator` with their default arguments and seed "
+             "Presets of `mk_tracker.synthetic.presets` with their default arguments and seed "
              f"{args.seed} (`crowd`: 15 people).  Heights are box heights in thermal px; "
              "'hidden' counts (target, frame) pairs with visible_fraction < 0.01 while the "
              "box is inside the thermal image.", "",
              "| preset | frames | RGB | thermal | targets | box height min-max | "
              "min visible | hidden | thermal min-max |", "|---|---|---|---|---|---|---|---|---|"]
     panes = []
-    for name, factory in synthetic.PRESETS.items():
+    for name, factory in PRESETS.items():
         scene = factory(n_people=15, seed=args.seed) if name == "crowd" else \
             factory(seed=args.seed)
         enc = scene.config.thermal_encoding

@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     from mk_tracker.evaluation.metrics import MotRow, mot_metrics
     from mk_tracker.messages.image_conversion import numpy_to_image
     from mk_tracker.messages.message_types import ros_message_types
-    from mk_tracker.synthetic.generator import crowd_scene
+    from mk_tracker.synthetic.presets import crowd_scene
     from nodes_harness import NodeProcess, Peer, make_stamp, ros_env, stamp_of, unique_domain
 
     types = ros_message_types()

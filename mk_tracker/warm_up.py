@@ -64,7 +64,7 @@ def warm_up_tracker(config: MultiKernelConfig | None = None) -> WarmUp:
 def warm_up_detector(config: ThermalDetectorConfig | None = None) -> WarmUp:
     """Run the detector with ``config`` over the first frames of the paper's synthetic scene
     (a start-up pass, then tracking frames)."""
-    from mk_tracker.synthetic.generator import paper_scene
+    from mk_tracker.synthetic.presets import paper_scene
 
     t0 = time.perf_counter()
     cfg = config or ThermalDetectorConfig()

@@ -1,4 +1,4 @@
-"""Write a synthetic scene (:mod:`mk_tracker.synthetic.generator`) to a rosbag2 bag; ``mk_tracker generate``.
+"""Write a synthetic scene (:mod:`mk_tracker.synthetic.scene`) to a rosbag2 bag; ``mk_tracker generate``.
 
 Topics of the bag (every header stamp is the frame's stamp, which is also the log time):
 
@@ -16,7 +16,7 @@ Ground truth follows :mod:`mk_tracker.messages.detection_messages`: ``Detection2
 id as a string, ``class_id`` is ``"person"``, ``score`` is the ``visible_fraction``; only
 people with ``visible_fraction > 0`` whose box reaches into that image are listed, and the
 boxes are clipped to the image (:func:`mk_tracker.boxes.clip_box`).
-``/scene_info`` holds :meth:`mk_tracker.synthetic.generator.SyntheticScene.info`: the homography
+``/scene_info`` holds :meth:`mk_tracker.synthetic.scene.SyntheticScene.info`: the homography
 ``H`` (row-major 3x3, **thermal pixel -> RGB pixel**), the image sizes, the seed, the preset
 and the full config, so a reader can map thermal boxes into the RGB image.
 """
@@ -31,9 +31,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mk_tracker.synthetic import generator as synthetic
+from mk_tracker.synthetic.presets import PRESETS
+from mk_tracker.synthetic.scene import make_scene
+from mk_tracker.synthetic.scene_config import THERMAL_ENCODINGS, SceneFrame
 from mk_tracker.boxes import clip_box
-from mk_tracker.synthetic.generator import SceneError, SyntheticScene
+from mk_tracker.synthetic.scene import SyntheticScene
+from mk_tracker.synthetic.scene_config import SceneError
 
 RGB_TOPIC = "/image_raw"
 THERMAL_TOPIC = "/thermal/image_raw"
@@ -48,7 +51,7 @@ class SceneBagError(ValueError):
     """A scene cannot be written (bad arguments, bag exists, unknown preset)."""
 
 
-def ground_truth_detections(scene: SyntheticScene, frame: synthetic.SceneFrame,
+def ground_truth_detections(scene: SyntheticScene, frame: SceneFrame,
                             plane: str = "rgb") -> list:
     """The :class:`~mk_tracker.messages.detection_messages.Detection` list written for ``frame``.
 
@@ -152,13 +155,13 @@ def read_scene_info(path: str | Path) -> dict[str, Any]:
 def build_preset(name: str, seed: int = 0, people: int | None = None,
                  frames: int | None = None, width: int | None = None,
                  height: int | None = None) -> SyntheticScene:
-    """Call preset ``name`` of :data:`mk_tracker.synthetic.generator.PRESETS` with the arguments it
+    """Call preset ``name`` of :data:`mk_tracker.synthetic.presets.PRESETS` with the arguments it
     takes; an argument the preset does not take raises :class:`SceneBagError`."""
     try:
-        factory = synthetic.PRESETS[name]
+        factory = PRESETS[name]
     except KeyError:
         raise SceneBagError(f"unknown preset {name!r}; choose from "
-                            f"{sorted(synthetic.PRESETS)}") from None
+                            f"{sorted(PRESETS)}") from None
     accepted = inspect.signature(factory).parameters
     kwargs: dict[str, Any] = {"seed": seed}
     for arg, value in (("n_people", people), ("frames", frames), ("width", width),
@@ -173,7 +176,7 @@ def build_preset(name: str, seed: int = 0, people: int | None = None,
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--preset", default="crowd", choices=sorted(synthetic.PRESETS),
+    parser.add_argument("--preset", default="crowd", choices=sorted(PRESETS),
                         help="scene preset (default: crowd)")
     parser.add_argument("--people", type=int, default=None,
                         help="number of people (crowd preset)")
@@ -182,7 +185,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, default=None, help="image width (crowd preset)")
     parser.add_argument("--height", type=int, default=None,
                         help="image height (crowd preset)")
-    parser.add_argument("--thermal-encoding", choices=synthetic.THERMAL_ENCODINGS,
+    parser.add_argument("--thermal-encoding", choices=THERMAL_ENCODINGS,
                         default=None, help="override the preset's thermal encoding")
     parser.add_argument("--missing-pixels", type=float, default=None,
                         help="fraction of thermal pixels dropped per frame (0..1)")
@@ -201,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
         if args.missing_pixels is not None:
             changes["missing_pixel_fraction"] = args.missing_pixels
         if changes:
-            scene = synthetic.make_scene(dataclasses.replace(scene.config, **changes))
+            scene = make_scene(dataclasses.replace(scene.config, **changes))
         counts = write_scene_bag(scene, args.out, storage=args.storage, preset=args.preset,
                                  progress=args.progress)
     except (SceneError, SceneBagError, ValueError) as exc:

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from mk_tracker.parameters import parameter_specs
-from mk_tracker.synthetic.generator import make_scene, paper_scene, static_warm_objects_scene
+from mk_tracker.synthetic.presets import paper_scene, static_warm_objects_scene
+from mk_tracker.synthetic.scene import make_scene
 from mk_tracker.detection.thermal_detector import (ThermalDetection, ThermalDetector,
                                          ThermalDetectorConfig, ThermalInputError)
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
@@ -308,7 +309,7 @@ def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
     import mk_tracker.detection.sparse_factorization as sf
     import mk_tracker.detection.block_support as bs
     import mk_tracker.detection.footprint as fp
-    from mk_tracker.synthetic.generator import crowd_scene
+    from mk_tracker.synthetic.presets import crowd_scene
     if bs._fused_kernel() is None or fp._footprint_kernel() is None or \
             fp._owner_kernel() is None:
         pytest.skip("numba not installed")
@@ -507,7 +508,7 @@ def test_a_walking_person_passing_one_who_stands_still_keeps_its_own_box():
 def test_a_small_far_person_of_the_scene_generator_is_never_split():
     """The scene (seed 2, one person, 320x240) where a coarser valley sweep split a far
     person into head and hand: one detection at most in every frame."""
-    from mk_tracker.synthetic.generator import crowd_scene
+    from mk_tracker.synthetic.presets import crowd_scene
     scene = crowd_scene(1, seed=2, width=320, height=240, frames=60)
     det = ThermalDetector(ThermalDetectorConfig(split_by_valleys=True))
     passes = 0

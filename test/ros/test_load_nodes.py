@@ -35,7 +35,7 @@ from vision_msgs.msg import Detection2DArray  # noqa: E402
 
 from mk_tracker.messages.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.messages.message_types import ros_message_types  # noqa: E402
-from mk_tracker.synthetic.generator import crowd_scene  # noqa: E402
+from mk_tracker.synthetic.presets import crowd_scene  # noqa: E402
 
 from nodes_harness import NodeProcess, Peer, make_stamp, ros_env, stamp_of  # noqa: E402
 from quiet_domain import quiet_domain  # noqa: E402

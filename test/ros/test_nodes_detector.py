@@ -1,7 +1,7 @@
 """detector_node as a separate process: detection quality, method switch, bad input.
 
 The test process publishes the thermal frames of the paper's synthetic scene (Schizas et
-al. 2018, Sec. 6: three 10x10 objects crossing a 100x100 mono8 frame; mk_tracker.synthetic.generator)
+al. 2018, Sec. 6: three 10x10 objects crossing a 100x100 mono8 frame; mk_tracker.synthetic.presets)
 and waits for the detections of each stamp (lock-step), then compares them with the
 ground-truth boxes.
 

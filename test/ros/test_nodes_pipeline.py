@@ -24,7 +24,7 @@ from mk_tracker.boxes import iou  # noqa: E402
 from mk_tracker.messages.detection_messages import read_detection_array  # noqa: E402
 from mk_tracker.messages.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.messages.message_types import ros_message_types  # noqa: E402
-from mk_tracker.synthetic.generator import paper_scene  # noqa: E402
+from mk_tracker.synthetic.presets import paper_scene  # noqa: E402
 
 from nodes_harness import (domain, latest_at, make_stamp, node_group,  # noqa: E402,F401
                            peer, reliable_qos)

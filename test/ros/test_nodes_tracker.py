@@ -1,6 +1,6 @@
 """tracker_node as a separate process: tracking quality, bad input, parameters, dropping.
 
-The test process plays a synthetic scene (mk_tracker.synthetic.generator) over DDS: for each frame it
+The test process plays a synthetic scene (mk_tracker.synthetic.presets) over DDS: for each frame it
 publishes ground-truth detections in the *thermal* plane (frame ``thermal_camera``) and then
 the RGB image (frame ``camera``), and waits for the node's ``tracks`` message of that stamp
 (lock-step, so the result does not depend on the machine's speed).  Quality is asserted

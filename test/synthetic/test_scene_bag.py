@@ -15,7 +15,7 @@ from mk_tracker.messages.image_conversion import image_to_numpy
 from mk_tracker.messages.message_types import stamp_to_nanoseconds
 from mk_tracker.synthetic.scene_bag import (SceneBagError, build_preset, ground_truth_detections,
                                   read_scene_info, write_scene_bag)
-from mk_tracker.synthetic.generator import cross_modal_scene, crowd_scene, enter_leave_scene
+from mk_tracker.synthetic.presets import cross_modal_scene, crowd_scene, enter_leave_scene
 
 
 def read_all(path):

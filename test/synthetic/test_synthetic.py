@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 
 from mk_tracker.boxes import transform_box
-from mk_tracker.synthetic.generator import (CROSS_MODAL_HOMOGRAPHY, PRESETS, OccluderSpec, PersonSpec,
-                                  SceneConfig, SceneError, SceneIndexError, approach_scene,
-                                  crossing_scene, cross_modal_scene, crowd_scene,
-                                  enter_leave_scene, make_scene, occlusion_scene, paper_scene,
-                                  static_warm_objects_scene)
+from mk_tracker.synthetic.presets import (CROSS_MODAL_HOMOGRAPHY, PRESETS, approach_scene,
+                                          cross_modal_scene, crossing_scene, crowd_scene,
+                                          enter_leave_scene, occlusion_scene, paper_scene,
+                                          static_warm_objects_scene)
+from mk_tracker.synthetic.scene import make_scene
+from mk_tracker.synthetic.scene_config import (OccluderSpec, PersonSpec, SceneConfig, SceneError,
+                                               SceneIndexError)
 
 
 def colour_match(img: np.ndarray, colour, cos_min: float = 0.985, min_norm: float = 40.0):

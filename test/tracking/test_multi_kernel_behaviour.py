@@ -1,6 +1,6 @@
 """Behaviour of the multiple-kernel tracker on synthetic scenes (Chu 2013 Sec. IV-B/C, V-A).
 
-Each scene is rendered once by :mod:`mk_tracker.synthetic.generator` (seeded, deterministic); the
+Each scene is rendered once by :mod:`mk_tracker.synthetic.presets` (seeded, deterministic); the
 trackers are started from the first ground-truth box and scored by mean centre error over the
 remaining frames.  Thresholds were set from measured values (in brackets in each test) with
 a margin; a regression of the projected-gradient step, the weights or the scale update moves
@@ -10,7 +10,10 @@ the errors well past them.
 import numpy as np
 import pytest
 
-from mk_tracker.synthetic import generator as synthetic
+from mk_tracker.synthetic.people import PERSON_ASPECT
+from mk_tracker.synthetic.presets import approach_scene, crossing_scene
+from mk_tracker.synthetic.scene import make_scene
+from mk_tracker.synthetic.scene_config import OccluderSpec, PersonSpec, SceneConfig
 from mk_tracker.boxes import clip_box
 from mk_tracker.evaluation.metrics import center_errors
 from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker,
@@ -48,18 +51,18 @@ def _lower_body_wall_scene():
     """A person (red shirt, blue trousers) walks 3 px/frame behind a long, low brown wall that
     hides the legs (about 45 % of the silhouette) for about 45 frames."""
     h, speed, frames = 150.0, 3.0, 90
-    w = h * synthetic.PERSON_ASPECT
+    w = h * PERSON_ASPECT
     foot_y = 330.0
     wall_w = 2.5 * w + speed * 20
-    wall = synthetic.OccluderSpec(box=(320.0 - wall_w / 2, foot_y - 0.47 * h, wall_w,
-                                       0.47 * h + 20), color=(70, 110, 150))
+    wall = OccluderSpec(box=(320.0 - wall_w / 2, foot_y - 0.47 * h, wall_w,
+                             0.47 * h + 20), color=(70, 110, 150))
     travel = speed * (frames - 1)
-    person = synthetic.PersonSpec(waypoints=((320 - travel / 2, foot_y),
-                                             (320 + travel / 2, foot_y)),
-                                  speed=speed, height=h, upper_color=(40, 40, 200),
-                                  lower_color=(150, 60, 20), after_last="continue")
-    return synthetic.make_scene(synthetic.SceneConfig(seed=0, frames=frames, people=(person,),
-                                                      occluders=(wall,)))
+    person = PersonSpec(waypoints=((320 - travel / 2, foot_y),
+                                   (320 + travel / 2, foot_y)),
+                        speed=speed, height=h, upper_color=(40, 40, 200),
+                        lower_color=(150, 60, 20), after_last="continue")
+    return make_scene(SceneConfig(seed=0, frames=frames, people=(person,),
+                                  occluders=(wall,)))
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +86,7 @@ def test_lower_body_occlusion_pg_keeps_the_target(wall):
 
 
 def test_crossing_people_keep_the_near_person():
-    frames, truth = _render(synthetic.crossing_scene(frames=100))
+    frames, truth = _render(crossing_scene(frames=100))
     pg = _mean_error(MultiKernelConfig(num_kernels=2), frames, truth)                 # [2.9]
     mean_shift = _mean_error(mean_shift_baseline_config(), frames, truth)             # [5.3]
     assert pg < 4.5
@@ -91,7 +94,7 @@ def test_crossing_people_keep_the_near_person():
 
 
 def test_scale_change_is_followed_only_with_the_scale_update():
-    scene = synthetic.approach_scene(frames=100)
+    scene = approach_scene(frames=100)
     frames, truth = _render(scene)
     assert truth[-1][3] > 2.0 * truth[0][3]          # the person more than doubles in size
     with_scale = _mean_error(MultiKernelConfig(num_kernels=2), frames, truth)         # [3.0]

@@ -12,7 +12,8 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from mk_tracker.synthetic import generator as synthetic
+from mk_tracker.synthetic.presets import (CROSS_MODAL_HOMOGRAPHY, cross_modal_scene, crossing_scene,
+                                          enter_leave_scene, occlusion_scene)
 from mk_tracker.evaluation.metrics import MotRow, mot_metrics
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
@@ -290,7 +291,7 @@ def matched_id(f, r, object_id, min_iou=0.3):
 
 
 def test_crossing_people_keep_their_ids():
-    scene = synthetic.crossing_scene()
+    scene = crossing_scene()
     results, gt, hyp = run_scene(scene)
     hidden = [i for i, (f, _) in enumerate(results) if f.object(2).visible_fraction < 0.05]
     assert hidden, "the scene must contain a full occlusion"
@@ -304,7 +305,7 @@ def test_crossing_people_keep_their_ids():
 
 
 def test_person_behind_pillar_longer_than_coasting_is_reacquired():
-    scene = synthetic.occlusion_scene(hidden_frames=40)
+    scene = occlusion_scene(hidden_frames=40)
     cfg = MultiObjectTrackerConfig()
     results, gt, hyp = run_scene(scene, cfg)
     hidden = [f.stamp for f, _ in results if f.object(1).visible_fraction == 0.0]
@@ -319,7 +320,7 @@ def test_person_behind_pillar_longer_than_coasting_is_reacquired():
 
 
 def test_entering_person_gets_a_new_id_and_leaving_person_is_deleted():
-    scene = synthetic.enter_leave_scene()
+    scene = enter_leave_scene()
     life = LifecycleConfig(max_coast_time=0.5, max_lost_time=1.0)
     cfg = dataclasses.replace(MultiObjectTrackerConfig(), lifecycle=life)
     results, _, _ = run_scene(scene, cfg)
@@ -346,8 +347,8 @@ def test_entering_person_gets_a_new_id_and_leaving_person_is_deleted():
 
 def test_thermal_detections_land_on_the_rgb_targets():
     from mk_tracker.boxes import iou
-    scene = synthetic.cross_modal_scene(frames=40)
-    cfg = updated(MultiObjectTrackerConfig(), {"homography": synthetic.CROSS_MODAL_HOMOGRAPHY})
+    scene = cross_modal_scene(frames=40)
+    cfg = updated(MultiObjectTrackerConfig(), {"homography": CROSS_MODAL_HOMOGRAPHY})
     results, gt, hyp = run_scene(scene, cfg, plane="thermal")
     f, r = results[-1]
     for o in f.objects:

@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mk_tracker.synthetic import generator as synthetic
+from mk_tracker.synthetic.presets import crossing_scene, occlusion_scene
 from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker,
                                      visibility_similarity)
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, ManualTrackConfig,
@@ -53,7 +53,7 @@ def test_visibility_statistic_rejects_bad_input():
 
 
 def test_refinement_result_weighted_similarity_matches_its_kernels():
-    scene = synthetic.occlusion_scene(full=False)
+    scene = occlusion_scene(full=False)
     f0, f1 = scene.frame(0), scene.frame(1)
     box = next(o.box_rgb for o in scene.ground_truth(0) if o.id == 1)
     trk = MultiKernelTracker(MultiKernelConfig(num_kernels=4))
@@ -134,7 +134,7 @@ def test_hand_started_track_uses_its_kalman_settings():
 
 
 def test_hand_started_track_gets_its_own_kernel_layout():
-    scene = synthetic.crossing_scene()
+    scene = crossing_scene()
     frame = scene.frame(0)
     boxes = [o.box_rgb for o in scene.ground_truth(0) if o.kind == "person"]
     cfg = updated(MultiObjectTrackerConfig(), {"lifecycle.min_hits": 1,
