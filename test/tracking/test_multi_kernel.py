@@ -6,11 +6,12 @@ import pytest
 from mk_tracker.tracking.kernel_histograms import quantize
 from mk_tracker.tracking.kernel_layouts import kernel_layout
 from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker, TrackingInputError,
-                                     adaptive_weights, constraint_jacobian, constraint_projector,
-                                     constraint_thresholds, constraint_values, evaluate_kernel,
-                                     kernel_pairs, mean_shift_baseline_config, pair_distances,
-                                     paper_config,
-                                     projected_gradient_step)
+                                     adaptive_weights, evaluate_kernel,
+                                     mean_shift_baseline_config, paper_config)
+from mk_tracker.tracking.projected_gradient import (constraint_jacobian, constraint_projector,
+                                                    constraint_thresholds, constraint_values,
+                                                    kernel_pairs, pair_distances,
+                                                    projected_gradient_step)
 from mk_tracker.parameters import ParameterError
 
 
@@ -366,11 +367,12 @@ def test_unknown_backend_is_a_tracking_input_error():
         MultiKernelTracker(backend="opencl")
 
 
-@pytest.mark.skipif(__import__("mk_tracker.tracking.multi_kernel", fromlist=["x"])._compiled_step()
-                    is None, reason="numba not available")
+@pytest.mark.skipif(__import__("mk_tracker.tracking.projected_gradient",
+                               fromlist=["x"])._compiled_step() is None,
+                    reason="numba not available")
 @pytest.mark.parametrize("n_kernels", [2, 3, 4, 5, 6])
 def test_compiled_closed_form_step_equals_the_svd_step(n_kernels):
-    from mk_tracker.tracking.multi_kernel import _compiled_step
+    from mk_tracker.tracking.projected_gradient import _compiled_step
     step = _compiled_step()
     rng = np.random.default_rng(30 + n_kernels)
     pairs = kernel_pairs(n_kernels)
@@ -398,11 +400,12 @@ def test_compiled_closed_form_step_equals_the_svd_step(n_kernels):
             assert np.allclose(dx_b, ref_b, rtol=0, atol=1e-9 * (1 + np.abs(ref_b).max()))
 
 
-@pytest.mark.skipif(__import__("mk_tracker.tracking.multi_kernel", fromlist=["x"])._compiled_step()
-                    is None, reason="numba not available")
+@pytest.mark.skipif(__import__("mk_tracker.tracking.projected_gradient",
+                               fromlist=["x"])._compiled_step() is None,
+                    reason="numba not available")
 def test_no_frame_compiles_code_read_only_or_padded_images_included():
     from mk_tracker.tracking.kernel_histograms import compiled_kernels
-    from mk_tracker.tracking.multi_kernel import _compiled_step
+    from mk_tracker.tracking.projected_gradient import _compiled_step
     tracker = MultiKernelTracker(MultiKernelConfig(num_kernels=4), backend="compiled")
     dispatchers = [*compiled_kernels(), _compiled_step()]
     before = [len(d.signatures) for d in dispatchers]
