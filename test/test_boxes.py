@@ -151,6 +151,42 @@ def test_as_box_rejects_unusable_boxes(bad):
     assert not is_valid_box(bad)
 
 
+@pytest.mark.parametrize("bad, reason", [
+    ((0, 0, 0, 1), "non-positive width or height"),
+    ((math.nan, 0, 1, 1), "NaN or infinite"),
+    ((0, 0, 1), "must have 4 values"),
+    (("a", 0, 1, 1), "not four numbers"),
+])
+def test_as_box_says_what_is_wrong(bad, reason):
+    with pytest.raises(InvalidBoxError, match=reason):
+        as_box(bad)
+
+
+def test_iou_of_boxes_smaller_than_a_pixel():
+    # x 0..0.5, y 0..0.5 (area 0.25) twice: IoU 1; against x 0.25..0.75 (same height):
+    # overlap 0.25 x 0.5 = 0.125, union 0.25 + 0.25 - 0.125 = 0.375 -> 1/3
+    a, b = (0, 0, 0.5, 0.5), (0.25, 0, 0.5, 0.5)
+    assert iou(a, a) == pytest.approx(1.0)
+    assert iou(a, b) == pytest.approx(1.0 / 3.0)
+    np.testing.assert_allclose(iou_matrix([a], [a, b]), [[1.0, 1.0 / 3.0]], atol=1e-12)
+
+
+def test_iou_matrix_computes_in_float64_whatever_the_input_type():
+    # identical boxes at x = 2^24: x + w = 2^24 + 1 exists in float64 but not in float32
+    # (it rounds to 2^24, leaving no width); the IoU of a box with itself is 1
+    big = np.array([[2.0 ** 24, 0.0, 1.0, 1.0]], np.float32)
+    np.testing.assert_allclose(iou_matrix(big, big.astype(np.float64)), [[1.0]])
+    np.testing.assert_allclose(iou_matrix(big.astype(np.float64), big), [[1.0]])
+
+
+def test_iou_matrix_raises_no_floating_point_error_on_degenerate_boxes():
+    # zero-area and NaN boxes make 0/0 inside; the function must absorb it even when the
+    # caller has numpy raise on invalid operations
+    with np.errstate(all="raise"):
+        out = iou_matrix([[0, 0, 0, 5], [np.nan, 0, 1, 1]], [[0, 0, 0, 5], [0, 0, 1, 1]])
+    np.testing.assert_array_equal(out, np.zeros((2, 2)))
+
+
 def test_transform_box_by_hand():
     # x' = 2x + 1, y' = 3y - 1: corners x 1..3 -> 3..7, y 1..2 -> 2..5
     h = np.array([[2.0, 0.0, 1.0], [0.0, 3.0, -1.0], [0.0, 0.0, 1.0]])
@@ -169,6 +205,15 @@ def test_transform_box_by_hand():
     # x' = x + y, y' = y, w = x: corners (1,0)->(1,0), (2,0)->(1,0), (1,2)->(3,2), (2,2)->(2,1)
     shear = np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
     assert transform_box((1, 0, 1, 2), shear) == pytest.approx((1.0, 0.0, 2.0, 2.0))
+
+
+def test_transform_box_near_the_vanishing_line():
+    # w = 1e-12 everywhere: a huge but finite box, x 1..2 -> 1e12..2e12
+    scale = np.diag([1.0, 1.0, 1e-12])
+    assert transform_box((1, 1, 1, 1), scale) == pytest.approx((1e12, 1e12, 1e12, 1e12))
+    # w = 1e-13: treated as on the vanishing line
+    with pytest.raises(InvalidBoxError, match="infinity"):
+        transform_box((1, 1, 1, 1), np.diag([1.0, 1.0, 1e-13]))
 
 
 def test_transform_box_on_the_vanishing_line_raises():

@@ -369,3 +369,72 @@ def test_search_region_refuses_bins_and_models_that_do_not_fit(backend):
     with pytest.raises(BinMismatchError):
         region.evaluate(np.ones((2, 2)) * 10, np.ones((3, 2)) * 50, np.full((2, M), 1 / M))
     assert issubclass(BinMismatchError, ValueError)
+
+
+# -- the loops that numba compiles, run as plain Python -------------------------------------
+# The tests above compare the compiled loops with the numpy reference only where numba is
+# present and enabled; these run the same loop functions uncompiled (as make mutation does,
+# with MK_TRACKER_NO_NUMBA=1), on inputs small enough for Python speed.
+
+def _plain_quantize(img, region, stride, colour_space, bins):
+    from mk_tracker.tracking import kernel_histograms as kh
+    x0, y0, x1, y1 = region
+    out = np.empty((-(-(y1 - y0) // stride), -(-(x1 - x0) // stride)), np.int32)
+    return kh._quantize_loops(img, y0, x0, stride, colour_space == "hsv",
+                              bin_lookup_tables(colour_space, bins), kh._SAT_RECIPROCAL,
+                              kh._HUE_RECIPROCAL, out)
+
+
+def test_plain_quantize_loops_give_the_hsv_of_opencv():
+    import cv2
+    rng = np.random.default_rng(31)
+    colours = rng.integers(0, 256, size=(4096 - 45, 3))
+    # ties for the maximum (greys, two equal channels), pure and dark colours
+    special = [(0, 0, 0), (255, 255, 255), (7, 7, 7), (200, 200, 10), (10, 200, 200),
+               (200, 10, 200), (255, 0, 0), (0, 255, 0), (0, 0, 255), (1, 0, 0), (0, 1, 2),
+               (3, 2, 1), (255, 254, 0), (0, 254, 255), (254, 0, 255)]
+    colours = np.vstack([colours, np.array(special * 3)])
+    img = colours.astype(np.uint8).reshape(64, 64, 3)
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    fast = _plain_quantize(img, (0, 0, 64, 64), 1, "hsv", (180, 256, 256))
+    for channel, shift in ((0, 16), (1, 8), (2, 0)):
+        assert np.array_equal((fast >> shift) & 255, hsv[..., channel]), channel
+
+
+@pytest.mark.parametrize("stride", [1, 3])
+def test_plain_quantize_loops_equal_the_numpy_quantisation(stride):
+    rng = np.random.default_rng(40 + stride)
+    img = rng.integers(0, 256, size=(30, 41, 3)).astype(np.uint8)
+    for region in [(0, 0, 41, 30), (stride * 2, stride, 38, 29)]:
+        x0, y0, x1, y1 = region
+        for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2))]:
+            expected = quantize(img[y0:y1:stride, x0:x1:stride], cs, bins)
+            assert np.array_equal(_plain_quantize(img, region, stride, cs, bins), expected)
+
+
+def test_plain_kernel_loops_equal_the_numpy_reference():
+    from mk_tracker.tracking import kernel_histograms as kh
+    rng = np.random.default_rng(14)
+    seen_empty = seen_full = 0
+    for trial in range(16):
+        bins, origin, stride, axes, centres, models, profile, weighting = \
+            _random_case(rng, trial)
+        axes = np.minimum(axes, 14.0)                       # Python speed
+        ref = SearchRegion(bins, origin, stride, M, profile, "numpy").evaluate(
+            axes, centres, models, 0.01, weighting)
+        n_k = len(axes)
+        p, costs, sims = np.zeros((n_k, M)), np.zeros(n_k), np.zeros(n_k)
+        ms, counts, ratios = np.zeros((n_k, 2)), np.zeros(n_k, np.int64), np.zeros(n_k)
+        kh._kernels_loops(np.ascontiguousarray(bins, np.int32), origin[0], origin[1], stride,
+                          centres, axes, models, 0.01, weighting == "bhattacharyya",
+                          profile == "gaussian", p, costs, sims, ms, counts, ratios)
+        assert np.array_equal(counts, ref.n_pixels)
+        assert np.array_equal(np.isinf(costs), counts == 0)
+        seen_empty += int(np.sum(counts == 0))
+        seen_full += int(np.sum(counts > 0))
+        for got, want in ((p, ref.p), (sims, ref.similarities), (ms, ref.mean_shift),
+                          (ratios, ref.scale_ratios)):
+            assert np.allclose(got, want, rtol=0, atol=1e-9)
+        fin = np.isfinite(ref.costs)
+        assert np.allclose(costs[fin], ref.costs[fin], rtol=0, atol=1e-9)
+    assert seen_empty > 0 and seen_full > 10
