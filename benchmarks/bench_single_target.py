@@ -59,9 +59,10 @@ from mk_tracker.evaluation.metrics import read_box_list, read_mot_file, single_t
 from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker,  # noqa: E402
                                      TrackingInputError, mean_shift_baseline_config,
                                      paper_config)
-from mk_tracker.tracking.multi_object_tracker import (ManualTrackConfig,  # noqa: E402
-                                              MultiObjectTracker, MultiObjectTrackerConfig,
-                                              TrackerInputError, manual_track_multi_kernel)
+from mk_tracker.tracking.manual_track import (ManualTrackConfig,  # noqa: E402
+                                              manual_track_multi_kernel)
+from mk_tracker.tracking.multi_object_tracker import (MultiObjectTracker,  # noqa: E402
+                                              MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.tracking.track import TrackState  # noqa: E402
 from mk_tracker.synthetic.presets import (approach_scene, crossing_scene,  # noqa: E402
                                           crowd_scene, occlusion_scene)

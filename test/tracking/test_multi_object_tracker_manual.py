@@ -12,9 +12,9 @@ import pytest
 from mk_tracker.synthetic.presets import crossing_scene, occlusion_scene
 from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker,
                                      visibility_similarity)
-from mk_tracker.tracking.multi_object_tracker import (FrameDetection, ManualTrackConfig,
-                                             MultiObjectTracker, MultiObjectTrackerConfig,
-                                             TrackerInputError)
+from mk_tracker.tracking.manual_track import ManualTrackConfig
+from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
+                                             MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.parameters import parameter_specs, updated
 from mk_tracker.tracking.track import LifecycleConfig
 
