@@ -160,27 +160,64 @@ class Peer:
         self.executor.add_node(self.node)
         self.received: dict[str, list] = {}
         self.subscriptions: dict[str, Any] = {}
+        self._matches: dict[Any, list[int]] = {}     # endpoint -> [matches ever (total)]
+
+    def _counter(self) -> tuple[list[int], Callable[[Any], None]]:
+        box = [0]
+
+        def on_matched(status: Any) -> None:
+            box[0] = max(box[0], int(status.total_count))
+        return box, on_matched
 
     def publisher(self, msg_type: Any, topic: str, qos: Any) -> Any:
-        return self.node.create_publisher(msg_type, topic, qos)
+        """A publisher whose DDS matches are counted (:meth:`matches`)."""
+        from rclpy.event_handler import PublisherEventCallbacks
+        box, on_matched = self._counter()
+        pub = self.node.create_publisher(
+            msg_type, topic, qos, event_callbacks=PublisherEventCallbacks(matched=on_matched))
+        self._matches[pub] = box
+        return pub
+
+    def subscribe(self, msg_type: Any, topic: str, callback: Callable[[Any], None],
+                  qos: Any) -> Any:
+        """A subscription whose DDS matches are counted (:meth:`matches`)."""
+        from rclpy.event_handler import SubscriptionEventCallbacks
+        box, on_matched = self._counter()
+        sub = self.node.create_subscription(
+            msg_type, topic, callback, qos,
+            event_callbacks=SubscriptionEventCallbacks(matched=on_matched))
+        self._matches[sub] = box
+        return sub
 
     def collect(self, msg_type: Any, topic: str, qos: Any) -> list:
         """Subscribe ``topic``; its messages are appended to the returned list."""
         store = self.received.setdefault(topic, [])
-        self.subscriptions[topic] = self.node.create_subscription(msg_type, topic,
-                                                                  store.append, qos)
+        self.subscriptions[topic] = self.subscribe(msg_type, topic, store.append, qos)
         return store
 
+    def matches(self, endpoint: Any) -> int:
+        """How many remote endpoints ``endpoint`` (made by :meth:`publisher`,
+        :meth:`subscribe` or :meth:`collect`) has matched since it was created, counting
+        ones that went away: a restarted node's endpoint is a new match, while the current
+        count (``get_subscription_count``) still includes the killed process's endpoint
+        until its lease runs out."""
+        return self._matches[endpoint][0]
+
     def wait_matched(self, publishers: Sequence[Any] = (), subscriptions: Sequence[Any] = (),
-                     node_inputs: Sequence[tuple["NodeProcess", str]] = (),
+                     node_inputs: Sequence[tuple] = (),
                      timeout: float = MATCH_TIMEOUT_S) -> bool:
         """Spin until every connection the test will use is matched at both ends it can see:
 
-        * each of ``publishers`` (the peer's) has a matched subscription, and each node of
+        * each of ``publishers`` (the peer's) has matched a subscription, and each node of
           ``node_inputs`` (node, topic) has logged that its reader of ``topic`` matched a
           publisher (mk_tracker.ros.subscription_events) -- both ends of peer -> node;
         * each of ``subscriptions`` (the peer's; a topic name means the one :meth:`collect`
-          made) has a matched publisher -- the reader's end of node -> peer.
+          made) has matched a publisher -- the reader's end of node -> peer.
+
+        An item ``(endpoint, n)`` of ``publishers``/``subscriptions`` asks for ``n`` matches
+        since it was created (:meth:`matches`; after a node was restarted: 2), and an item
+        ``(node, topic, n)`` of ``node_inputs`` for ``n`` logged gains
+        (:func:`matched_events`).
 
         Discovery is not symmetric: a writer can match a reader before the reader has
         matched it; a reliable sample sent in between is dropped by the reader and repaired
@@ -195,12 +232,24 @@ class Peer:
 
         ``timeout`` only bounds a wait for something that must happen; discovery on
         localhost took 0.1-3 s here, idle or loaded."""
-        subs = [self.subscriptions[s] if isinstance(s, str) else s for s in subscriptions]
+        def wanted(items: Sequence[Any]) -> list[tuple[Any, int]]:
+            out = []
+            for item in items:
+                endpoint, n = item if isinstance(item, tuple) else (item, 1)
+                out.append((self.subscriptions[endpoint] if isinstance(endpoint, str)
+                            else endpoint, n))
+            return out
+        pubs, subs = wanted(publishers), wanted(subscriptions)
+        inputs = [(item[0], item[1], item[2] if len(item) > 2 else 1) for item in node_inputs]
 
         def matched() -> bool:
-            return (all(p.get_subscription_count() > 0 for p in publishers)
-                    and all(s.get_publisher_count() > 0 for s in subs)
-                    and all(publishers_matched(node, topic) > 0 for node, topic in node_inputs))
+            return (all(p.get_subscription_count() > 0 and self.matches(p) >= n
+                        for p, n in pubs)
+                    and all(s.get_publisher_count() > 0 and self.matches(s) >= n
+                            for s, n in subs)
+                    and all(publishers_matched(node, topic) > 0
+                            and matched_events(node, topic) >= n
+                            for node, topic, n in inputs))
         t0 = time.monotonic()
         if not self.spin_until(matched, timeout):
             return False
@@ -251,6 +300,11 @@ def reliable_qos(depth: int = 10) -> Any:
                       reliability=ReliabilityPolicy.RELIABLE)
 
 
+#: Bound of a wait for a node's ready line: 2-5 s here with the numba kernels cached (the
+#: session compiles them first, test/conftest.py); 60 s leaves 10x for a slower or loaded
+#: machine.
+READY_TIMEOUT_S = 60.0
+
 #: The line each node logs once it is subscribed and publishing.
 READY = {"mk_tracker.ros.detector_node": "detecting people",
          "mk_tracker.ros.tracker_node": "tracking /image_raw"}
@@ -264,7 +318,8 @@ class NodeGroup:
         self.log_dir = log_dir
         self.started: list[NodeProcess] = []
 
-    def start(self, module: str, *ros_args: str, timeout: float = 20.0) -> NodeProcess:
+    def start(self, module: str, *ros_args: str,
+              timeout: float = READY_TIMEOUT_S) -> NodeProcess:
         """Start ``module`` with ``--ros-args ros_args`` and wait for its ready line."""
         name = module.rsplit(".", 1)[-1]
         node = NodeProcess(module, list(ros_args), ros_env(self.domain),

@@ -14,6 +14,26 @@ waits for the tracks of that stamp.  Faults:
 * the image topics stop for 10 s and resume: both nodes survive and track again.
 
 Every process is stopped in the fixtures; each test has its own ROS_DOMAIN_ID.
+
+Timing (issue #12).  Nothing here depends on the machine's speed: the stream is lock-step
+(thermal frame -> its detections -> RGB frame -> its tracks), and every wait only bounds
+something that must happen.  What used to make these tests flaky was DDS, not speed:
+
+* discovery: before streaming, and again after each restart, the test waits until every
+  connection it uses is matched at both ends it can see (``Peer.wait_matched``): the
+  peer's own publishers and subscriptions, counting matches since they were created (a
+  killed node's endpoint still counts in ``get_subscription_count`` until its lease runs
+  out, so "> 0" said nothing after a restart), and the nodes' logged reader matches --
+  including the tracker's reader of the detector's output, which the two node processes
+  discover between themselves (1 s to over 2.5 s after a restart on a loaded machine);
+* arrival order: the peer sends the RGB frame once *it* has the frame's detections, but
+  the tracker's copy comes on another path and could arrive after the image, landing on
+  the next frame (a "coasting" track in the middle of detections: seen in a baseline run).
+  The lock-step tests run the tracker with ``detection_wait`` (:data:`LOCKSTEP`), so a frame
+  waits for its own detections; the wait (1 s) is ~1000x a local delivery.
+
+The frames used to be re-published every 2 s while no answer came; with both ends matched
+that never helped and hid the cause, so each answer is now waited for once, up to 30 s.
 """
 
 from __future__ import annotations
@@ -40,7 +60,9 @@ from mk_tracker.messages.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.messages.message_types import ros_message_types  # noqa: E402
 from mk_tracker.synthetic.presets import paper_scene  # noqa: E402
 
-from nodes_harness import NodeProcess, Peer, make_stamp, ros_env, stamp_of  # noqa: E402
+from nodes_harness import (MATCH_TIMEOUT_S, NodeProcess, Peer, make_stamp,  # noqa: E402
+                           publishers_matched, ros_env, stamp_of)
+from nodes_harness import READY_TIMEOUT_S  # noqa: E402
 from quiet_domain import quiet_domain  # noqa: E402
 
 TYPES = ros_message_types()
@@ -50,6 +72,11 @@ SCENE = paper_scene()
 COMMON = ["-p", "image_qos.reliability:=reliable"]
 DETECTOR = ("mk_tracker.ros.detector_node", "detecting people")
 TRACKER = ("mk_tracker.ros.tracker_node", "tracking /image_raw")
+#: tracker arguments of the lock-step tests: a frame waits (at most 1 s) for its own
+#: detections, which reach the tracker on another path than the image
+LOCKSTEP = ("-p", "detection_wait:=1.0")
+#: bound of a wait for one answer of a node (observed: a few ms to ~1 s for the first)
+ANSWER_TIMEOUT_S = 30.0
 
 
 @pytest.fixture
@@ -68,28 +95,14 @@ def launch(domain, tmp_path):
         node = NodeProcess(module, [*COMMON, *ros_args], ros_env(domain),
                            tmp_path / f"{module.rsplit('.', 1)[1]}_{len(started)}.log")
         started.append(node)
-        assert node.wait_for_output(ready, 30.0), node.output()
+        # a bound only: start-up with cached kernels takes 2-5 s here
+        assert node.wait_for_output(ready, READY_TIMEOUT_S), node.output()
         return node
 
     yield start
     for node in started:
         node.stop()
     assert not any(node.alive() for node in started)
-
-
-def detections_matched(tracker: NodeProcess, times: int = 1, timeout: float = 20.0) -> bool:
-    """Wait until ``tracker`` has logged ``times`` matches of its detections reader with a
-    detector (mk_tracker.ros.subscription_events).  ``Stream.connected`` sees only this
-    process's view; the tracker and detector processes discover each other on their own,
-    which took 1 s to over 2.5 s in 4 of 9 local runs of the kill/restart test on a loaded
-    machine (the tracker then tracked without detections and the test failed)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if sum(1 for line in tracker.output().splitlines()
-               if "/thermal/detections: " in line and "(gained" in line) >= times:
-            return True
-        time.sleep(0.05)
-    return False
 
 
 class Stream:
@@ -101,20 +114,34 @@ class Stream:
         self.rgb = peer.publisher(Image, "image_raw", RELIABLE)
         self.detections: dict[float, object] = {}
         self.tracks: dict[float, object] = {}
-        peer.node.create_subscription(
+        self.detections_sub = peer.subscribe(
             Detection2DArray, "thermal/detections",
             lambda m: self.detections.__setitem__(round(stamp_of(m), 6), m), RELIABLE)
-        peer.node.create_subscription(
+        self.tracks_sub = peer.subscribe(
             Detection2DArray, "tracks",
             lambda m: self.tracks.__setitem__(round(stamp_of(m), 6), m), RELIABLE)
 
-    def connected(self, detector: bool = True, timeout: float = 20.0) -> bool:
-        return self.peer.spin_until(
-            lambda: self.rgb.get_subscription_count() > 0
-            and self.peer.node.count_publishers("tracks") > 0
-            and (not detector or (self.thermal.get_subscription_count() > 0
-                                  and self.peer.node.count_publishers("thermal/detections") > 0)),
-            timeout)
+    def connected(self, detector: NodeProcess | None, tracker: NodeProcess,
+                  detector_starts: int = 1, tracker_starts: int = 1,
+                  tracker_detector_matches: int = 1) -> bool:
+        """Wait until every connection is matched at both visible ends (see the module
+        docstring).  ``*_starts``: how many processes of that node the peer has met (a
+        restart is a new match); ``tracker_detector_matches``: how many detector processes
+        ``tracker`` (this process) has matched."""
+        publishers = [(self.rgb, tracker_starts)]
+        subscriptions = [(self.tracks_sub, tracker_starts)]
+        inputs = [(tracker, "/image_raw", 1)]
+        if detector is not None:
+            publishers.append((self.thermal, detector_starts))
+            subscriptions.append((self.detections_sub, detector_starts))
+            inputs += [(detector, "/thermal/image_raw", 1),
+                       (tracker, "/thermal/detections", tracker_detector_matches)]
+        ok = self.peer.wait_matched(publishers=publishers, subscriptions=subscriptions,
+                                    node_inputs=inputs)
+        assert ok, ("not connected", [self.peer.matches(e) for e, _ in publishers],
+                    [self.peer.matches(e) for e, _ in subscriptions],
+                    tracker.output()[-2000:], detector.output()[-2000:] if detector else "")
+        return ok
 
     def frame(self, index: int, offset: float = 0.0, detector_alive: bool = True):
         """Play frame ``index`` with stamp ``scene stamp + offset``; returns the tracks."""
@@ -122,27 +149,27 @@ class Stream:
         stamp = round(frame.stamp + offset + 1.0, 6)   # +1 s: no zero stamps
         header = Header(stamp=make_stamp(stamp), frame_id="camera")
         # a looping stream repeats stamps: only answers to this publication count
-        self.peer.spin_for(0.02)
         self.detections.pop(stamp, None)
         self.tracks.pop(stamp, None)
-        thermal = numpy_to_image(frame.thermal, "mono8", header, types=TYPES)
-        self.thermal.publish(thermal)
+        self.thermal.publish(numpy_to_image(frame.thermal, "mono8", header, types=TYPES))
         if detector_alive:
-            # a restarted node may not be matched yet (the dead one's endpoint still counts):
-            # offer the frame again until the new process answers
-            for _ in range(4):
-                if self.peer.spin_until(lambda: stamp in self.detections, 2.0):
-                    break
-                self.thermal.publish(thermal)
-            assert stamp in self.detections, f"no detections for frame {index}"
-        rgb = numpy_to_image(frame.rgb, "bgr8", header, types=TYPES)
-        self.rgb.publish(rgb)
-        for _ in range(4):
-            if self.peer.spin_until(lambda: stamp in self.tracks, 2.0):
-                break
-            self.rgb.publish(rgb)
-        assert stamp in self.tracks, f"no tracks for frame {index} (stamp {stamp})"
+            assert self.peer.spin_until(lambda: stamp in self.detections, ANSWER_TIMEOUT_S), \
+                f"no detections for frame {index}"
+        self.rgb.publish(numpy_to_image(frame.rgb, "bgr8", header, types=TYPES))
+        assert self.peer.spin_until(lambda: stamp in self.tracks, ANSWER_TIMEOUT_S), \
+            f"no tracks for frame {index} (stamp {stamp})"
         return frame, read_detection_array(self.tracks[stamp])
+
+
+def peer_free_wait(tracker: NodeProcess, timeout: float = MATCH_TIMEOUT_S) -> bool:
+    """Wait (without a peer) until ``tracker`` logged that its detections reader matched a
+    detector: the two node processes discover each other on their own."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if publishers_matched(tracker, "/thermal/detections") > 0:
+            return True
+        time.sleep(0.05)
+    return False
 
 
 def matches(frame, tracks, min_iou: float = 0.3) -> dict[int, tuple[str, float, float]]:
@@ -168,15 +195,14 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
     """Detector SIGKILLed at frame 36, restarted after 8 frames without it (a fresh detector
     needs its 6 start-up frames, so the tracks coast for ~14 frames = 0.56 s)."""
     detector = launch(DETECTOR)
-    tracker = launch(TRACKER, "-p", "tracker.use_multi_kernel:=false",
+    tracker = launch(TRACKER, *LOCKSTEP, "-p", "tracker.use_multi_kernel:=false",
                      "-p", "tracker.lifecycle.max_coast_time:=5.0",
                      "-p", "tracker.lifecycle.max_undetected_time:=5.0",
                      "-p", "tracker.max_reported_coast_time:=5.0")
     peer = Peer(domain)
     try:
         stream = Stream(peer)
-        assert stream.connected()
-        assert detections_matched(tracker), tracker.output()
+        stream.connected(detector, tracker)
         before = [stream.frame(i) for i in range(36)]
         ids_before = majority_ids(before[15:])
         assert len(ids_before) == 3 and len(set(ids_before.values())) == 3, (
@@ -187,8 +213,7 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
         detector.proc.wait(5)
         coasting = [stream.frame(i, detector_alive=False) for i in range(36, 44)]
         detector = launch(DETECTOR)
-        assert stream.connected()
-        assert detections_matched(tracker, times=2), tracker.output()
+        stream.connected(detector, tracker, detector_starts=2, tracker_detector_matches=2)
         after = [stream.frame(i) for i in range(44, 60)]
     finally:
         peer.close()
@@ -211,20 +236,18 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
 
 
 def test_tracker_killed_and_restarted_tracks_again(domain, launch):
-    launch(DETECTOR)
-    tracker = launch(TRACKER)
+    detector = launch(DETECTOR)
+    tracker = launch(TRACKER, *LOCKSTEP)
     peer = Peer(domain)
     try:
         stream = Stream(peer)
-        assert stream.connected()
-        assert detections_matched(tracker), tracker.output()
+        stream.connected(detector, tracker)
         first = [stream.frame(i) for i in range(20)]
         os.killpg(tracker.proc.pid, signal.SIGKILL)
         tracker.proc.wait(5)
         assert not tracker.alive()
-        tracker = launch(TRACKER)
-        assert stream.connected()
-        assert detections_matched(tracker), tracker.output()
+        tracker = launch(TRACKER, *LOCKSTEP)
+        stream.connected(detector, tracker, tracker_starts=2)
         second = [stream.frame(i) for i in range(20, 50)]
     finally:
         peer.close()
@@ -241,12 +264,11 @@ def test_tracker_killed_and_restarted_tracks_again(domain, launch):
 
 def test_stream_loops_back_in_time_state_resets_once_and_logs_it(domain, launch):
     detector = launch(DETECTOR)
-    tracker = launch(TRACKER)
+    tracker = launch(TRACKER, *LOCKSTEP)
     peer = Peer(domain)
     try:
         stream = Stream(peer)
-        assert stream.connected()
-        assert detections_matched(tracker), tracker.output()
+        stream.connected(detector, tracker)
         first = [stream.frame(i) for i in range(40)]
         second = [stream.frame(i) for i in range(0, 40)]        # the bag starts over
     finally:
@@ -265,12 +287,11 @@ def test_stream_loops_back_in_time_state_resets_once_and_logs_it(domain, launch)
 
 def test_image_topics_stop_for_10_s_and_resume(domain, launch):
     detector = launch(DETECTOR)
-    tracker = launch(TRACKER)
+    tracker = launch(TRACKER, *LOCKSTEP)
     peer = Peer(domain)
     try:
         stream = Stream(peer)
-        assert stream.connected()
-        assert detections_matched(tracker), tracker.output()
+        stream.connected(detector, tracker)
         first = [stream.frame(i) for i in range(30)]
         peer.spin_for(10.0)                      # nothing published for 10 s
         assert detector.alive() and tracker.alive()
@@ -300,7 +321,7 @@ def test_real_bag_player_looping_resets_the_tracker_once_per_loop(domain, launch
     write_scene_bag(SCENE, bag, "mcap")
     detector = launch(DETECTOR)
     tracker = launch(TRACKER)
-    assert detections_matched(tracker), tracker.output()
+    assert peer_free_wait(tracker), tracker.output()
     peer = Peer(domain)
     tracks: list = []
     log_path = tmp_path / "bag_player.log"

@@ -5,10 +5,20 @@ already tracked it (and would land on the next frame).
 
 A 3-person synthetic scene (320x240) whose ground truth is played as ``/detections`` a
 quarter frame after each image, by our ``bag_player``, to a tracker_node process.
+
+Timing (issue #12): the playback rate is chosen from the offline pipeline's time per frame
+on the same bag, measured in the same run (:func:`playback_rate`): the wall-clock frame
+period is at least four processing times plus the detections' lag, so the node, which
+waits for a frame's detections and then tracks it, is done before the next frame on a
+machine twice as slow as this one (the rate halves), and a machine twice as fast keeps the
+default 0.25x.  The lag stays well inside ``detection_wait`` (0.5 s) at every rate chosen.
+The node's /tracks reader end is awaited before playing (``Peer.wait_matched``); the player
+waits for the node's subscriptions itself.
 """
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -29,16 +39,21 @@ from late_detections import detections_bag  # noqa: E402
 from nodes_harness import (domain, node_group, peer, reliable_qos,  # noqa: E402,F401
                            start_bag_player, stop_process_group)
 
+
 FRAMES = 30
-#: 0.25x: a frame every 160 ms of wall time, its detections 40 ms after it -- long after
-#: the node (a few ms per 320x240 frame) has taken the frame up.
-RATE = 0.25
+#: 0.25x at most: a frame every 160 ms of wall time, its detections 40 ms after it -- long
+#: after the node (a few ms per 320x240 frame here) has taken the frame up.
+MAX_RATE = 0.25
+#: slowest rate: the detections' lag (a quarter frame, 10 ms of bag time) becomes 0.33 s of
+#: wall time, still inside detection_wait (0.5 s)
+MIN_RATE = 0.03
+DETECTION_WAIT_S = 0.5
 PARAMS = """\
 tracker_node:
   ros__parameters:
     detections_topic: /detections
     thermal_frame_id: unused_thermal_frame
-    detection_wait: 0.5
+    detection_wait: {wait}
     image_qos:
       reliability: reliable
     detections_qos:
@@ -58,40 +73,64 @@ def late_bag(tmp_path) -> Path:
     return tmp_path / "late"
 
 
+def playback_rate(seconds_per_frame: float, frame_period_s: float) -> float:
+    """The rate at which the wall-clock frame period (``frame_period_s / rate``) holds the
+    detections' lag (a quarter of it) plus four processing times of a frame
+    (``seconds_per_frame``, measured offline in this run): ``MAX_RATE`` on this machine,
+    lower on a slower one, never below ``MIN_RATE``."""
+    fitting = 0.75 * frame_period_s / (4.0 * seconds_per_frame)
+    return max(MIN_RATE, min(MAX_RATE, fitting))
+
+
 def test_detection_wait_makes_the_node_pair_like_the_offline_pipeline(late_bag, node_group,
                                                                       peer, domain,
                                                                       tmp_path):
     params = tmp_path / "wait.yaml"
-    params.write_text(PARAMS)
+    params.write_text(PARAMS.format(wait=DETECTION_WAIT_S))
+    # the offline pipeline first: the expected tracks, and the time a frame takes here now
+    t0 = time.monotonic()
+    offline = process_bag(late_bag, tmp_path / "offline", config=load_pipeline_config([params]),
+                          options=PipelineOptions(progress=False, write_video=False,
+                                                  write_plots=False))
+    seconds_per_frame = (time.monotonic() - t0) / max(offline.frames, 1)
+    with open_bag(late_bag) as reader:
+        ns = [m.timestamp_ns for m in reader.messages(["/image_raw"])]
+    frame_period = float(np.median(np.diff(ns))) * 1e-9
+    rate = playback_rate(seconds_per_frame, frame_period)
+    playing_s = (ns[-1] - ns[0]) * 1e-9 / rate
+
     tracker = node_group.start("mk_tracker.ros.tracker_node", "--params-file", str(params))
     tracks = peer.collect(Detection2DArray, "/tracks", reliable_qos(depth=100))
-    assert peer.spin_until(lambda: peer.node.count_publishers("/tracks") > 0, 20.0)
-    peer.spin_for(1.0)
+    assert peer.wait_matched(subscriptions=["/tracks"]), tracker.output()
     log = tmp_path / "player.log"
-    player = start_bag_player(late_bag, domain, log, RATE, ["/image_raw", "/detections"])
+    player = start_bag_player(late_bag, domain, log, rate, ["/image_raw", "/detections"])
     try:
-        finished = peer.spin_until(lambda: player.poll() is not None, 60.0)
+        # bounds on waits only: the player's own wait for subscribers (20 s), twice the
+        # playing time, its final wait for acknowledgements
+        finished = peer.spin_until(lambda: player.poll() is not None, 30.0 + 2 * playing_s)
         assert finished and player.returncode == 0, log.read_text()
-        peer.spin_until(lambda: len(tracks) >= FRAMES - 1, 5.0)
+        peer.spin_until(lambda: len(tracks) >= FRAMES - 1, 30.0)
     finally:
         stop_process_group(player)
     assert tracker.alive(), tracker.output()
     online = {stamp_to_nanoseconds(m.header.stamp):
               sorted((int(d.id), d.box) for d in read_detection_array(m)) for m in tracks}
+    context = (f"offline {seconds_per_frame * 1000:.1f} ms/frame, played at {rate:.3f}x "
+               f"(frame every {frame_period / rate * 1000:.0f} ms)")
 
-    offline = process_bag(late_bag, tmp_path / "offline", config=load_pipeline_config([params]),
-                          options=PipelineOptions(progress=False, write_video=False,
-                                                  write_plots=False))
     assert offline.frames == FRAMES - 1                  # the first image is not in the bag
     assert sum(len(v) for v in offline.tracks.values()) > 2 * FRAMES   # people tracked
-    for ns, expected in offline.tracks.items():
-        if ns not in online:
+    for ns_, expected in offline.tracks.items():
+        if ns_ not in online:
             continue
-        got = online[ns]
-        assert [i for i, _ in got] == [i for i, _ in sorted(expected)], (ns, got, expected)
+        got = online[ns_]
+        assert [i for i, _ in got] == [i for i, _ in sorted(expected)], (ns_, got, expected,
+                                                                         context)
         for (_, a), (_, b) in zip(got, sorted(expected)):
-            assert np.allclose(a, b, atol=1e-6), (ns, a, b)
-    assert set(online) == set(offline.tracks), (sorted(online), sorted(offline.tracks))
+            assert np.allclose(a, b, atol=1e-6), (ns_, a, b, context)
+    assert set(online) == set(offline.tracks), (sorted(online), sorted(offline.tracks),
+                                                context)
     # the node logged no frame that gave up waiting
     assert "stopped waiting" not in tracker.output() or \
         " 0 frames stopped waiting" in tracker.output()
+    print(context)

@@ -3,6 +3,13 @@
 
 The test process plays the paper's synthetic scene (thermal and RGB planes, identity
 homography) in lock-step and scores the tracks against the ground truth.
+
+Timing (issue #12): the test waits until every connection has matched at both ends it can
+see -- the nodes log their readers' matches, including the tracker's reader of the
+detector's output, which is discovered between the two node processes -- and then plays
+lock-step: each frame is sent once the answer to the previous one came.  Nothing depends on
+how fast the machine is; the timeouts only bound waits for answers that must come (60 s for
+a detection, ~1000x the observed few ms; 30 s for tracks).
 """
 
 from __future__ import annotations
@@ -47,14 +54,16 @@ def test_detector_and_tracker_nodes_track_the_paper_scene(peer, nodes):
     rgb_pub = peer.publisher(Image, "image_raw", RELIABLE)
     detections = peer.collect(Detection2DArray, "thermal/detections", RELIABLE)
     tracks = peer.collect(Detection2DArray, "tracks", RELIABLE)
-    # the tracker must also be subscribed to the detector's output (peer + tracker), or the
-    # first detections go nowhere; the two node processes then need a moment to match
-    assert peer.spin_until(lambda: thermal_pub.get_subscription_count() > 0
-                           and rgb_pub.get_subscription_count() > 0
-                           and peer.node.count_publishers("tracks") > 0
-                           and peer.node.count_publishers("thermal/detections") > 0
-                           and peer.node.count_subscribers("thermal/detections") >= 2, 20.0)
-    peer.spin_for(1.5)
+    # the tracker must also be matched with the detector's output, or the first detections
+    # go nowhere: its log says when its reader matched (counting the peer's own
+    # subscription from here did not say whether the two node processes had matched)
+    detector, tracker = nodes
+    assert peer.wait_matched(
+        publishers=[thermal_pub, rgb_pub], subscriptions=["thermal/detections", "tracks"],
+        node_inputs=[(detector, "/thermal/image_raw"), (tracker, "/image_raw"),
+                     (tracker, "/thermal/detections")]), tracker.output()
+    # /clock: both nodes subscribe (use_sim_time); they do not log that reader's matches
+    assert peer.spin_until(lambda: clock_pub.get_subscription_count() >= 2, 30.0)
     results = []
     for i in range(len(scene)):
         frame = scene.frame(i)
@@ -67,7 +76,7 @@ def test_detector_and_tracker_nodes_track_the_paper_scene(peer, nodes):
         rgb_pub.publish(numpy_to_image(
             frame.rgb, "bgr8", Header(stamp=make_stamp(frame.stamp), frame_id="camera"),
             types=TYPES))
-        assert peer.spin_until(lambda: latest_at(tracks, frame.stamp) is not None, 5.0), \
+        assert peer.spin_until(lambda: latest_at(tracks, frame.stamp) is not None, 30.0), \
             f"no tracks for frame {i}"
         results.append((frame, read_detection_array(latest_at(tracks, frame.stamp))))
     ious, ids = [], defaultdict(list)
