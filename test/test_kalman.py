@@ -226,3 +226,123 @@ def test_step_matrix_cache_is_bounded_and_keyed_by_sigma_u():
     for k in range(40):
         _step_matrices(1.0 + k, 1.0)
     assert len(_STEP_MATRICES) <= 16
+
+
+def _error(call):
+    with pytest.raises(KalmanError) as info:
+        call()
+    return str(info.value)
+
+
+def test_error_messages_name_the_value_and_what_is_wrong():
+    """A caller (or a node's log) learns which input was refused and why."""
+    K = ConstantVelocityKalman
+    assert _error(lambda: transition_matrix("x")) == "time step 'x' is not a number"
+    assert _error(lambda: transition_matrix(-1)) == \
+        "time step must be a positive finite number of seconds, got -1"
+    assert _error(lambda: process_noise(1.0, -1)) == \
+        "sigma_u must be a finite non-negative number, got -1"
+    assert _error(lambda: K((0, 0), sigma_u="a")) == "sigma_u 'a' is not a number"
+    assert _error(lambda: K((0, 0), sigma_u=-2)) == \
+        "sigma_u must be a finite non-negative number, got -2"
+    assert _error(lambda: K((0, 0), sigma_w=0)) == \
+        "sigma_w must be a finite positive number, got 0"
+    assert _error(lambda: K((0, 0), initial_position_var=0)) == \
+        "initial_position_var must be a finite positive number, got 0"
+    assert _error(lambda: K((0, 0), initial_velocity_var=0)) == \
+        "initial_velocity_var must be a finite positive number, got 0"
+    assert _error(lambda: K((math.nan, 0.0))) == "center [nan, 0.0] has a NaN or infinite value"
+    assert _error(lambda: K([0.0, math.inf])) == "center [0.0, inf] has a NaN or infinite value"
+    assert _error(lambda: K(("x", 1.0))) == "center ('x', 1.0) is not two numbers"
+    assert _error(lambda: K((0, 0), initial_velocity=(1.0,))) == \
+        "initial_velocity must have two values (x, y), got 1"
+    kf = _filter()
+    assert _error(lambda: kf.innovation_distance((math.nan, 1.0))) == \
+        "measurement [nan, 1.0] has a NaN or infinite value"
+    assert _error(lambda: kf.update([1.0, 2.0, 3.0])) == \
+        "measurement must have two values (x, y), got 3"
+    assert _error(lambda: kf.update((1.0, 1.0), sigma_w=0)) == \
+        "sigma_w must be a finite positive number, got 0"
+
+
+@pytest.mark.parametrize("z, reason", [(("x", 1.0), "is not two numbers"),
+                                       ((1.0, "x"), "is not two numbers"),
+                                       ((1.0, None), "NaN"),      # numpy reads None as NaN
+                                       ((None, 1.0), "NaN")])
+def test_a_tuple_with_a_non_number_is_a_kalman_error(z, reason):
+    kf = _filter()
+    with pytest.raises(KalmanError, match=reason):
+        kf.update(z)
+    with pytest.raises(KalmanError, match=reason):
+        kf.innovation_distance(z)
+
+
+def test_points_may_be_given_in_any_two_number_shape():
+    # a tuple of ints, a list, a (2, 1) column and a (1, 2) row are all the point (12, 21)
+    for z in [(12, 21), [12.0, 21.0], np.array([[12.0], [21.0]]), np.array([[12.0, 21.0]]),
+              (12.0, 21)]:
+        kf = _filter()
+        # P = 4 I, sigma_w = 2: S = 8 I; residual (2, 1): (4 + 1) / 8
+        assert kf.innovation_distance(z) == pytest.approx(5.0 / 8.0)
+
+
+def test_zero_process_noise_is_allowed_but_zero_variances_are_not():
+    kf = ConstantVelocityKalman((0.0, 0.0), sigma_u=0.0, initial_position_var=1.0,
+                                initial_velocity_var=1.0)
+    # no process noise: P(t|t-1) = A P A^T only: position var 1 + dt^2 * 1 = 5 at dt = 2
+    kf.predict(2.0)
+    assert kf.covariance[0, 0] == pytest.approx(5.0)
+    np.testing.assert_array_equal(process_noise(1.0, 0.0), np.zeros((4, 4)))
+    with pytest.raises(KalmanError):
+        ConstantVelocityKalman((0, 0), initial_position_var=0.0)
+    with pytest.raises(KalmanError):
+        ConstantVelocityKalman((0, 0), initial_velocity_var=0.0)
+
+
+def test_small_noise_levels_below_one_are_valid():
+    # P = 0.1 I, sigma_w = 0.1: S = 0.11 I (det 0.0121 < 1), gain 0.1 / 0.11 = 10/11
+    kf = ConstantVelocityKalman((10.0, 20.0), sigma_u=0.5, sigma_w=0.1,
+                                initial_position_var=0.1, initial_velocity_var=0.5)
+    assert kf.sigma_u == 0.5 and kf.sigma_w == 0.1
+    s = kf.update((12.0, 20.0))
+    assert s[0] == pytest.approx(10.0 + 2.0 * 10.0 / 11.0)
+    s = _filter().update((12.0, 20.0), sigma_w=0.5)      # S = 4 + 0.25: gain 4 / 4.25
+    assert s[0] == pytest.approx(10.0 + 2.0 * 4.0 / 4.25)
+
+
+def test_an_infinite_innovation_covariance_is_refused_before_the_gain():
+    kf = _filter()
+    kf._cov = np.diag([np.inf, 1.0, 1.0, 1.0])
+    with pytest.raises(KalmanError, match="innovation covariance is not positive definite; "
+                                          "filter left unchanged"):
+        kf.update((12.0, 21.0))
+    kf._cov = np.diag([-4.0, 1.0, 1.0, 1.0])          # S = diag(0, 5): det exactly 0
+    with pytest.raises(KalmanError, match="not positive definite"):
+        kf.update((12.0, 21.0))
+    kf._cov = np.diag([1.0, 1.0, np.inf, 1.0])
+    with pytest.raises(KalmanError, match="update produced a non-finite state; filter left "
+                                          "unchanged"):
+        kf.update((12.0, 21.0))
+
+
+def test_from_config_passes_every_setting():
+    cfg = KalmanConfig(sigma_u=7.0, sigma_w=3.0, initial_position_var=9.0,
+                       initial_velocity_var=16.0)
+    kf = ConstantVelocityKalman.from_config((1.0, 2.0), cfg, initial_velocity=(3.0, -1.0))
+    assert (kf.sigma_u, kf.sigma_w) == (7.0, 3.0)
+    np.testing.assert_array_equal(np.diag(kf.covariance), [9.0, 9.0, 16.0, 16.0])
+    np.testing.assert_array_equal(kf.state, [1.0, 2.0, 3.0, -1.0])
+
+
+def test_step_matrices_are_shared_read_only_and_at_most_16():
+    from mk_tracker.kalman import _STEP_MATRICES, _step_matrices
+    a, q = _step_matrices(0.125, 3.0)
+    again = _step_matrices(0.125, 3.0)
+    assert again[0] is a and again[1] is q                 # served from the cache
+    with pytest.raises(ValueError):
+        q[0, 0] = 1.0
+    sizes = []
+    for k in range(40):
+        _step_matrices(2.0 + k, 1.0)
+        sizes.append(len(_STEP_MATRICES))
+    assert max(sizes) == 16
