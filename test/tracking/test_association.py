@@ -190,3 +190,64 @@ def test_assign_never_matches_an_impossible_pair_even_without_a_cost_limit():
     assert a.unmatched_rows == [1] and a.unmatched_cols == [0]
     with pytest.raises(AssociationError):
         assign(np.zeros(3), max_cost=1.0)
+
+
+def _message(call):
+    with pytest.raises(AssociationError) as info:
+        call()
+    return str(info.value)
+
+
+def test_error_messages_say_what_does_not_fit():
+    eye = np.eye(2)
+    assert _message(lambda: mahalanobis_matrix([[0, 0], [1, 1], [2, 2]], [eye] * 2,
+                                               [[1.0, 1.0]])) == "3 centres but 2 covariances"
+    assert _message(lambda: mahalanobis_matrix([[0, 0], [1, 1]], [eye] * 2,
+                                               np.zeros((3, 1, 2)))) == \
+        "points of shape (3, 1, 2) do not fit 2 tracks"
+    assert _message(lambda: mahalanobis_matrix([[0, 0]], [np.zeros((2, 2))], [[1.0, 1.0]])) \
+        == "an innovation covariance is not positive definite"
+    cfg = AssociationConfig()
+    t = np.array([[0, 0, 4, 2], [1, 1, 2, 2]], float)
+    d = np.array([[0, 0, 4, 2]] * 3, float)
+    assert _message(lambda: association_cost(t, d, np.zeros((2, 2)), cfg)) == \
+        "Mahalanobis matrix (2, 2) does not match 2 tracks x 3 detections"
+    assert _message(lambda: association_cost(t, np.zeros((3, 3, 4)), np.zeros((2, 3)),
+                                             cfg)) == \
+        "per-track detection boxes do not match the tracks"
+    assert _message(lambda: association_cost(t, d, np.full((2, 3), np.nan), cfg)) == \
+        "Mahalanobis matrix has NaN values"
+    assert _message(lambda: association_cost(t, d, np.zeros((2, 3)), cfg,
+                                             extra_cost=np.zeros((3, 2)))) == \
+        "extra cost (3, 2) does not match (2, 3)"
+    assert _message(lambda: assign(np.zeros(3), 1.0)) == "cost must be a matrix, got shape (3,)"
+    assert _message(lambda: assign(np.array([[0.0, np.nan]]), 1.0)) == \
+        "cost matrix has NaN values"
+
+
+def test_a_single_detection_box_may_be_given_flat():
+    # one detection as (4,) instead of (1, 4): track x 0..4, y 0..2; detection x 2..6:
+    # overlap 2 x 2 = 4, union 8 + 8 - 4 = 12, IoU 1/3; overlap weight 1 -> cost 2/3
+    cfg = AssociationConfig(overlap_weight=1.0)
+    cost = association_cost(np.array([[0, 0, 4, 2]], float), np.array([2, 0, 4, 2], float),
+                            np.zeros((1, 1)), cfg)
+    np.testing.assert_allclose(cost, [[2.0 / 3.0]], atol=1e-12)
+
+
+def test_near_singular_covariance_is_inverted_in_float64():
+    # S = [[a, 1], [1, a]], a = 1 + 2^-12, residual (1, -1):
+    # d2 = (a + 2 + a) / (a^2 - 1) = 2 / (a - 1) = 2^13 exactly.  In float32 the
+    # determinant loses its 2^-24 term and d2 would come out as 8193.
+    a = 1.0 + 2.0 ** -12
+    s = np.array([[[a, 1.0], [1.0, a]]], np.float32)
+    d = mahalanobis_matrix([[0.0, 0.0]], s, [[1.0, -1.0]])
+    assert d[0, 0] == pytest.approx(8192.0, rel=1e-9)
+
+
+def test_float32_distances_are_used_in_float64():
+    # d2 = 1 (exact in float32) over gate 3: distance term 1/3 in float64 arithmetic;
+    # same box so the overlap term is 0; weight 0 -> cost exactly 1/3 in float64
+    cfg = AssociationConfig(overlap_weight=0.0, gate=3.0)
+    t = np.array([[0, 0, 4, 2]], float)
+    cost = association_cost(t, t, np.array([[1.0]], np.float32), cfg)
+    assert cost[0, 0] == 1.0 / 3.0
