@@ -28,7 +28,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from mk_tracker.bags.bag_io import BagWriter, make_typestore, open_bag  # noqa: E402
+from mk_tracker.bags.bag_io import open_bag  # noqa: E402
+from mk_tracker.bags.bag_typestore import make_typestore  # noqa: E402
+from mk_tracker.bags.bag_writer import BagWriter  # noqa: E402
 from mk_tracker.messages.image_conversion import image_to_numpy, numpy_to_image  # noqa: E402
 from mk_tracker.messages.message_types import (bag_message_types, make_header,  # noqa: E402
                                       ros_message_types)

@@ -36,7 +36,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from mk_tracker.bags.bag_io import BagWriter, open_bag  # noqa: E402
+from mk_tracker.bags.bag_io import open_bag  # noqa: E402
+from mk_tracker.bags.bag_writer import BagWriter  # noqa: E402
 
 S = 1_000_000_000
 T0 = 1_700_000_000 * S

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mk_tracker.bags.bag_io import BagWriter, open_bag
+from mk_tracker.bags.bag_io import open_bag
+from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.messages.detection_messages import Detection, make_detection_array, read_detection_array
 from mk_tracker.messages.message_types import bag_message_types
 

@@ -2,6 +2,7 @@
 
 * :mod:`~mk_tracker.bags.bag_io` -- read and write sqlite3 and mcap bags with ``rosbags``
   (split bags, bags of real ``ros2 bag record``), vision_msgs registered in the typestore.
+  Split out: ``bag_writer``, ``bag_storage`` (one storage file), ``bag_typestore``, ``bag_errors``.
 * :mod:`~mk_tracker.bags.playback` -- when each recorded message is due, on which topic,
   with which QoS and ``/clock``: the pure core of :mod:`mk_tracker.ros.bag_player`.
 * :mod:`~mk_tracker.bags.datasets` -- MOTChallenge and OTB sequence folders (images, ground

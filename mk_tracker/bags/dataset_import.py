@@ -20,7 +20,9 @@ import sys
 from pathlib import Path
 from typing import Callable
 
-from mk_tracker.bags.bag_io import BagError, BagWriter, make_typestore
+from mk_tracker.bags.bag_errors import BagError
+from mk_tracker.bags.bag_typestore import make_typestore
+from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.bags.datasets import DatasetError, Sequence, read_sequence
 from mk_tracker.messages.detection_messages import Detection, make_detection_array
 from mk_tracker.messages.image_conversion import numpy_to_image

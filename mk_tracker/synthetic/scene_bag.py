@@ -86,7 +86,8 @@ def write_scene_bag(scene: SyntheticScene, path: str | Path, storage: str = "mca
     ``storage`` is ``"mcap"`` or ``"sqlite3"``; the bag directory must not exist.  ``preset``
     is only recorded in ``/scene_info``.  Frames are rendered and written one at a time.
     """
-    from mk_tracker.bags.bag_io import BagError, BagWriter
+    from mk_tracker.bags.bag_errors import BagError
+    from mk_tracker.bags.bag_writer import BagWriter
     from mk_tracker.messages.detection_messages import make_detection_array
     from mk_tracker.messages.image_conversion import numpy_to_image
     from mk_tracker.messages.message_types import bag_message_types, make_header

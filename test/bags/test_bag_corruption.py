@@ -19,7 +19,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from mk_tracker.bags.bag_io import BagError, BagWriter, make_typestore, open_bag
+from mk_tracker.bags.bag_errors import BagError
+from mk_tracker.bags.bag_io import open_bag
+from mk_tracker.bags.bag_typestore import make_typestore
+from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.messages.message_types import bag_message_types
 
 STORE = make_typestore()

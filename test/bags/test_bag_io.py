@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 import yaml
 
-from mk_tracker.bags.bag_io import BagError, BagWriter, make_typestore, open_bag
+from mk_tracker.bags.bag_errors import BagError
+from mk_tracker.bags.bag_io import open_bag
+from mk_tracker.bags.bag_typestore import make_typestore
+from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.messages.detection_messages import Detection, make_detection_array, read_detection_array
 from mk_tracker.messages.image_conversion import image_to_numpy, numpy_to_image
 from mk_tracker.messages.message_types import bag_message_types, make_header, stamp_to_nanoseconds

@@ -16,7 +16,7 @@ from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 
 import property_profile  # noqa: F401  (registers and loads the derandomized profile)
-from mk_tracker.bags.bag_io import make_typestore
+from mk_tracker.bags.bag_typestore import make_typestore
 from mk_tracker.messages.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection_array)
 from mk_tracker.messages.message_types import bag_message_types, make_header, ros_message_types

@@ -17,7 +17,7 @@ from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 import property_profile  # noqa: F401  (registers and loads the derandomized profile)
-from mk_tracker.bags.bag_io import make_typestore
+from mk_tracker.bags.bag_typestore import make_typestore
 from mk_tracker.messages.image_conversion import (ImageConversionError, image_to_numpy, numpy_to_image,
                                          to_bgr, to_gray)
 from mk_tracker.messages.message_types import bag_message_types, ros_message_types
