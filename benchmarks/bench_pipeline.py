@@ -30,11 +30,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from mk_tracker.bags.bag_io import BagWriter, open_bag  # noqa: E402
+from mk_tracker.bags.bag_io import open_bag  # noqa: E402
+from mk_tracker.bags.bag_writer import BagWriter  # noqa: E402
 from mk_tracker.messages.detection_messages import (Detection, make_detection_array,  # noqa: E402
                                            read_detection_array)
 from mk_tracker.messages.message_types import bag_message_types  # noqa: E402
-from mk_tracker.tools.pipeline import PipelineOptions, load_pipeline_config, process_bag  # noqa: E402
+from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
+from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.synthetic.scene_bag import build_preset, write_scene_bag  # noqa: E402
 
 

@@ -9,6 +9,7 @@
   as the nodes do; writes the tracks bag, a MOT file, an annotated video and plots.
   ``--init-from-gt`` runs the single-target protocol of Chu et al. 2013 (Sec. IV-B: one
   person started from its first ground-truth box).
+  Parameter files: ``pipeline_config``; scores and files after the run: ``pipeline_outputs``.
 * :mod:`~mk_tracker.tools.demo` -- ``mk_tracker demo`` / ``make demo``: a synthetic scene
   played through both nodes over DDS (via :mod:`mk_tracker.ros.launcher`), then scored.
 

@@ -33,6 +33,10 @@ Parameters come from the nodes' YAML files: ``config/detector.yaml`` and
 ``config/tracker.yaml`` of the package, overridden by each ``--params-file``.  When the
 tracker's homography is the identity and the bag has ``/scene_info`` (a synthetic scene),
 the scene's thermal-to-RGB homography is used.
+
+This module holds the options, the run over the bag (:func:`process_bag`) and the command
+line; the parameter files are read by :mod:`~mk_tracker.tools.pipeline_config`, the scores
+and the files written after the run by :mod:`~mk_tracker.tools.pipeline_outputs`.
 """
 
 from __future__ import annotations
@@ -50,12 +54,13 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from mk_tracker.bags.bag_io import BagError, BagWriter, open_bag
+from mk_tracker.bags.bag_errors import BagError
+from mk_tracker.bags.bag_io import open_bag
+from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.boxes import InvalidBoxError, as_box, iou
 from mk_tracker.messages.detection_messages import (Detection, DetectionMessageError,
                                            make_detection_array, read_detection_array)
-from mk_tracker.evaluation.metrics import (MotRow, center_errors, mot_accumulator, mot_metrics,
-                                   overlaps, single_target_metrics, write_mot_file)
+from mk_tracker.evaluation.metrics import MotRow
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_detector,
                                          detector_outputs,
                                          kernel_drawings, skipped_reason, thermal_input,
@@ -64,13 +69,16 @@ from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_
 from mk_tracker.messages.image_conversion import ImageConversionError
 from mk_tracker.messages.message_types import bag_message_types, stamp_to_nanoseconds, stamp_to_seconds
 from mk_tracker.tracking.multi_object_tracker import (IDENTITY_HOMOGRAPHY, MultiObjectTracker,
-                                             MultiObjectTrackerConfig, TrackerInputError)
-from mk_tracker.parameters import ParameterError, parameter_specs, updated
-from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
-from mk_tracker.detection.threshold_detector import ThresholdDetectorConfig
+                                             TrackerInputError)
+from mk_tracker.parameters import ParameterError
+# the parameters and the outputs of a run live in their own modules; CONFIG_DIR,
+# DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS, PipelineConfig and format_metrics are
+# imported here too so that ``from mk_tracker.tools.pipeline import ...`` keeps working
+from mk_tracker.tools.pipeline_config import (CONFIG_DIR, DETECTOR_NODE_DEFAULTS,  # noqa: F401
+                                              TRACKER_NODE_DEFAULTS, PipelineConfig,
+                                              PipelineError, load_pipeline_config)
+from mk_tracker.tools.pipeline_outputs import format_metrics, write_outputs
 
-CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
-DEFAULT_PARAMS_FILES = ("detector.yaml", "tracker.yaml")
 IMAGE_TOPIC = "/image_raw"
 THERMAL_TOPIC = "/thermal/image_raw"
 DETECTIONS_OUT_TOPIC = "/thermal/detections"
@@ -79,142 +87,6 @@ GROUND_TRUTH_TOPIC = "/ground_truth"
 SCENE_INFO_TOPIC = "/scene_info"
 DETECTION_TOPIC_CANDIDATES = ("/thermal/detections", "/detections")
 DETECTION_TYPE = "vision_msgs/msg/Detection2DArray"
-#: node-level parameters the pipeline uses, with the nodes' defaults (a test keeps these
-#: equal to TrackerNodeConfig / DetectorNodeConfig, which live in rclpy modules)
-TRACKER_NODE_DEFAULTS = {"thermal_frame_id": "thermal_camera", "detection_buffer": 5,
-                         "detection_wait": 0.0, "class_id": "person"}
-DETECTOR_NODE_DEFAULTS = {"method": "kernel_covariance", "class_id": "person"}
-
-
-class PipelineError(ValueError):
-    """Bad options or an unusable bag (nothing to track, output exists, ...)."""
-
-
-# -- parameters files -----------------------------------------------------------------------
-
-def _flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    flat: dict[str, Any] = {}
-    for key, value in tree.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, Mapping):
-            flat.update(_flatten(value, name + "."))
-        else:
-            flat[name] = value
-    return flat
-
-
-def read_node_parameters(paths: Iterable[str | Path], node_name: str) -> dict[str, Any]:
-    """Dotted parameters of ``node_name`` from ROS 2 parameter files (later files win).
-
-    Sections ``node_name``, ``/node_name`` and the wildcard ``/**`` are read.
-    """
-    import yaml
-
-    params: dict[str, Any] = {}
-    for path in paths:
-        p = Path(path)
-        try:
-            data = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
-        except (OSError, yaml.YAMLError) as exc:
-            raise PipelineError(f"cannot read parameters file {p}: {exc}") from exc
-        if not isinstance(data, Mapping):
-            raise PipelineError(f"{p}: not a ROS 2 parameters file (top level is not a map)")
-        for section in ("/**", node_name, f"/{node_name}"):
-            node = data.get(section)
-            if isinstance(node, Mapping) and isinstance(node.get("ros__parameters"), Mapping):
-                params.update(_flatten(node["ros__parameters"]))
-    return params
-
-
-def split_parameters(params: Mapping[str, Any], configs: Mapping[str, Any]
-                     ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``(configs updated by their prefixed parameters, remaining node-level values)``.
-
-    ``configs`` maps a parameter prefix (``"tracker"``) to a default config; a parameter
-    whose first component is such a prefix is validated into it
-    (:func:`mk_tracker.parameters.updated`), the others are returned as node-level values.
-    """
-    out = dict(configs)
-    changes: dict[str, dict[str, Any]] = {k: {} for k in configs}
-    rest: dict[str, Any] = {}
-    for name, value in params.items():
-        head, _, tail = name.partition(".")
-        if head in configs and tail:
-            changes[head][tail] = value
-        else:
-            rest[name] = value
-    for prefix, config in configs.items():
-        known = {s.name for s in parameter_specs(config)}
-        usable = {k: v for k, v in changes[prefix].items() if k in known}
-        unknown = sorted(set(changes[prefix]) - known)
-        if unknown:
-            print(f"mk_tracker process: ignoring unknown parameter(s) "
-                  f"{', '.join(prefix + '.' + u for u in unknown)}", file=sys.stderr)
-        try:
-            out[prefix] = updated(config, usable)
-        except ParameterError as exc:
-            raise PipelineError(f"parameter {prefix}.{exc}") from exc
-    return out, rest
-
-
-@dataclass(frozen=True)
-class PipelineConfig:
-    """Everything the pipeline takes from the parameter files."""
-
-    tracker: MultiObjectTrackerConfig = field(default_factory=MultiObjectTrackerConfig)
-    detector: ThermalDetectorConfig = field(default_factory=ThermalDetectorConfig)
-    threshold: ThresholdDetectorConfig = field(default_factory=ThresholdDetectorConfig)
-    method: str = DETECTOR_NODE_DEFAULTS["method"]
-    detector_class_id: str = DETECTOR_NODE_DEFAULTS["class_id"]
-    thermal_frame_id: str = TRACKER_NODE_DEFAULTS["thermal_frame_id"]
-    detection_buffer: int = TRACKER_NODE_DEFAULTS["detection_buffer"]
-    detection_wait: float = TRACKER_NODE_DEFAULTS["detection_wait"]
-    class_id: str = TRACKER_NODE_DEFAULTS["class_id"]
-
-
-def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
-                         include_defaults: bool = True) -> PipelineConfig:
-    """The package's ``config/*.yaml`` (when present) and then ``params_files``."""
-    files: list[Path] = []
-    if include_defaults:
-        files += [CONFIG_DIR / n for n in DEFAULT_PARAMS_FILES if (CONFIG_DIR / n).is_file()]
-    for p in params_files:
-        if not Path(p).is_file():
-            raise PipelineError(f"parameters file {p} does not exist")
-        files.append(Path(p))
-    det_cfgs, det_rest = split_parameters(
-        read_node_parameters(files, "detector_node"),
-        {"detector": ThermalDetectorConfig(), "threshold": ThresholdDetectorConfig()})
-    trk_cfgs, trk_rest = split_parameters(read_node_parameters(files, "tracker_node"),
-                                          {"tracker": MultiObjectTrackerConfig()})
-    try:
-        buffer = int(trk_rest.get("detection_buffer", TRACKER_NODE_DEFAULTS["detection_buffer"]))
-    except (TypeError, ValueError) as exc:
-        raise PipelineError(f"detection_buffer: {exc}") from exc
-    if buffer < 1:
-        raise PipelineError(f"detection_buffer must be >= 1, got {buffer}")
-    try:
-        wait = float(trk_rest.get("detection_wait", TRACKER_NODE_DEFAULTS["detection_wait"]))
-    except (TypeError, ValueError) as exc:
-        raise PipelineError(f"detection_wait: {exc}") from exc
-    if not (math.isfinite(wait) and 0.0 <= wait <= 2.0):
-        raise PipelineError(f"detection_wait must be in [0, 2] s, got {wait}")
-    config = PipelineConfig(
-        tracker=trk_cfgs["tracker"], detector=det_cfgs["detector"],
-        threshold=det_cfgs["threshold"],
-        method=str(det_rest.get("method", DETECTOR_NODE_DEFAULTS["method"])),
-        detector_class_id=str(det_rest.get("class_id", DETECTOR_NODE_DEFAULTS["class_id"])),
-        thermal_frame_id=str(trk_rest.get("thermal_frame_id",
-                                          TRACKER_NODE_DEFAULTS["thermal_frame_id"])),
-        detection_buffer=buffer,
-        detection_wait=wait,
-        class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])))
-    try:
-        build_detector(config.method, config.detector, config.threshold)
-        MultiObjectTracker(config.tracker)
-    except ValueError as exc:
-        raise PipelineError(f"parameters rejected: {exc}") from exc
-    return config
 
 
 # -- options and results --------------------------------------------------------------------
@@ -658,7 +530,7 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
         for text in reader.problems[len(r.problems):]:
             r.problem(f"bag: {text}")
     r.seconds = time.perf_counter() - t0
-    _finish(run, has_truth)
+    write_outputs(r, run.bag, run.out, run.options, has_truth)
     return r
 
 
@@ -694,95 +566,6 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
         run.thermal_image(msg)
     else:
         run.detection_message(msg)
-
-
-def _finish(run: _Run, has_truth: bool) -> None:
-    from mk_tracker.evaluation.error_plots import (ErrorPlotError, mot_frame_errors, plot_mot_errors,
-                                        plot_single_target_errors)
-
-    r, out, opts = run.result, run.out, run.options
-    write_mot_file(out / "tracks.txt", r.mot_rows)
-    r.files["tracks"] = str(out / "tracks.txt")
-    if opts.write_bag:
-        r.files["bag"] = str(out / "bag")
-    if opts.write_video and r.video_frames:
-        r.files["video"] = str(out / "video.mp4")
-    if has_truth and r.frames:
-        # the ground truth as a MOTChallenge file: ``mk_tracker eval --gt gt.txt tracks.txt``
-        # scores any result of this bag the same way
-        write_mot_file(out / "gt.txt", r.gt_rows)
-        r.files["ground_truth"] = str(out / "gt.txt")
-        if opts.single_target:
-            tid, gid = r.single_target_id, r.single_target_gt_id
-            predicted = [None] * r.frames
-            for row in r.mot_rows:
-                if row.id == tid:
-                    predicted[row.frame - 1] = row.box
-            truth = [None] * r.frames
-            for row in r.gt_rows:
-                if row.id == gid:
-                    truth[row.frame - 1] = row.box
-            if gid is not None and any(b is not None for b in truth):
-                # OTB-style box lists for ``mk_tracker eval --single-target``
-                _write_box_list(out / "target.txt", predicted)
-                _write_box_list(out / "target_gt.txt", truth)
-                r.files["target"] = str(out / "target.txt")
-                r.files["target_ground_truth"] = str(out / "target_gt.txt")
-                r.metrics = single_target_metrics(predicted, truth)
-                r.metrics["target_id"], r.metrics["ground_truth_id"] = tid, gid
-                if opts.write_plots:
-                    plot_single_target_errors(center_errors(predicted, truth),
-                                              overlaps(predicted, truth),
-                                              out / "errors.png",
-                                              title=f"{run.bag.name}: target {gid}")
-                    r.files["plot"] = str(out / "errors.png")
-        else:
-            frames = list(range(1, r.frames + 1))
-            r.metrics = mot_metrics(r.gt_rows, r.mot_rows)
-            if opts.write_plots:
-                acc = mot_accumulator(r.gt_rows, r.mot_rows, frames=frames)
-                try:
-                    plot_mot_errors(mot_frame_errors(acc), out / "errors.png",
-                                    title=f"{run.bag.name}: per-frame errors")
-                    r.files["plot"] = str(out / "errors.png")
-                except ErrorPlotError as exc:
-                    r.problem(f"no error plot: {exc}")
-    summary = {
-        "bag": str(run.bag), "detection_source": r.detection_source,
-        "frames": r.frames, "tracked_frames": r.tracked_frames, "bad_frames": r.bad_frames,
-        "bad_messages": r.bad_messages, "problems": r.problems,
-        "detections": r.detections, "detection_frames": r.detection_frames,
-        "rejected_detector_frames": r.rejected_detector_frames,
-        "unknown_frame_batches": r.unknown_frame_batches,
-        "tracks": len(r.track_ids), "video_frames": r.video_frames,
-        "seconds": round(r.seconds, 3),
-        "frames_per_second": round(r.frames / r.seconds, 2) if r.seconds > 0 else None,
-        "homography": list(r.homography), "metrics": r.metrics, "files": r.files,
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
-    r.files["summary"] = str(out / "summary.json")
-
-
-def _write_box_list(path: Path, boxes: Sequence[Sequence[float] | None]) -> None:
-    """One ``x,y,w,h`` line per frame (``nan,nan,nan,nan`` without a box), the OTB layout
-    :func:`mk_tracker.evaluation.metrics.read_box_list` reads."""
-    lines = ["nan,nan,nan,nan" if b is None else ",".join(f"{float(v):.2f}" for v in b)
-             for b in boxes]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-
-
-def format_metrics(metrics: Mapping[str, Any]) -> str:
-    """One line of scores (ratios as percentages)."""
-    parts = []
-    for k, v in metrics.items():
-        if isinstance(v, float) and k in ("mota", "motp", "idf1", "idp", "idr", "precision",
-                                          "recall", "precision_at_20px", "success_auc"):
-            parts.append(f"{k} {100 * v:.1f}%")
-        elif isinstance(v, float):
-            parts.append(f"{k} {v:.2f}")
-        else:
-            parts.append(f"{k} {v}")
-    return ", ".join(parts)
 
 
 # -- command line ---------------------------------------------------------------------------

@@ -27,14 +27,16 @@ pytest.importorskip("vision_msgs.msg", reason="vision_msgs is not built into thi
 
 from vision_msgs.msg import Detection2DArray  # noqa: E402
 
-from mk_tracker.bags.bag_io import BagWriter, open_bag  # noqa: E402
+from mk_tracker.bags.bag_io import open_bag  # noqa: E402
+from mk_tracker.bags.bag_writer import BagWriter  # noqa: E402
 from mk_tracker.boxes import iou  # noqa: E402
 from mk_tracker.bags.dataset_import import import_sequence  # noqa: E402
 from mk_tracker.bags.datasets import read_sequence  # noqa: E402
 from mk_tracker.messages.detection_messages import read_detection_array  # noqa: E402
 from mk_tracker.evaluation.metrics import MotRow, mot_metrics  # noqa: E402
 from mk_tracker.messages.message_types import stamp_to_nanoseconds  # noqa: E402
-from mk_tracker.tools.pipeline import PipelineOptions, load_pipeline_config, process_bag  # noqa: E402
+from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
+from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 
 from nodes_harness import (domain, node_group, peer, reliable_qos,  # noqa: E402,F401
                            start_bag_player, stop_process_group)

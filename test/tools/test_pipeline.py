@@ -10,15 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mk_tracker.bags.bag_io import BagWriter, open_bag
+from mk_tracker.bags.bag_io import open_bag
+from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.boxes import iou
 from mk_tracker.tools.cli import main as cli_main
 from mk_tracker.messages.detection_messages import Detection, make_detection_array, read_detection_array
 from mk_tracker.evaluation.metrics import mot_metrics, read_box_list, read_mot_file, single_target_metrics
 from mk_tracker.messages.message_types import bag_message_types
-from mk_tracker.tools.pipeline import (DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS,
-                                 PipelineError, PipelineOptions, load_pipeline_config,
-                                 process_bag)
+from mk_tracker.tools.pipeline import PipelineOptions, process_bag
+from mk_tracker.tools.pipeline_config import (DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS,
+                                              PipelineError, load_pipeline_config)
 from mk_tracker.synthetic.scene_bag import build_preset, read_scene_info, write_scene_bag
 from mk_tracker.drawing.video_output import count_video_frames
 

@@ -1,0 +1,168 @@
+"""The parameters of ``mk_tracker process``: the nodes' parameter files read as a PipelineConfig.
+
+* :func:`load_pipeline_config` -- the package's ``config/detector.yaml`` and
+  ``config/tracker.yaml``, then each ``--params-file`` (later files win), validated by
+  building the detector and the tracker once.
+* :func:`read_node_parameters` -- a node's dotted parameters from parameter files (sections
+  ``node``, ``/node`` and ``/**``), without rclpy.
+* :func:`split_parameters` -- prefixed parameters (``tracker.*``, ``detector.*``,
+  ``threshold.*``) into their config dataclasses (:func:`mk_tracker.parameters.updated`),
+  the node-level ones apart.
+* :data:`TRACKER_NODE_DEFAULTS` / :data:`DETECTOR_NODE_DEFAULTS` -- the node-level parameters
+  the pipeline uses, with the nodes' defaults.
+* :class:`PipelineError` -- bad options, parameters or bag for the pipeline.
+
+So the offline pipeline (:mod:`mk_tracker.tools.pipeline`) runs with the parameters the
+nodes would have.  The names stay importable from :mod:`mk_tracker.tools.pipeline`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
+from mk_tracker.detection.threshold_detector import ThresholdDetectorConfig
+from mk_tracker.frame_processing import build_detector
+from mk_tracker.parameters import ParameterError, parameter_specs, updated
+from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker, MultiObjectTrackerConfig
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+DEFAULT_PARAMS_FILES = ("detector.yaml", "tracker.yaml")
+#: node-level parameters the pipeline uses, with the nodes' defaults (a test keeps these
+#: equal to TrackerNodeConfig / DetectorNodeConfig, which live in rclpy modules)
+TRACKER_NODE_DEFAULTS = {"thermal_frame_id": "thermal_camera", "detection_buffer": 5,
+                         "detection_wait": 0.0, "class_id": "person"}
+DETECTOR_NODE_DEFAULTS = {"method": "kernel_covariance", "class_id": "person"}
+
+
+class PipelineError(ValueError):
+    """Bad options or an unusable bag (nothing to track, output exists, ...)."""
+
+
+def _flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(_flatten(value, name + "."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def read_node_parameters(paths: Iterable[str | Path], node_name: str) -> dict[str, Any]:
+    """Dotted parameters of ``node_name`` from ROS 2 parameter files (later files win).
+
+    Sections ``node_name``, ``/node_name`` and the wildcard ``/**`` are read.
+    """
+    import yaml
+
+    params: dict[str, Any] = {}
+    for path in paths:
+        p = Path(path)
+        try:
+            data = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise PipelineError(f"cannot read parameters file {p}: {exc}") from exc
+        if not isinstance(data, Mapping):
+            raise PipelineError(f"{p}: not a ROS 2 parameters file (top level is not a map)")
+        for section in ("/**", node_name, f"/{node_name}"):
+            node = data.get(section)
+            if isinstance(node, Mapping) and isinstance(node.get("ros__parameters"), Mapping):
+                params.update(_flatten(node["ros__parameters"]))
+    return params
+
+
+def split_parameters(params: Mapping[str, Any], configs: Mapping[str, Any]
+                     ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``(configs updated by their prefixed parameters, remaining node-level values)``.
+
+    ``configs`` maps a parameter prefix (``"tracker"``) to a default config; a parameter
+    whose first component is such a prefix is validated into it
+    (:func:`mk_tracker.parameters.updated`), the others are returned as node-level values.
+    """
+    out = dict(configs)
+    changes: dict[str, dict[str, Any]] = {k: {} for k in configs}
+    rest: dict[str, Any] = {}
+    for name, value in params.items():
+        head, _, tail = name.partition(".")
+        if head in configs and tail:
+            changes[head][tail] = value
+        else:
+            rest[name] = value
+    for prefix, config in configs.items():
+        known = {s.name for s in parameter_specs(config)}
+        usable = {k: v for k, v in changes[prefix].items() if k in known}
+        unknown = sorted(set(changes[prefix]) - known)
+        if unknown:
+            print(f"mk_tracker process: ignoring unknown parameter(s) "
+                  f"{', '.join(prefix + '.' + u for u in unknown)}", file=sys.stderr)
+        try:
+            out[prefix] = updated(config, usable)
+        except ParameterError as exc:
+            raise PipelineError(f"parameter {prefix}.{exc}") from exc
+    return out, rest
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Everything the pipeline takes from the parameter files."""
+
+    tracker: MultiObjectTrackerConfig = field(default_factory=MultiObjectTrackerConfig)
+    detector: ThermalDetectorConfig = field(default_factory=ThermalDetectorConfig)
+    threshold: ThresholdDetectorConfig = field(default_factory=ThresholdDetectorConfig)
+    method: str = DETECTOR_NODE_DEFAULTS["method"]
+    detector_class_id: str = DETECTOR_NODE_DEFAULTS["class_id"]
+    thermal_frame_id: str = TRACKER_NODE_DEFAULTS["thermal_frame_id"]
+    detection_buffer: int = TRACKER_NODE_DEFAULTS["detection_buffer"]
+    detection_wait: float = TRACKER_NODE_DEFAULTS["detection_wait"]
+    class_id: str = TRACKER_NODE_DEFAULTS["class_id"]
+
+
+def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
+                         include_defaults: bool = True) -> PipelineConfig:
+    """The package's ``config/*.yaml`` (when present) and then ``params_files``."""
+    files: list[Path] = []
+    if include_defaults:
+        files += [CONFIG_DIR / n for n in DEFAULT_PARAMS_FILES if (CONFIG_DIR / n).is_file()]
+    for p in params_files:
+        if not Path(p).is_file():
+            raise PipelineError(f"parameters file {p} does not exist")
+        files.append(Path(p))
+    det_cfgs, det_rest = split_parameters(
+        read_node_parameters(files, "detector_node"),
+        {"detector": ThermalDetectorConfig(), "threshold": ThresholdDetectorConfig()})
+    trk_cfgs, trk_rest = split_parameters(read_node_parameters(files, "tracker_node"),
+                                          {"tracker": MultiObjectTrackerConfig()})
+    try:
+        buffer = int(trk_rest.get("detection_buffer", TRACKER_NODE_DEFAULTS["detection_buffer"]))
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(f"detection_buffer: {exc}") from exc
+    if buffer < 1:
+        raise PipelineError(f"detection_buffer must be >= 1, got {buffer}")
+    try:
+        wait = float(trk_rest.get("detection_wait", TRACKER_NODE_DEFAULTS["detection_wait"]))
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(f"detection_wait: {exc}") from exc
+    if not (math.isfinite(wait) and 0.0 <= wait <= 2.0):
+        raise PipelineError(f"detection_wait must be in [0, 2] s, got {wait}")
+    config = PipelineConfig(
+        tracker=trk_cfgs["tracker"], detector=det_cfgs["detector"],
+        threshold=det_cfgs["threshold"],
+        method=str(det_rest.get("method", DETECTOR_NODE_DEFAULTS["method"])),
+        detector_class_id=str(det_rest.get("class_id", DETECTOR_NODE_DEFAULTS["class_id"])),
+        thermal_frame_id=str(trk_rest.get("thermal_frame_id",
+                                          TRACKER_NODE_DEFAULTS["thermal_frame_id"])),
+        detection_buffer=buffer,
+        detection_wait=wait,
+        class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])))
+    try:
+        build_detector(config.method, config.detector, config.threshold)
+        MultiObjectTracker(config.tracker)
+    except ValueError as exc:
+        raise PipelineError(f"parameters rejected: {exc}") from exc
+    return config
