@@ -1,8 +1,15 @@
 """rosbag2 bags and datasets without ROS: reading, writing, playback timing, imports.
 
-* :mod:`~mk_tracker.bags.bag_io` -- read and write sqlite3 and mcap bags with ``rosbags``
-  (split bags, bags of real ``ros2 bag record``), vision_msgs registered in the typestore.
-  Split out: ``bag_writer``, ``bag_storage`` (one storage file), ``bag_typestore``, ``bag_errors``.
+* :mod:`~mk_tracker.bags.bag_io` -- :func:`~mk_tracker.bags.bag_io.open_bag` /
+  ``BagReader``: a bag directory (or one ``.mcap`` / ``.db3`` file) in time order over all
+  split files, including bags of real ``ros2 bag record``; re-exports the names below.
+* :mod:`~mk_tracker.bags.bag_storage` -- one storage file (MCAP, sqlite3), with salvage of
+  damaged files.
+* :mod:`~mk_tracker.bags.bag_writer` -- ``BagWriter``: new bags from message objects or
+  copied CDR bytes.
+* :mod:`~mk_tracker.bags.bag_typestore` -- the ROS 2 Jazzy typestore with vision_msgs
+  registered, plus definitions stored in a bag.
+* :mod:`~mk_tracker.bags.bag_errors` -- ``BagError`` and the ``on_error`` policy.
 * :mod:`~mk_tracker.bags.playback` -- when each recorded message is due, on which topic,
   with which QoS and ``/clock``: the pure core of :mod:`mk_tracker.ros.bag_player`.
 * :mod:`~mk_tracker.bags.datasets` -- MOTChallenge and OTB sequence folders (images, ground

@@ -9,6 +9,10 @@
   as the nodes do; writes the tracks bag, a MOT file, an annotated video and plots.
   ``--init-from-gt`` runs the single-target protocol of Chu et al. 2013 (Sec. IV-B: one
   person started from its first ground-truth box).
+* :mod:`~mk_tracker.tools.pipeline_config` -- the nodes' parameter files read as the
+  pipeline's configuration, without rclpy.
+* :mod:`~mk_tracker.tools.pipeline_outputs` -- what a run leaves: MOT file, scores (the
+  centre error and overlap of Chu et al. Table I for a single target), plots, summary.
   Parameter files: ``pipeline_config``; scores and files after the run: ``pipeline_outputs``.
 * :mod:`~mk_tracker.tools.demo` -- ``mk_tracker demo`` / ``make demo``: a synthetic scene
   played through both nodes over DDS (via :mod:`mk_tracker.ros.launcher`), then scored.
