@@ -438,3 +438,63 @@ def test_plain_kernel_loops_equal_the_numpy_reference():
         fin = np.isfinite(ref.costs)
         assert np.allclose(costs[fin], ref.costs[fin], rtol=0, atol=1e-9)
     assert seen_empty > 0 and seen_full > 10
+
+
+@pytest.fixture
+def plain_compiled(monkeypatch):
+    """The "compiled" backend with the uncompiled loops: its glue code (argument packing,
+    the copy of read-only images, output shapes) runs in Python, numba or not."""
+    from mk_tracker.tracking import kernel_histograms as kh
+    monkeypatch.setattr(kh, "compiled_kernels", lambda: (kh._quantize_loops, kh._kernels_loops))
+    return kh
+
+
+@pytest.mark.parametrize("stride", [1, 2, 3])
+def test_compiled_backend_glue_with_plain_loops_quantises_like_numpy(plain_compiled, stride):
+    rng = np.random.default_rng(50 + stride)
+    img = rng.integers(0, 256, size=(23, 31, 3)).astype(np.uint8)
+    frozen = img.copy()
+    frozen.setflags(write=False)                      # a read-only message buffer
+    for image in (img, frozen, np.ascontiguousarray(img[:, ::-1])[:, ::-1]):
+        for region in [(0, 0, 31, 23), (stride * 2, stride, 29, 20), (5, 7, 6, 8)]:
+            x0, y0, x1, y1 = region
+            for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2))]:
+                got = quantize_region(image, region, stride, cs, bins, "compiled")
+                expected = quantize(img[y0:y1:stride, x0:x1:stride], cs, bins)
+                assert got.dtype == np.int32 and np.array_equal(got, expected)
+    bad = img.astype(np.float32)
+    bad[3, 4] = np.nan
+    assert quantize_region(bad, (0, 0, 31, 23), 1, "hsv", BINS, "compiled") is None
+    assert np.array_equal(quantize_region(img.astype(np.float64), (0, 0, 31, 23), 1, "hsv",
+                                          BINS, "compiled"), quantize(img, "hsv", BINS))
+
+
+def test_compiled_backend_glue_with_plain_loops_evaluates_like_numpy(plain_compiled):
+    rng = np.random.default_rng(15)
+    for trial in range(8):
+        bins, origin, stride, axes, centres, models, profile, weighting = \
+            _random_case(rng, trial)
+        axes = np.minimum(axes, 12.0)
+        region = SearchRegion(bins, origin, stride, M, profile, "compiled")
+        assert region.backend == "compiled"
+        a = region.evaluate(axes, centres, models, 0.02, weighting)
+        b = SearchRegion(bins, origin, stride, M, profile, "numpy").evaluate(
+            axes, centres, models, 0.02, weighting)
+        assert np.array_equal(a.n_pixels, b.n_pixels)
+        for name in ("p", "similarities", "mean_shift", "scale_ratios"):
+            assert np.allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-9), name
+        fin = np.isfinite(b.costs)
+        assert np.array_equal(np.isinf(a.costs), ~fin)
+        assert np.allclose(a.costs[fin], b.costs[fin], rtol=0, atol=1e-9)
+
+
+def test_warm_up_call_matches_the_loops_signatures():
+    # the start-up warm-up of the numba loops must be a valid call of both loops
+    from mk_tracker.tracking import kernel_histograms as kh
+    kh._warm_up(kh._quantize_loops, kh._kernels_loops)
+
+
+def test_number_of_bins_is_the_product():
+    assert number_of_bins((16, 8, 4)) == 512
+    assert number_of_bins((2, 3, 5)) == 30
+    assert isinstance(number_of_bins((2.0, 3, 5)), int)
