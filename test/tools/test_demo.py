@@ -247,6 +247,16 @@ def test_strip_shows_evenly_spaced_frames_side_by_side(tmp_path):
     for k in range(3):                                   # each panel in its own place
         assert np.all(image[:, k * 164:k * 164 + 160] == 60 * (k + 1))
     assert np.all(image[:, 160:164] == 32)               # the gap
+    # a palette PNG: noisy frames (as the scene's) take far less than as 24-bit PNG
+    from PIL import Image
+    rng = np.random.default_rng(0)
+    noisy = [np.clip(rng.normal(110, 4, (240, 320, 3)), 0, 255).astype(np.uint8)
+             for _ in range(2)]
+    write_strip(noisy, tmp_path / "noisy.png", width=320)
+    assert Image.open(tmp_path / "noisy.png").mode == "P"
+    cv2.imwrite(str(tmp_path / "rgb.png"), np.hstack([noisy[0], noisy[1]]),
+                [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    assert (tmp_path / "noisy.png").stat().st_size < 0.8 * (tmp_path / "rgb.png").stat().st_size
 
 
 def test_node_report_counts_every_frame():
