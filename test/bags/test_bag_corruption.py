@@ -293,8 +293,12 @@ def test_bag_player_plays_every_readable_message_of_a_damaged_split_bag(tmp_path
             env=ros_env(domain), cwd=str(REPO), stdout=log, stderr=subprocess.STDOUT,
             start_new_session=True)
         try:
-            peer.spin_until(lambda: player.poll() is not None, 60.0)
-            peer.spin_for(0.5)
+            peer.spin_until(lambda: player.poll() is not None, 120.0)
+            # the player exits once every message is acknowledged (in the peer's reader);
+            # take them all (was: spin 0.5 s and hope, a speed assumption; bound only)
+            want_counts = {t: sum(1 for _, topic, _ in readable if topic == t) for t in got}
+            peer.spin_until(lambda: all(len(got[t]) >= n for t, n in want_counts.items()),
+                            30.0)
         finally:
             if player.poll() is None:
                 os.killpg(player.pid, signal.SIGKILL)

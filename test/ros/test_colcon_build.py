@@ -8,6 +8,11 @@ colcon-ros, colcon-python-setup-py) and vision_msgs importable (the nodes need i
 skips with the reason otherwise.  colcon finds the package's dependencies through
 AMENT_PREFIX_PATH, which is set to the venv (where the pip wheels install their ament
 index).
+
+Timing (issue #12): nothing is timed; the build and the installed node's first answer are
+waited for with bounds only, each several times the observed time (build ~15-30 s here;
+the installed copy compiles its numba kernels on start, 30-60 s), so a machine twice as
+slow, or pinned to one core, still passes.
 """
 
 from __future__ import annotations
@@ -69,7 +74,7 @@ def install_space(tmp_path_factory):
         [str(colcon), "--log-base", str(ws / "log"), "build", "--base-paths", str(ws / "src"),
          "--build-base", str(ws / "build"), "--install-base", str(ws / "install"),
          "--event-handlers", "console_cohesion+"],
-        cwd=ws, env=env, capture_output=True, text=True, timeout=120)
+        cwd=ws, env=env, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "Summary: 1 package finished" in result.stdout, result.stdout
     return ws / "install"
@@ -116,7 +121,7 @@ def test_installed_tracker_node_runs_joins_the_graph_and_publishes(install_space
     listener = None
     try:
         listener = Listener(domain, {"/tracks": Detection2DArray})
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 120
         names = []
         while time.monotonic() < deadline and "tracker_node" not in names:
             names = listener.node.get_node_names()
@@ -129,8 +134,9 @@ def test_installed_tracker_node_runs_joins_the_graph_and_publishes(install_space
         frame.header.frame_id = "camera"
         sent = 0
         # the installed copy compiles its own numba kernels while it starts (its modules live
-        # in the install space, so the checkout's cache does not apply): up to a minute
-        deadline = time.monotonic() + 90
+        # in the install space, so the checkout's cache does not apply): about a minute here,
+        # so the bound is 5 minutes; the loop ends at the first answer
+        deadline = time.monotonic() + 300
         while time.monotonic() < deadline and not listener.messages("/tracks"):
             frame.header.stamp.sec = 1000 + sent
             publisher.publish(frame)
