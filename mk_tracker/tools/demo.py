@@ -482,8 +482,9 @@ def _recorded_detections(recorded: Path) -> dict[int, list]:
 def render_online(scene_bag: Path, recorded: Path, out: Path, homography: Any,
                   fps: float, frames: int, error_plot: bool = True) -> dict[str, Any]:
     """Score the recorded ``/tracks`` and write their MOT file, video, PNG strip and
-    (``error_plot``; importing matplotlib alone takes seconds) the per-frame error plot.  The scene bag is read once, frame by frame (a 640x480 scene does not fit in
-    memory comfortably).  A frame without a ``/tracks`` message (the tracker dropped it,
+    (``error_plot``; importing matplotlib alone takes seconds) the per-frame error plot.
+    The scene bag is read once, frame by frame (a 640x480 scene does not fit in memory
+    comfortably).  A frame without a ``/tracks`` message (the tracker dropped it,
     or it was lost) has no hypotheses: its people count as misses."""
     from mk_tracker.drawing.video_output import VideoOutput
     from mk_tracker.frame_processing import tracker_debug_image, tracker_input
@@ -794,11 +795,12 @@ def run(args: argparse.Namespace) -> int:
               + (f"; first difference: {agreement['first_difference']}"
                  if agreement["first_difference"] else ""))
     files = online["files"]
-    print(f"outputs in {args.out}: {', '.join(os.path.relpath(p, args.out) for p in files.values())}"
-          f", {SUMMARY_FILE}, launch.log" + (", offline/" if "offline" in summary else ""))
+    written = ", ".join(os.path.relpath(p, args.out) for p in files.values())
+    print(f"outputs in {args.out}: {written}, {SUMMARY_FILE}, launch.log"
+          + (", offline/" if "offline" in summary else ""))
     seconds = summary["seconds"]
-    print(f"wall time {seconds['total']:.1f} s (" + ", ".join(
-        f"{k} {v:.1f} s" for k, v in seconds.items() if k != "total") + f"); seed {summary['seed']}")
+    phases = ", ".join(f"{k} {v:.1f} s" for k, v in seconds.items() if k != "total")
+    print(f"wall time {seconds['total']:.1f} s ({phases}); seed {summary['seed']}")
     if summary["launch_status"] != 0:
         print("a ROS process crashed; see launch.log", file=sys.stderr)
         return 1
