@@ -316,3 +316,100 @@ def test_empty_batches():
     res = sparse_factorize(np.zeros((2, 0, 0)), 0.1, backend="numpy", record_cost=True)
     assert res.factors.shape == (2, 0, 1)
     np.testing.assert_array_equal(res.cost_history[:, 0], [0.0, 0.0])
+
+
+def test_coordinate_cost_by_hand():
+    # h = -2, c1 = 1, c2 = 3, lambda = 0.5: 16 + 4 - 6 + 0.5 * 2 = 15
+    assert coordinate_cost(np.array(-2.0), 1.0, 3.0, 0.5) == pytest.approx(15.0)
+    # h = 0.5: 1/16 + 1/4 + 3/2 + 1/4 = 2.0625
+    assert coordinate_cost(np.array(0.5), 1.0, 3.0, 0.5) == pytest.approx(2.0625)
+
+
+@pytest.mark.parametrize("lam", [2.0, 5.0, 20.0])
+def test_coordinate_update_with_a_large_lambda_attains_the_minimum(lam):
+    # lambda above |c2| and 2: the shortcut that decides "0" without a root is exercised
+    # on both sides of its threshold lambda - |c2| >= 2 (-c1/3)^(3/2)
+    rng = np.random.default_rng(int(lam))
+    c1 = rng.uniform(-40.0, 5.0, 300)
+    c2 = rng.uniform(-lam, lam, 300)
+    h = coordinate_minimizer(c1, c2, lam)
+    nonzero = 0
+    for i in range(c1.size):
+        best, _ = dense_min(c1[i], c2[i], lam, -6.0, 6.0, 60001)
+        got = coordinate_cost(np.array(h[i]), c1[i], c2[i], lam)
+        assert got <= best + 1e-6, (c1[i], c2[i], h[i])
+        assert sf._minimizer_scalar(c1[i], c2[i], lam) == pytest.approx(h[i], abs=1e-9)
+        nonzero += h[i] != 0
+    assert 0 < nonzero < c1.size                 # both outcomes occur
+
+
+def _fact_error(**kwargs):
+    sigma = kwargs.pop("sigma", np.eye(2))
+    lam = kwargs.pop("lam", 0.1)
+    with pytest.raises(FactorizationError) as info:
+        sparse_factorize(sigma, lam, **kwargs)
+    return str(info.value)
+
+
+def test_factorization_error_messages():
+    assert _fact_error(sigma=np.zeros((2, 3))) == "sigma must be (B, p, p), got shape (2, 3)"
+    assert _fact_error(sigma=np.full((2, 2), np.nan)) == "sigma holds NaN or infinite values"
+    assert _fact_error(lam=-1.0) == "lambda must be a finite non-negative number, got -1.0"
+    assert _fact_error(columns=0) == "columns and max_cycles must be >= 1 and tol >= 0"
+    assert _fact_error(backend="gpu") == "unknown backend 'gpu'"
+
+
+def test_compiled_without_numba_message(monkeypatch):
+    monkeypatch.setattr(sf, "_compiled_kernel", lambda: None)
+    assert _fact_error(backend="compiled") == \
+        "the compiled backend needs numba, which is not installed"
+
+
+def test_defaults_are_ten_cycles_tol_1e_3_no_history():
+    rng = np.random.default_rng(5)
+    sigmas = _random_sigma(rng, 20, 8, 3)
+    explicit = sparse_factorize(sigmas, 0.0, max_cycles=10, tol=1e-3, backend="numpy")
+    default = sparse_factorize(sigmas, 0.0)
+    np.testing.assert_allclose(default.factors, explicit.factors, atol=1e-10)
+    assert default.cycles.tolist() == explicit.cycles.tolist()
+    assert default.cost_history is None
+    # the batch has blocks stopped by the cap of 10 cycles and blocks stopped by the
+    # tolerance before it, so both defaults mattered
+    assert (~default.converged & (default.cycles == 10)).any()
+    assert (default.converged & (default.cycles < 10)).any()
+    # tol = 0 is allowed: diag(4, 1) stops when a cycle changes nothing at all
+    exact = sparse_factorize(np.diag([4.0, 1.0]), 0.0, tol=0.0, backend="numpy")
+    assert exact.cycles.tolist() == [2] and exact.converged.tolist() == [True]
+
+
+@pytest.fixture
+def plain_compiled(monkeypatch):
+    """The "compiled" backend with the uncompiled loops: the glue of sparse_factorize's
+    compiled branch runs in Python, numba or not."""
+    monkeypatch.setattr(sf, "_compiled_kernel", lambda: sf._factorize_loops)
+    return sf
+
+
+@pytest.mark.parametrize("columns", [1, 2])
+def test_compiled_branch_glue_with_plain_loops(plain_compiled, columns):
+    rng = np.random.default_rng(90 + columns)
+    sigmas = _random_sigma(rng, 4, 6, 2)
+    ref = sparse_factorize(sigmas, 0.05, columns=columns, max_cycles=7, tol=1e-5,
+                           backend="numpy", record_cost=True)
+    for backend in ("compiled", "auto"):
+        got = sparse_factorize(sigmas, 0.05, columns=columns, max_cycles=7, tol=1e-5,
+                               backend=backend)
+        np.testing.assert_allclose(got.factors, ref.factors, atol=1e-10)
+        np.testing.assert_array_equal(got.cycles, ref.cycles)
+        np.testing.assert_array_equal(got.converged, ref.converged)
+        assert got.converged.dtype == bool and got.cost_history is None
+    # with a cost history the compiled branch records the first and the last cost
+    hist = sparse_factorize(sigmas, 0.05, columns=columns, max_cycles=7, tol=1e-5,
+                            backend="compiled", record_cost=True).cost_history
+    assert hist.shape == (4, 8)
+    np.testing.assert_allclose(hist[:, 0], ref.cost_history[:, 0])
+    for b in range(4):
+        c = ref.cycles[b]
+        assert hist[b, c] == pytest.approx(ref.cost_history[b, c], rel=1e-12)
+        assert np.isnan(np.delete(hist[b], [0, c])).all()
+    assert plain_compiled.compiled_block_factorizer() is plain_compiled._factorize_block
