@@ -200,11 +200,11 @@ def _message(call):
 
 def test_error_messages_say_what_does_not_fit():
     eye = np.eye(2)
-    assert _message(lambda: mahalanobis_matrix([[0, 0], [1, 1], [2, 2]], [eye] * 2,
-                                               [[1.0, 1.0]])) == "3 centres but 2 covariances"
-    assert _message(lambda: mahalanobis_matrix([[0, 0], [1, 1]], [eye] * 2,
-                                               np.zeros((3, 1, 2)))) == \
-        "points of shape (3, 1, 2) do not fit 2 tracks"
+    assert _message(lambda: mahalanobis_matrix([[0, 0], [1, 1], [2, 2]], [eye],
+                                               [[1.0, 1.0]])) == "3 centres but 1 covariances"
+    assert _message(lambda: mahalanobis_matrix([[0, 0], [1, 1], [2, 2]], [eye] * 3,
+                                               np.zeros((4, 1, 2)))) == \
+        "points of shape (4, 1, 2) do not fit 3 tracks"
     assert _message(lambda: mahalanobis_matrix([[0, 0]], [np.zeros((2, 2))], [[1.0, 1.0]])) \
         == "an innovation covariance is not positive definite"
     cfg = AssociationConfig()
