@@ -21,3 +21,10 @@ bench: env
 	@set -e; for script in benchmarks/*.py; do \
 		echo "== $$script"; $(PYTHON) "$$script"; \
 	done
+
+# Mutation testing of the five core math modules with mutmut, each against its own tests
+# (a few minutes per module; a maintainers' habit, not part of make test).  Results and
+# the equivalent mutants: docs/mutation.md.  One module: bash scripts/mutation.sh boxes
+.PHONY: mutation
+mutation: env
+	bash scripts/mutation.sh
