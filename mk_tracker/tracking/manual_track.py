@@ -3,7 +3,7 @@
 A track started by hand
 (:meth:`mk_tracker.tracking.multi_object_tracker.MultiObjectTracker.start_track`) follows one
 person with no detector to correct it: the single-target protocol of Chu, Hwang,
-Pai & Lan (IEEE TMM 2013), Sec. V, in which the multiple-kernel search from the Kalman
+Pai & Lan (IEEE TMM 2013), Sec. IV-B, in which the multiple-kernel search from the Kalman
 prediction (Sec. IV-D; the projected-gradient iteration of Algorithm 1 with the step (5)/(8))
 is the only measurement.  :class:`ManualTrackConfig` holds the settings such tracks use
 instead of those of tracks born from detections, and :func:`manual_track_kalman`,
@@ -45,7 +45,7 @@ class ManualTrackConfig:
     ``initial_box`` and ``~/start_track``, ``mk_tracker process --init-from-gt``).
 
     Such a track follows one person with no detector to correct it (the single-target
-    protocol of Chu et al. 2013, Sec. V), so the multiple-kernel refinement from the Kalman
+    protocol of Chu et al. 2013, Sec. IV-B), so the multiple-kernel refinement from the Kalman
     prediction (Sec. IV-D) is its only measurement.  The defaults for tracks born from
     detections were chosen for the multi-object benchmark, where a detection corrects the
     track every frame; here they fail (docs/benchmark_single_target.md, "Findings"):

@@ -9,7 +9,7 @@ States (:class:`TrackState`) and the rules of :func:`next_state`:
   similarity is at least ``occlusion_similarity``;
 * ``occluded`` (coasting) -- neither: the Kalman prediction (4.2)-(4.3) continues alone while
   the multiple-kernel search keeps running from the prediction; its adaptive kernel weights
-  (Chu et al. 2013, Sec. II-D, (7)-(8)) shift trust to the kernels that are still visible;
+  (Chu et al. 2013, Sec. III-D, (7)-(8)) shift trust to the kernels that are still visible;
   a track started by hand that coasts until its prediction's position std exceeds its
   bound is ``held`` (:meth:`Track.hold_if_uncertain`): the prediction stops and the box
   stands where the target was last believed to be, still searched for;
