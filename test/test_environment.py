@@ -416,7 +416,7 @@ det = Detection2D()
 det.id = "from-another-process"
 det.bbox.size_x = 3.5
 msg.detections.append(det)
-deadline = time.monotonic() + 20.0
+deadline = time.monotonic() + 60.0
 while time.monotonic() < deadline:
     pub.publish(msg)
     time.sleep(0.05)
@@ -444,7 +444,7 @@ def test_detection_array_travels_between_two_processes():
         node.create_subscription(Detection2DArray, topic, received.append, 10)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
-        deadline = time.monotonic() + 20.0
+        deadline = time.monotonic() + 60.0  # a bound only: ~1-3 s (child imports rclpy)
         while not received and time.monotonic() < deadline and publisher.poll() is None:
             executor.spin_once(timeout_sec=0.1)
         node.destroy_node()
