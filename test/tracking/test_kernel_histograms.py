@@ -6,7 +6,7 @@ import pytest
 from mk_tracker.tracking.kernel_histograms import (InvalidImageError, check_image, evaluate_kernel,
                                           kernel_histogram, kl_cost, mean_shift_vector,
                                           number_of_bins, pixel_weights, profile_values,
-                                          quantize, sample_kernel, scale_ratio,
+                                          quantize, roi_has_nan, sample_kernel, scale_ratio,
                                           similarity_from_cost)
 
 BINS = (16, 8, 4)
@@ -498,3 +498,31 @@ def test_number_of_bins_is_the_product():
     assert number_of_bins((16, 8, 4)) == 512
     assert number_of_bins((2, 3, 5)) == 30
     assert isinstance(number_of_bins((2.0, 3, 5)), int)
+
+
+def test_usable_images_pass_the_check_unchanged():
+    for image in (np.zeros((2, 3, 3), np.uint8), np.ones((1, 1, 3), np.float32),
+                  np.zeros((5, 4, 3), np.float64)):
+        assert check_image(image) is image
+
+
+@pytest.mark.parametrize("bad, message", [
+    ([[1, 2, 3]], "image must be a numpy array, got list"),
+    (np.zeros((10, 10), np.uint8), "image must be H x W x 3 (BGR), got shape (10, 10)"),
+    (np.zeros((4, 4, 4), np.uint8), "image must be H x W x 3 (BGR), got shape (4, 4, 4)"),
+    (np.zeros((0, 5, 3), np.uint8), "image is empty"),
+    (np.zeros((5, 0, 3), np.uint8), "image is empty"),
+    (np.zeros((4, 4, 3), np.int64), "image must be uint8 or float, got int64"),
+])
+def test_bad_images_are_named_in_the_error(bad, message):
+    with pytest.raises(InvalidImageError) as info:
+        check_image(bad)
+    assert str(info.value) == message
+
+
+def test_roi_has_nan_only_for_float_rois_with_a_bad_value():
+    assert not roi_has_nan(np.zeros((2, 2, 3), np.uint8))
+    assert not roi_has_nan(np.zeros((2, 2, 3), np.float32))
+    bad = np.zeros((2, 2, 3), np.float32)
+    bad[1, 1, 2] = np.inf
+    assert roi_has_nan(bad)
