@@ -43,13 +43,16 @@ from nodes_harness import (domain, node_group, peer, reliable_qos,  # noqa: E402
 
 # The public DPM detections hold many weak and overlapping boxes: gate them and suppress
 # duplicates, as the offline TUD-Campus test does (test_pipeline.py).  Both detections and
-# images reliable so the node sees every message the player sends.
+# images reliable so the node sees every message the player sends; the images with depth 10,
+# as a depth-1 reader may have an untaken image replaced by the next one (issue #12, see
+# test_nodes_detection_wait.py).
 PARAMS = """\
 tracker_node:
   ros__parameters:
     detections_topic: /detections
     image_qos:
       reliability: reliable
+      depth: 10
     detections_qos:
       reliability: reliable
       depth: 50
