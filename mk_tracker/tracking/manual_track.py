@@ -121,6 +121,21 @@ class ManualTrackConfig:
         "of the predicted centre); 0 = extrapolate until the box leaves the image",
         minimum=0.0, maximum=100.0)
 
+    multi_start_radius: float = parameter(
+        0.5, "Coarse-to-fine search of a track started by hand (replaces "
+        "multi_kernel.multi_start_radius): the kernel layout is also scored at a 3x3 grid of "
+        "translations of the Kalman prediction out to this many box widths, and Algorithm 1 "
+        "also runs from the best of them (a target that moved beyond the kernels' reach: low "
+        "frame rate, fast walker, velocity not yet learnt); 0 = from the prediction only",
+        minimum=0.0, maximum=5.0)
+    recovery_similarity: float = parameter(
+        0.4, "Failure re-search of a track started by hand (replaces "
+        "multi_kernel.recovery_similarity): when the search's weighted visibility is below "
+        "this (0.4 = occlusion_similarity: the track would coast), a region of "
+        "multi_kernel.recovery_margin box sizes around it is scanned with the target's "
+        "colour back-projection and Algorithm 1 runs from the best peaks; 0 = never",
+        minimum=0.0, maximum=1.0)
+
 
 def manual_track_kalman(config: "MultiObjectTrackerConfig") -> KalmanConfig:
     """The Kalman settings of a track started by hand."""
@@ -140,7 +155,9 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
     m = config.manual_track
     return replace(config.multi_kernel, num_kernels=m.num_kernels,
                    scale_gate_statistic=m.scale_gate_statistic,
-                   scale_similarity_gate=m.scale_similarity_gate)
+                   scale_similarity_gate=m.scale_similarity_gate,
+                   multi_start_radius=m.multi_start_radius,
+                   recovery_similarity=m.recovery_similarity)
 
 
 def columns_cover(res: Any, floor: float) -> bool:

@@ -62,6 +62,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field, replace
 
+import cv2
 import numpy as np
 
 from mk_tracker.boxes import BoxLike, InvalidBoxError, as_box, clip_box
@@ -165,6 +166,32 @@ class MultiKernelConfig:
     rank_tolerance: float = parameter(
         1e-6, "Singular values of the scaled C_x below this times the largest are dropped",
         minimum=1e-15, maximum=0.1)
+    multi_start_radius: float = parameter(
+        0.0, "Coarse-to-fine start (not in the paper): the layout is scored (mean kernel "
+        "similarity) at a (2k+1)^2 grid of translations of the predicted start, k = "
+        "multi_start_steps, out to this many box widths in x and y, and Algorithm 1 runs from "
+        "the prediction and from the best grid point; the result with the higher mean "
+        "similarity is kept.  0 = start from the prediction only (Sec. IV-D)",
+        minimum=0.0, maximum=5.0)
+    multi_start_steps: int = parameter(
+        1, "k of multi_start_radius: grid points on each side of the prediction",
+        minimum=1, maximum=5)
+    recovery_similarity: float = parameter(
+        0.0, "Failure re-search (not in the paper): when a result's weighted visibility "
+        "sum_i W_i rho_i / N ((7)-(8)) is below this, the region around the start box is "
+        "scanned with the back-projection of the target's colour model and Algorithm 1 runs "
+        "from the best peaks; a peak's result replaces the first one when its weighted "
+        "visibility reaches this value and its mean similarity is higher.  0 = never",
+        minimum=0.0, maximum=1.0)
+    recovery_margin: float = parameter(
+        2.0, "Scan region of the failure re-search: the start box grown by this many box "
+        "sizes on every side, clipped to the image", minimum=0.1, maximum=100.0)
+    recovery_candidates: int = parameter(
+        3, "Back-projection peaks (at least one box apart) from which the failure re-search "
+        "runs Algorithm 1", minimum=1, maximum=20)
+    recovery_scan_cells: int = parameter(
+        8, "Sampling of the back-projection scan: about this many samples across the box "
+        "width (stride ceil(w / this) px)", minimum=2, maximum=64)
 
     @property
     def bins(self) -> tuple[int, int, int]:
@@ -389,8 +416,9 @@ class MultiKernelTracker:
     def start(self, image_bgr: np.ndarray, box: BoxLike) -> TargetState:
         """Build a target from ``box`` (x, y, w, h) in ``image_bgr`` (H x W x 3 BGR).
 
-        The kernels of the configured layout are placed in the box, each kernel's model is the
-        histogram under it, and ``L_x``, ``L_y`` are set so (12)-(13) hold.  Raises
+        The kernels of the configured layout are placed in the box (in its part inside the
+        image when it reaches outside, e.g. a person entering at an edge), each kernel's model
+        is the histogram under it, and ``L_x``, ``L_y`` are set so (12)-(13) hold.  Raises
         :class:`TrackingInputError` for an empty, zero-area, non-finite or out-of-image box,
         a bad image, NaN pixels, a kernel with no pixel, or a uniform-colour target (its
         histogram puts everything in one bin, so there is nothing to track).
@@ -401,8 +429,13 @@ class MultiKernelTracker:
         except InvalidBoxError as exc:
             raise TrackingInputError(str(exc)) from exc
         height, width = image.shape[:2]
-        if clip_box(b, width, height) is None:
+        clipped = clip_box(b, width, height)
+        if clipped is None:
             raise TrackingInputError(f"box {b} is entirely outside the {width}x{height} image")
+        # a box reaching outside the image (a person entering at an edge) is the target's
+        # visible part: the kernels are laid out in that part, so every kernel has pixels
+        # and its model q_i is the colour of what is seen (no kernel models the void)
+        b = tuple(float(v) for v in clipped)
         cfg = self.config
         centres, axes = kernel_layout(b, cfg.num_kernels)
         region = _region(b, 0.0, width, height)
@@ -436,15 +469,26 @@ class MultiKernelTracker:
         The search starts from the state's kernels, translated so their centroid (14) is at
         ``predicted_center`` when given (Sec. IV-D: the Kalman prediction initialises the
         search; the result is the measurement).  Only pixels of the search region (the start
-        box grown by ``search_margin``) are read.  See the module docstring for how the state
-        is mutated.  Never raises for a bad frame: a target outside the image, NaN pixels or
-        a similarity below ``lost_similarity`` give ``lost=True`` with a ``reason``; a badly
-        shaped image raises :class:`TrackingInputError`.
+        box grown by ``search_margin``) are read.  Two optional additions (both off by
+        default; tracks started by hand turn them on, :mod:`mk_tracker.tracking.manual_track`):
+
+        * ``multi_start_radius`` > 0: a coarse grid of start translations is scored first
+          (:meth:`_grid_start`) and Algorithm 1 also runs from its best point, so a target
+          that moved further than the kernels' reach (a low frame rate, a fast walker, a
+          prediction without a learnt velocity) is still found; the result with the higher
+          mean similarity (5) is kept;
+        * ``recovery_similarity`` > 0: a result whose weighted visibility (7)-(8) is below it
+          triggers a scan of a wider region with the target's back-projection
+          (:meth:`_recovery_starts`) and Algorithm 1 from its peaks (:meth:`_recover`).
+
+        See the module docstring for how the state is mutated.  Never raises for a bad
+        frame: a target outside the image, NaN pixels or a similarity below
+        ``lost_similarity`` give ``lost=True`` with a ``reason``; a badly shaped image raises
+        :class:`TrackingInputError`.
         """
         cfg = self.config
         image = _checked_image(image_bgr)
         height, width = image.shape[:2]
-        n_k = state.num_kernels
         axes = state.half_axes
         x = state.centres.astype(np.float64).copy()
         if predicted_center is not None:
@@ -454,16 +498,74 @@ class MultiKernelTracker:
                                          f"finite numbers")
             x += pc - state.center
         start_box = kernels_bounding_box(x, axes)
-        region = _region(start_box, cfg.search_margin, width, height)
+        # the region also covers the grid of starts (multi_start_radius widths in x and y,
+        # no more than that many heights in y for a box taller than wide)
+        region = _region(start_box, cfg.search_margin + cfg.multi_start_radius, width, height)
         if region is None:
             return self._lost(state, x, axes, "outside_image")
         stride = self._stride(axes)
         search = self._search_region(image, region, stride)
         if search is None:
             return self._lost(state, x, axes, "nan_pixels")
+        best = self._algorithm1(search, region, x, state)
+        if cfg.multi_start_radius > 0:
+            alt_start = self._grid_start(search, x, state, start_box[2])
+            if alt_start is not None:
+                alt = self._algorithm1(search, region, alt_start, state)
+                if float(alt[1].similarities.mean()) > float(best[1].similarities.mean()):
+                    best = alt
+        if cfg.recovery_similarity > 0 and \
+                visibility_similarity(best[1].similarities, None, "weighted") \
+                < cfg.recovery_similarity:
+            found = self._recover(image, state, start_box, float(best[1].similarities.mean()))
+            if found is not None:
+                best, search = found
+        x, ev, iterations, history = best
+        n_k = state.num_kernels
+        sims = ev.similarities
+        w = adaptive_weights(sims) if cfg.adaptive_weights else np.ones(n_k)
+        total = _weighted_cost(w, ev.costs)
+        mean_sim = float(sims.mean())
+        if not mean_sim >= cfg.lost_similarity or mean_sim == 0.0:
+            result = self._lost(state, x, axes, "low_similarity", sims, w)
+            result.iterations = iterations
+            return result
+
+        state.centres = x
+        state.similarity = mean_sim
+        state.lost = False
+        state.frames += 1
+        if mean_sim > cfg.similarity_gate:
+            if cfg.model_update_rate > 0:
+                rate = cfg.model_update_rate
+                for i in range(n_k):
+                    if sims[i] > cfg.similarity_gate and ev.n_pixels[i] > 0:
+                        state.models[i] = (1.0 - rate) * state.models[i] + rate * ev.p[i]
+            scale_sim = mean_sim if cfg.scale_gate_statistic == "mean" else float(sims.min())
+            if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
+                self._update_scale(search, state, w, ev)
+        axes = state.half_axes
+        box = kernels_bounding_box(state.centres, axes)
+        return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
+                                similarity=mean_sim, kernel_similarities=sims, weights=w,
+                                kernel_centres=state.centres.copy(), kernel_axes=axes.copy(),
+                                iterations=iterations, lost=False, cost=total,
+                                scale=state.scale, cost_history=history)
+
+    def _algorithm1(self, search: SearchRegion, region: tuple[int, int, int, int],
+                    x: np.ndarray, state: TargetState
+                    ) -> tuple[np.ndarray, KernelBatch, int, list]:
+        """Algorithm 1 from the kernel centres ``x`` inside ``search``: projected-gradient
+        steps dx_A + dx_B of (5)/(8) on the weighted cost (7) under (12)-(13), until
+        ``J < eps_J`` and ``|C| < eps_C``, ``T`` steps or a step below ``min_step_px``.
+        Returns ``(x, evaluation at x, iterations, cost history)``; ``state`` is not
+        changed."""
+        cfg = self.config
+        n_k = state.num_kernels
+        axes = state.half_axes
+        x = x.copy()
         lo = np.array([region[0], region[1]], dtype=np.float64)
         hi = np.array([region[2], region[3]], dtype=np.float64)
-
         lx, ly = state.base_lx * state.scale, state.base_ly * state.scale
         eps_c = constraint_thresholds(lx, ly, cfg.constraint_tolerance_px)
         eps_j = cfg.epsilon_j_factor * n_k
@@ -510,36 +612,107 @@ class MultiKernelTracker:
             ev = self._evaluate(search, axes, x, models)
             if float(np.abs(step).max()) < cfg.min_step_px:
                 break
+        return x, ev, iterations, history
 
-        sims = ev.similarities
-        w = adaptive_weights(sims) if cfg.adaptive_weights else np.ones(n_k)
-        total = _weighted_cost(w, ev.costs)
-        mean_sim = float(sims.mean())
-        if not mean_sim >= cfg.lost_similarity or mean_sim == 0.0:
-            result = self._lost(state, x, axes, "low_similarity", sims, w)
-            result.iterations = iterations
-            return result
+    def _grid_start(self, search: SearchRegion, x: np.ndarray, state: TargetState,
+                    box_width: float) -> np.ndarray | None:
+        """The coarse stage of the coarse-to-fine search: the kernel layout at ``x`` translated
+        by every point of a ``(2k+1) x (2k+1)`` grid (spacing ``multi_start_radius * w / k``)
+        is evaluated in one batch, and the translation with the highest mean similarity
+        ``sum_i rho_i / N`` (5) is returned as kernel centres; None when that is the
+        untranslated start (ties keep it: the Kalman prediction is the prior, Sec. IV-D)."""
+        cfg = self.config
+        k = int(cfg.multi_start_steps)
+        spacing = cfg.multi_start_radius * float(box_width) / k
+        if not spacing > 0.0:
+            return None
+        steps = np.arange(-k, k + 1, dtype=np.float64) * spacing
+        gx, gy = np.meshgrid(steps, steps)
+        offsets = np.stack([gx.reshape(-1), gy.reshape(-1)], axis=1)
+        centre = int(np.flatnonzero((offsets[:, 0] == 0) & (offsets[:, 1] == 0))[0])
+        order = np.r_[centre, np.delete(np.arange(len(offsets)), centre)]
+        offsets = offsets[order]                    # the untranslated start first
+        n_k, n_o = state.num_kernels, len(offsets)
+        centres = (x[None, :, :] + offsets[:, None, :]).reshape(-1, 2)
+        axes = np.tile(state.half_axes, (n_o, 1))
+        models = np.tile(state.models, (n_o, 1))
+        sims = self._evaluate(search, axes, centres, models).similarities.reshape(n_o, n_k)
+        best = int(np.argmax(sims.mean(axis=1)))     # first maximum: the prediction on ties
+        if best == 0:
+            return None
+        return x + offsets[best]
 
-        state.centres = x
-        state.similarity = mean_sim
-        state.lost = False
-        state.frames += 1
-        if mean_sim > cfg.similarity_gate:
-            if cfg.model_update_rate > 0:
-                rate = cfg.model_update_rate
-                for i in range(n_k):
-                    if sims[i] > cfg.similarity_gate and ev.n_pixels[i] > 0:
-                        state.models[i] = (1.0 - rate) * state.models[i] + rate * ev.p[i]
-            scale_sim = mean_sim if cfg.scale_gate_statistic == "mean" else float(sims.min())
-            if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
-                self._update_scale(search, state, w, ev)
+    def _recovery_starts(self, image: np.ndarray, state: TargetState,
+                         box: tuple[float, float, float, float]) -> list[np.ndarray]:
+        """Candidate box centres for the failure re-search, best first.
+
+        The region ``box`` grown by ``recovery_margin`` box sizes is quantised every
+        ``ceil(w / recovery_scan_cells)`` px; each sample gets the back-projection weight
+        ``q(b) / (q(b) + p(b))``, with ``q`` the target's colour model (the mean of its kernel
+        models ``q_i``, Sec. III-A) and ``p`` the colour histogram of the scanned region: the
+        posterior probability that a pixel of that colour belongs to the target, equal priors
+        (a ratio histogram in the sense of Swain & Ballard).  The mean weight in a box of the
+        target's size around every sample is the scan score; its ``recovery_candidates``
+        highest peaks, each at least one box width / height from the others, are returned.
+        """
+        cfg = self.config
+        height, width = image.shape[:2]
+        region = _region(box, cfg.recovery_margin, width, height)
+        if region is None:
+            return []
+        stride = max(1, int(np.ceil(box[2] / cfg.recovery_scan_cells)))
+        bins = quantize_region(image, region, stride, cfg.colour_space, cfg.bins, self.backend)
+        if bins is None or bins.size == 0:
+            return []
+        q = state.models.mean(axis=0)
+        p = np.bincount(bins.reshape(-1), minlength=self.n_bins)[:self.n_bins].astype(
+            np.float64) / bins.size
+        ratio = q / np.maximum(q + p, 1e-12)
+        weight = ratio[bins].astype(np.float32)
+        kw = max(1, int(round(box[2] / stride)))
+        kh = max(1, int(round(box[3] / stride)))
+        score = cv2.boxFilter(weight, -1, (kw, kh), normalize=True,
+                              borderType=cv2.BORDER_CONSTANT)
+        out = []
+        for _ in range(cfg.recovery_candidates):
+            i, j = np.unravel_index(int(np.argmax(score)), score.shape)
+            if not score[i, j] > 0.0:
+                break
+            out.append(np.array([region[0] + j * stride, region[1] + i * stride],
+                                dtype=np.float64))
+            score[max(0, i - kh + 1):i + kh, max(0, j - kw + 1):j + kw] = -1.0
+        return out
+
+    def _recover(self, image: np.ndarray, state: TargetState,
+                 start_box: tuple[float, float, float, float], mean_sim: float):
+        """Algorithm 1 from each :meth:`_recovery_starts` peak (kernels translated so their
+        centroid (14) is at the peak, each in its own search region); the best result whose
+        weighted visibility (7)-(8) reaches ``recovery_similarity`` and whose mean similarity
+        beats ``mean_sim`` (the first search's), as ``((x, ev, iterations, history),
+        search)``, or None."""
+        cfg = self.config
+        height, width = image.shape[:2]
         axes = state.half_axes
-        box = kernels_bounding_box(state.centres, axes)
-        return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
-                                similarity=mean_sim, kernel_similarities=sims, weights=w,
-                                kernel_centres=state.centres.copy(), kernel_axes=axes.copy(),
-                                iterations=iterations, lost=False, cost=total,
-                                scale=state.scale, cost_history=history)
+        centroid = np.array([start_box[0] + start_box[2] / 2.0,
+                             start_box[1] + start_box[3] / 2.0])
+        x0 = state.centres - state.center + centroid
+        stride = self._stride(axes)
+        best = None
+        for peak in self._recovery_starts(image, state, start_box):
+            x = x0 + (peak - centroid)
+            region = _region(kernels_bounding_box(x, axes), cfg.search_margin, width, height)
+            if region is None:
+                continue
+            search = self._search_region(image, region, stride)
+            if search is None:
+                continue
+            res = self._algorithm1(search, region, x, state)
+            sims = res[1].similarities
+            m = float(sims.mean())
+            if visibility_similarity(sims, None, "weighted") >= cfg.recovery_similarity \
+                    and m > mean_sim:
+                best, mean_sim = (res, search), m
+        return best
 
     def _update_scale(self, search: SearchRegion, state: TargetState, weights: np.ndarray,
                       ev: KernelBatch) -> None:

@@ -159,7 +159,9 @@ def test_hand_started_track_gets_its_own_kernel_layout():
 def test_one_refiner_serves_both_when_the_kernel_settings_agree():
     cfg = updated(MultiObjectTrackerConfig(), {"manual_track.num_kernels": 2,
                                                "manual_track.scale_gate_statistic": "min",
-                                               "manual_track.scale_similarity_gate": 0.8})
+                                               "manual_track.scale_similarity_gate": 0.8,
+                                               "manual_track.multi_start_radius": 0.0,
+                                               "manual_track.recovery_similarity": 0.0})
     trk = MultiObjectTracker(cfg)
     assert trk.manual_refiner is trk.refiner
 
