@@ -37,6 +37,7 @@ from mk_tracker.messages.image_conversion import ImageConversionError, image_to_
 from mk_tracker.tracking.multi_object_tracker import FrameDetection, FrameResult
 from mk_tracker.parameters import ParameterError
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.detection.ignore_regions import MaskedDetector, parse_regions
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 
 RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
@@ -52,14 +53,23 @@ SKIPPED_MODES = {
 # -- detector side --------------------------------------------------------------------------
 
 def build_detector(method: str, kernel_config: ThermalDetectorConfig,
-                   threshold_config: ThresholdDetectorConfig) -> Any:
+                   threshold_config: ThresholdDetectorConfig,
+                   ignore_regions: Sequence[float] = ()) -> Any:
     """The detector object of ``method`` (one of :data:`METHODS`): the sparse kernel
-    covariance detector (Schizas et al. 2018, Algorithm 2) or the threshold baseline."""
+    covariance detector (Schizas et al. 2018, Algorithm 2) or the threshold baseline,
+    seeing its frames through the ``ignore_regions`` (flat ``[x, y, w, h, ...]``,
+    :mod:`mk_tracker.detection.ignore_regions`) when there are any."""
+    try:
+        regions = parse_regions(ignore_regions)
+    except ValueError as exc:
+        raise ParameterError(str(exc)) from exc
     if method == "kernel_covariance":
-        return ThermalDetector(kernel_config)
-    if method == "threshold":
-        return ThresholdDetector(threshold_config)
-    raise ParameterError(f"method: {method!r} is not one of {list(METHODS)}")
+        detector: Any = ThermalDetector(kernel_config)
+    elif method == "threshold":
+        detector = ThresholdDetector(threshold_config)
+    else:
+        raise ParameterError(f"method: {method!r} is not one of {list(METHODS)}")
+    return MaskedDetector(detector, regions) if regions else detector
 
 
 def thermal_input(msg: Any) -> np.ndarray:

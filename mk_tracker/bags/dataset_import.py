@@ -1,4 +1,5 @@
-"""``mk_tracker import FOLDER --out BAG``: a MOTChallenge or OTB folder as a rosbag2 bag.
+"""``mk_tracker import PATH --out BAG``: a MOTChallenge or OTB folder as a rosbag2 bag; a
+video file or a plain image folder goes to :mod:`mk_tracker.bags.recording_import`.
 
 Topics written (project conventions, frame id ``camera``, one message per frame each):
 
@@ -23,7 +24,9 @@ from typing import Callable
 from mk_tracker.bags.bag_errors import BagError
 from mk_tracker.bags.bag_typestore import make_typestore
 from mk_tracker.bags.bag_writer import BagWriter
-from mk_tracker.bags.datasets import DatasetError, Sequence, read_sequence
+from mk_tracker.bags.datasets import DatasetError, Sequence, detect_layout, read_sequence
+from mk_tracker.bags.recording_import import import_recording, open_recording, read_homography
+from mk_tracker.bags.video_source import FrameSourceError, is_video_file
 from mk_tracker.messages.detection_messages import Detection, make_detection_array
 from mk_tracker.messages.image_conversion import numpy_to_image
 from mk_tracker.messages.message_types import bag_message_types, make_header
@@ -35,12 +38,24 @@ FRAME_ID = "camera"
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("folder", type=Path, help="MOTChallenge or OTB sequence folder")
+    parser.add_argument("folder", type=Path, metavar="PATH",
+                        help="MOTChallenge or OTB sequence folder, a video file (mp4, avi, "
+                             "...) or a folder of images (png, tiff, jpg; 8 or 16 bit)")
     parser.add_argument("--out", type=Path, required=True,
                         help="bag directory to create (must not exist)")
     parser.add_argument("--fps", type=float, default=None,
                         help="frame rate for the time stamps (default: seqinfo.ini's "
-                             "frameRate, else 25)")
+                             "frameRate, else 25; a video's own rate; required for an "
+                             "image folder)")
+    parser.add_argument("--thermal", action="store_true",
+                        help="the video/image folder is a thermal camera: write it as "
+                             "/thermal/image_raw (mono8, or mono16 for 16-bit frames)")
+    parser.add_argument("--rgb", type=Path, default=None, metavar="PATH",
+                        help="with --thermal: the RGB video/image folder of the same scene, "
+                             "written as /image_raw (frames paired by index)")
+    parser.add_argument("--homography", type=Path, default=None, metavar="FILE",
+                        help="with --thermal: 3x3 thermal->RGB pixel homography (9 numbers, "
+                             "or JSON), stored in /scene_info for mk_tracker process")
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap",
                         help="bag storage format (default mcap)")
     parser.add_argument("--start-time", type=float, default=0.0,
@@ -97,14 +112,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"mk_tracker import: error: {message}", file=sys.stderr)
         return 1
 
-    try:
-        sequence = read_sequence(args.folder, args.fps)
-    except DatasetError as exc:
-        return fail(str(exc))
     if args.out.exists():
         return fail(f"{args.out} exists already; choose a new --out path")
     if not (args.start_time >= 0):
         return fail(f"--start-time must be >= 0, got {args.start_time}")
+    if _is_recording(args.folder) or args.thermal:
+        return _run_recording(args, fail)
+    if args.rgb is not None or args.homography is not None:
+        return fail("--rgb and --homography are for a thermal recording (--thermal)")
+    try:
+        sequence = read_sequence(args.folder, args.fps)
+    except DatasetError as exc:
+        return fail(str(exc))
     if not args.quiet:
         n_det = "none" if sequence.detections is None else \
             str(sum(len(d) for d in sequence.detections))
@@ -126,4 +145,57 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         summary = ", ".join(f"{topic} {n}" for topic, n in counts.items())
         print(f"wrote {args.out} ({args.storage}): {summary}", file=sys.stderr)
+    return 0
+
+
+def _is_recording(path: Path) -> bool:
+    """A video file, or a folder that is neither MOTChallenge nor OTB."""
+    if is_video_file(path):
+        return True
+    if not path.is_dir():
+        return False
+    try:
+        detect_layout(path)
+    except DatasetError:
+        return True
+    return False
+
+
+def _run_recording(args: argparse.Namespace, fail: Callable[[str], int]) -> int:
+    if (args.rgb is not None or args.homography is not None) and not args.thermal:
+        return fail("--rgb and --homography are for a thermal recording (--thermal)")
+    try:
+        source = open_recording(args.folder, args.fps)
+        rgb = open_recording(args.rgb, source.fps) if args.rgb is not None else None
+        homography = read_homography(args.homography) if args.homography else None
+    except FrameSourceError as exc:
+        return fail(str(exc))
+    if not args.quiet:
+        kind = "thermal" if args.thermal else "RGB"
+        print(f"{args.folder} ({source.kind}, {kind}): {source.declared} frames declared at "
+              f"{source.fps:g} fps", file=sys.stderr)
+
+    def progress(done: int) -> None:
+        if not args.quiet and done % 100 == 0:
+            print(f"  {done} frames", file=sys.stderr)
+
+    try:
+        counts = import_recording(source, args.out, thermal=args.thermal, rgb=rgb,
+                                  homography=homography, storage=args.storage,
+                                  start_ns=round(args.start_time * 1e9), progress=progress)
+    except (FrameSourceError, BagError) as exc:
+        return fail(str(exc))
+    if not args.quiet:
+        summary = ", ".join(f"{topic} {n}" for topic, n in counts.items())
+        print(f"wrote {args.out} ({args.storage}): {summary}", file=sys.stderr)
+    for src in (source, rgb):
+        if src is None or not src.unreadable:
+            continue
+        if src.kind == "folder":
+            print(f"mk_tracker import: warning: {src.path}: {src.unreadable} image file(s) "
+                  "could not be read and were left out", file=sys.stderr)
+        else:        # a container's frame count is often an estimate: say what was decoded
+            print(f"mk_tracker import: note: {src.path}: the container declares "
+                  f"{src.declared} frames, {src.declared - src.unreadable} were decoded",
+                  file=sys.stderr)
     return 0

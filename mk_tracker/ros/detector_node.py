@@ -32,6 +32,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image
 
 from mk_tracker.messages.detection_messages import make_detection_array
+from mk_tracker.detection.ignore_regions import parse_regions
 from mk_tracker.frame_processing import (METHODS, build_detector, detector_debug_image,
                                          detector_event, detector_outputs, skipped_reason,
                                          thermal_input)
@@ -61,6 +62,10 @@ class DetectorNodeConfig:
     method: str = parameter(
         "kernel_covariance", "Detection method: sparse kernel covariance factorization "
         "(Schizas et al. 2018) or the threshold baseline", choices=METHODS)
+    ignore_regions: tuple = parameter(
+        (0.0, 0.0, 0.0, 0.0), "Image boxes where nothing is detected (burned-in overlays, "
+        "heaters, screens): flat [x, y, w, h, x, y, w, h, ...] in pixels, top-left corner; a "
+        "box with w or h = 0 is a placeholder (the default: no region)", minimum=0.0)
     publish_debug_image: bool = parameter(False, "Publish ~/debug_image (bgr8)")
     class_id: str = parameter("person", "class_id written into every detection's result")
     report_period: float = parameter(
@@ -89,6 +94,13 @@ def _check_with(factory: Any) -> Any:
     return check
 
 
+def _check_regions(config: DetectorNodeConfig) -> None:
+    try:
+        parse_regions(config.ignore_regions)
+    except ValueError as exc:
+        raise ParameterError(str(exc)) from exc
+
+
 @dataclass
 class _Counters:
     frames: int = 0
@@ -111,14 +123,16 @@ class DetectorNode(Node):
         self._event = throttled_ros_log(self.get_logger(), "info", period=1.0)
         self._bridge = ParameterBridge(self)
         self.node_config: DetectorNodeConfig = self._bridge.add_config(
-            "", DetectorNodeConfig(), on_change=self._on_node_config)
+            "", DetectorNodeConfig(), on_change=self._on_node_config,
+            extra_check=_check_regions)
         kernel_cfg = self._bridge.add_config(
             "detector", ThermalDetectorConfig(), extra_check=_check_with(ThermalDetector),
             on_change=lambda _cfg: self._rebuild_if_active("kernel_covariance"))
         threshold_cfg = self._bridge.add_config(
             "threshold", ThresholdDetectorConfig(), extra_check=_check_with(ThresholdDetector),
             on_change=lambda _cfg: self._rebuild_if_active("threshold"))
-        self.detector = build_detector(self.node_config.method, kernel_cfg, threshold_cfg)
+        self.detector = build_detector(self.node_config.method, kernel_cfg, threshold_cfg,
+                                       self.node_config.ignore_regions)
         self._bridge.activate()
         self._counters = _Counters()
         self._last_stamp: float | None = None
@@ -143,9 +157,10 @@ class DetectorNode(Node):
 
     # -- parameters ----------------------------------------------------------------------
     def _on_node_config(self, config: DetectorNodeConfig) -> None:
-        method_changed = config.method != self.node_config.method
+        rebuild = (config.method != self.node_config.method
+                   or tuple(config.ignore_regions) != tuple(self.node_config.ignore_regions))
         self.node_config = config
-        if method_changed:
+        if rebuild:
             self._rebuild_if_active(config.method)
 
     def _rebuild_if_active(self, method: str) -> None:
@@ -156,7 +171,8 @@ class DetectorNode(Node):
         with self._lock:
             self.detector = build_detector(self.node_config.method,
                                            self._bridge.config("detector"),
-                                           self._bridge.config("threshold"))
+                                           self._bridge.config("threshold"),
+                                           self.node_config.ignore_regions)
         self.get_logger().info(f"detector rebuilt ({self.node_config.method}) with the new "
                                "parameters")
 

@@ -122,6 +122,8 @@ class PipelineResult:
     bad_messages: int = 0
     problems: list[str] = field(default_factory=list)
     detection_source: str = "none"
+    #: True when the bag had no RGB topic and the thermal image itself was tracked
+    thermal_only: bool = False
     detections: int = 0
     detection_frames: int = 0
     rejected_detector_frames: int = 0
@@ -460,6 +462,12 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
         for text in reader.problems:
             r.problem(f"bag: {text}")
         topics = reader.topics
+        if options.image_topic not in topics and options.thermal_topic in topics:
+            # thermal-only mode (issue #19): no RGB camera, so the people found in the
+            # thermal image are tracked in that same image (detections in its own frame)
+            options = replace(options, image_topic=options.thermal_topic)
+            run.options = options
+            r.thermal_only = True
         if options.image_topic not in topics:
             raise PipelineError(f"{bag}: no {options.image_topic} topic to track in (topics: "
                                 f"{', '.join(sorted(topics))})")
@@ -467,7 +475,8 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
                                          options.thermal_topic)
         r.detection_source = source
         if source == "thermal":
-            run.detector = build_detector(config.method, config.detector, config.threshold)
+            run.detector = build_detector(config.method, config.detector, config.threshold,
+                                          config.ignore_regions)
         has_truth = (options.ground_truth_topic in topics
                      and topics[options.ground_truth_topic].count > 0)
         if options.init_from_gt and not has_truth:
@@ -559,6 +568,8 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
     if topic == SCENE_INFO_TOPIC:
         run.scene_info(msg)
     elif topic == opts.image_topic:
+        if source == "thermal" and topic == opts.thermal_topic:     # thermal-only mode
+            run.thermal_image(msg)
         run.rgb_image(msg, m.timestamp_ns)
     elif topic == opts.ground_truth_topic:
         run.ground_truth(msg)

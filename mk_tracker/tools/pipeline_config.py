@@ -36,7 +36,8 @@ DEFAULT_PARAMS_FILES = ("detector.yaml", "tracker.yaml")
 #: equal to TrackerNodeConfig / DetectorNodeConfig, which live in rclpy modules)
 TRACKER_NODE_DEFAULTS = {"thermal_frame_id": "thermal_camera", "detection_buffer": 5,
                          "detection_wait": 0.0, "class_id": "person"}
-DETECTOR_NODE_DEFAULTS = {"method": "kernel_covariance", "class_id": "person"}
+DETECTOR_NODE_DEFAULTS = {"method": "kernel_covariance", "class_id": "person",
+                          "ignore_regions": (0.0, 0.0, 0.0, 0.0)}
 
 
 class PipelineError(ValueError):
@@ -116,6 +117,7 @@ class PipelineConfig:
     detector: ThermalDetectorConfig = field(default_factory=ThermalDetectorConfig)
     threshold: ThresholdDetectorConfig = field(default_factory=ThresholdDetectorConfig)
     method: str = DETECTOR_NODE_DEFAULTS["method"]
+    ignore_regions: tuple = DETECTOR_NODE_DEFAULTS["ignore_regions"]
     detector_class_id: str = DETECTOR_NODE_DEFAULTS["class_id"]
     thermal_frame_id: str = TRACKER_NODE_DEFAULTS["thermal_frame_id"]
     detection_buffer: int = TRACKER_NODE_DEFAULTS["detection_buffer"]
@@ -154,6 +156,8 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         tracker=trk_cfgs["tracker"], detector=det_cfgs["detector"],
         threshold=det_cfgs["threshold"],
         method=str(det_rest.get("method", DETECTOR_NODE_DEFAULTS["method"])),
+        ignore_regions=_float_tuple(det_rest.get("ignore_regions",
+                                                 DETECTOR_NODE_DEFAULTS["ignore_regions"])),
         detector_class_id=str(det_rest.get("class_id", DETECTOR_NODE_DEFAULTS["class_id"])),
         thermal_frame_id=str(trk_rest.get("thermal_frame_id",
                                           TRACKER_NODE_DEFAULTS["thermal_frame_id"])),
@@ -161,8 +165,17 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         detection_wait=wait,
         class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])))
     try:
-        build_detector(config.method, config.detector, config.threshold)
+        build_detector(config.method, config.detector, config.threshold,
+                       config.ignore_regions)
         MultiObjectTracker(config.tracker)
     except ValueError as exc:
         raise PipelineError(f"parameters rejected: {exc}") from exc
     return config
+
+
+def _float_tuple(value: object) -> tuple:
+    """A parameter file's list of numbers as a tuple of floats (PipelineError otherwise)."""
+    try:
+        return tuple(float(v) for v in value)            # type: ignore[union-attr]
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(f"ignore_regions must be a list of numbers, got {value!r}") from exc
