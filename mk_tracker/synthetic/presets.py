@@ -21,7 +21,7 @@ from mk_tracker.synthetic.scene_config import (OccluderSpec, PersonSpec, SceneCo
                                                WarmObjectSpec)
 
 __all__ = ["paper_scene", "occlusion_scene", "crossing_scene", "approach_scene", "crowd_scene",
-           "static_warm_objects_scene", "enter_leave_scene", "cross_modal_scene",
+           "static_warm_objects_scene", "enter_leave_scene", "far_view_scene", "cross_modal_scene",
            "CROSS_MODAL_HOMOGRAPHY", "PRESETS"]
 
 
@@ -232,6 +232,54 @@ def enter_leave_scene(seed: int = 0, frames: int = 150) -> SyntheticScene:
     return make_scene(SceneConfig(seed=seed, frames=frames, people=(p1, p2)))
 
 
+def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
+                   fps: float = 7.0) -> SyntheticScene:
+    """A far view at a low frame rate: small people crossing from edge to edge (640x480).
+
+    The condition of issue #16's unseen outdoor clips: ``fps`` 7, people 50-105 px tall
+    (18-38 px wide), 6-16 px of motion per frame, each entering at the left or right image
+    edge at a random frame and leaving at the other; about a third walk in pairs (a second
+    person 0.6 box widths behind the first on the same line), so people cross, walk
+    together and hide one another.  One pillar.  No perspective (a far view).
+    """
+    _check_preset_args(seed, frames)
+    if isinstance(n_people, bool) or not isinstance(n_people, (int, np.integer)) \
+            or n_people < 0:
+        raise SceneError(f"n_people must be a non-negative integer, got {n_people!r}")
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
+        raise SceneError(f"fps must be a positive number, got {fps!r}")
+    rng = np.random.default_rng([seed, 0xFA7])
+    width, height = 640, 480
+    people = []
+    while len(people) < int(n_people):
+        h = float(rng.uniform(50.0, 105.0))
+        speed = float(rng.uniform(6.0, 16.0))
+        y_start = float(rng.uniform(0.3, 0.97)) * height
+        y_end = min(max(y_start + float(rng.uniform(-0.15, 0.15)) * height, 0.3 * height),
+                    0.97 * height)
+        margin = h * PERSON_ASPECT
+        left_to_right = bool(rng.random() < 0.5)
+        xs = (-margin, width + margin) if left_to_right else (width + margin, -margin)
+        start = int(rng.integers(0, max(int(0.7 * frames), 1)))
+        group = 2 if rng.random() < 0.35 else 1
+        for g in range(min(group, int(n_people) - len(people))):
+            lag = g * 1.6 * margin * (1 if left_to_right else -1)
+            people.append(PersonSpec(
+                waypoints=((xs[0] - lag, y_start), (xs[1] - lag, y_end)),
+                speed=round(speed, 3), height=round(h * (1.0 + 0.05 * g), 2),
+                start_frame=start, after_last="continue",
+                torso_temperature=float(rng.uniform(301.5, 304.0))))
+    ow, oh = 0.05 * width, 0.35 * height
+    cx = float(rng.uniform(0.3, 0.7)) * width
+    bottom = float(rng.uniform(0.65, 0.8)) * height
+    occ = (OccluderSpec(box=(cx - ow / 2, bottom - oh, ow, oh),
+                        color=tuple(int(v) for v in rng.integers(40, 120, 3))),)
+    cfg = SceneConfig(seed=seed, frames=frames, fps=float(fps), width=width, height=height,
+                      perspective=0.0, turn_rate_deg=20.0, people=tuple(people),
+                      occluders=occ)
+    return make_scene(cfg)
+
+
 CROSS_MODAL_HOMOGRAPHY = (1.92, 0.06, 18.0,
                           -0.04, 1.95, 12.0,
                           2.0e-5, 1.0e-5, 1.0)
@@ -282,5 +330,6 @@ PRESETS = {
     "crowd": crowd_scene,
     "static_warm_objects": static_warm_objects_scene,
     "enter_leave": enter_leave_scene,
+    "far_view": far_view_scene,
     "cross_modal": cross_modal_scene,
 }
