@@ -33,15 +33,17 @@ from mk_tracker.boxes import InvalidBoxError, as_box, transform_box
 from mk_tracker.drawing.debug_image import (KernelEllipse, TrackDrawing, draw_detections,
                                       draw_text_lines, draw_tracks, thermal_to_display)
 from mk_tracker.messages.detection_messages import Detection, DetectionMessageError
-from mk_tracker.messages.image_conversion import ImageConversionError, image_to_numpy, to_bgr
+from mk_tracker.messages.image_conversion import (CAMERA_ENCODINGS, ImageConversionError,
+                                                  image_to_numpy, to_bgr, to_gray)
 from mk_tracker.tracking.multi_object_tracker import FrameDetection, FrameResult
 from mk_tracker.parameters import ParameterError
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.detection.ignore_regions import MaskedDetector, parse_regions
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 
-RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
-THERMAL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1")
+RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8", *CAMERA_ENCODINGS)
+#: YUV 4:2:2 (a thermal camera behind a UVC driver) gives its luma; Bayer is never thermal.
+THERMAL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1", "yuv422", "yuv422_yuy2")
 METHODS = ("kernel_covariance", "threshold")
 #: ``last_mode`` values of a detector that mean "this frame was not used", with the reason.
 SKIPPED_MODES = {
@@ -80,6 +82,8 @@ def thermal_input(msg: Any) -> np.ndarray:
         raise ImageConversionError(
             f"encoding {msg.encoding!r} is not a thermal detector input "
             f"(supported: {', '.join(THERMAL_ENCODINGS)})")
+    if msg.encoding in CAMERA_ENCODINGS:
+        return to_gray(image_to_numpy(msg), msg.encoding)
     return image_to_numpy(msg)
 
 

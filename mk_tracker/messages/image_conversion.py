@@ -10,10 +10,15 @@ Supported encodings (:data:`SUPPORTED_ENCODINGS`)::
 
     mono8 8UC1 (uint8, 1 channel)   mono16 16UC1 (uint16, 1)   32FC1 (float32, 1)
     rgb8 bgr8 (uint8, 3)            rgba8 bgra8 (uint8, 4)
+    camera encodings (:data:`CAMERA_ENCODINGS`), read raw and converted by OpenCV:
+    yuv422 = UYVY, yuv422_yuy2 = YUYV (uint8, 2: chroma, luma; even width; BT.601 video range)
+    bayer_rggb8 bayer_bggr8 bayer_gbrg8 bayer_grbg8 (uint8, 1: the mosaic)
 
 Everything else is rejected with :class:`ImageConversionError`; known-but-unsupported names
-(:data:`UNSUPPORTED_ENCODINGS`: Bayer patterns, YUV 4:2:2, NV21, 16-bit colour, the
+(:data:`UNSUPPORTED_ENCODINGS`: 16-bit Bayer, NV21, 16-bit colour, the
 multi-channel and signed ``nUCk``/``nSCk``/``nFCk`` forms) get a message that says so.
+``sensor_msgs/CompressedImage`` (JPEG/PNG) is decoded by
+:mod:`mk_tracker.messages.compressed_image`.
 
 Copies: reading returns a *view* of the message buffer (no copy; read-only when the buffer
 is ``bytes``) except when ``is_bigendian`` differs from the machine for a multi-byte
@@ -48,11 +53,29 @@ SUPPORTED_ENCODINGS: dict[str, tuple[np.dtype, int]] = {
     "bgr8": (np.dtype(np.uint8), 3),
     "rgba8": (np.dtype(np.uint8), 4),
     "bgra8": (np.dtype(np.uint8), 4),
+    "yuv422": (np.dtype(np.uint8), 2),
+    "yuv422_yuy2": (np.dtype(np.uint8), 2),
+    "bayer_rggb8": (np.dtype(np.uint8), 1),
+    "bayer_bggr8": (np.dtype(np.uint8), 1),
+    "bayer_gbrg8": (np.dtype(np.uint8), 1),
+    "bayer_grbg8": (np.dtype(np.uint8), 1),
+}
+
+# Camera encodings -> (OpenCV code to BGR, OpenCV code to gray).  OpenCV names a Bayer
+# pattern by the second row's first two pixels, so ROS ``rggb`` is OpenCV ``BG`` (the test
+# checks this on a hand-built mosaic).
+CAMERA_ENCODINGS: dict[str, tuple[int, int]] = {
+    "yuv422": (cv2.COLOR_YUV2BGR_UYVY, cv2.COLOR_YUV2GRAY_UYVY),
+    "yuv422_yuy2": (cv2.COLOR_YUV2BGR_YUY2, cv2.COLOR_YUV2GRAY_YUY2),
+    "bayer_rggb8": (cv2.COLOR_BayerBG2BGR, cv2.COLOR_BayerBG2GRAY),
+    "bayer_bggr8": (cv2.COLOR_BayerRG2BGR, cv2.COLOR_BayerRG2GRAY),
+    "bayer_gbrg8": (cv2.COLOR_BayerGR2BGR, cv2.COLOR_BayerGR2GRAY),
+    "bayer_grbg8": (cv2.COLOR_BayerGB2BGR, cv2.COLOR_BayerGB2GRAY),
 }
 
 UNSUPPORTED_ENCODINGS: frozenset[str] = frozenset(
-    ["rgb16", "bgr16", "rgba16", "bgra16", "yuv422", "yuv422_yuy2", "uyvy", "yuyv", "nv21",
-     "nv24", "bayer_rggb8", "bayer_bggr8", "bayer_gbrg8", "bayer_grbg8", "bayer_rggb16",
+    ["rgb16", "bgr16", "rgba16", "bgra16", "uyvy", "yuyv", "nv21",
+     "nv24", "bayer_rggb16",
      "bayer_bggr16", "bayer_gbrg16", "bayer_grbg16", "64FC1", "8SC1", "16SC1", "32SC1"]
     + [f"{bits}{kind}C{n}" for bits in (8, 16, 32, 64) for kind in "USF"
        for n in (2, 3, 4) if not (kind == "F" and bits < 32)]
@@ -106,6 +129,7 @@ def image_to_numpy(msg: Any) -> np.ndarray:
     dtype, channels = encoding_info(encoding)
     if height <= 0 or width <= 0:
         raise ImageConversionError(f"image has zero size ({width}x{height})")
+    _check_even_width(encoding, width)
     pixel_bytes = dtype.itemsize * channels
     if step < width * pixel_bytes:
         raise ImageConversionError(
@@ -125,6 +149,13 @@ def image_to_numpy(msg: Any) -> np.ndarray:
     return view
 
 
+def _check_even_width(encoding: str, width: int) -> None:
+    if encoding.startswith("yuv422") and width % 2:
+        raise ImageConversionError(
+            f"encoding {encoding} packs two pixels per 4 bytes: the width must be even, "
+            f"got {width}")
+
+
 def _check_array(array: Any, encoding: str) -> np.ndarray:
     dtype, channels = encoding_info(encoding)
     if not isinstance(array, np.ndarray):
@@ -142,6 +173,7 @@ def _check_array(array: Any, encoding: str) -> np.ndarray:
             f"{', %d' % channels if channels > 1 else ''}), got shape {array.shape}")
     if array.shape[0] == 0 or array.shape[1] == 0:
         raise ImageConversionError(f"image has zero size (shape {array.shape})")
+    _check_even_width(encoding, int(array.shape[1]))
     return array
 
 
@@ -188,8 +220,10 @@ def _to_uint8(array: np.ndarray) -> np.ndarray:
 def to_gray(array: np.ndarray, encoding: str) -> np.ndarray:
     """Single-channel image.  Single-channel encodings are returned unchanged (same dtype,
     e.g. uint16 thermal counts or float32 temperatures); colour encodings become uint8 gray
-    with OpenCV's BT.601 weights."""
+    with OpenCV's BT.601 weights; YUV 4:2:2 gives its luma, Bayer its demosaiced gray."""
     arr = _check_array(array, encoding)
+    if encoding in CAMERA_ENCODINGS:
+        return cv2.cvtColor(np.ascontiguousarray(arr), CAMERA_ENCODINGS[encoding][1])
     _, channels = SUPPORTED_ENCODINGS[encoding]
     if channels == 1:
         return arr if arr.ndim == 2 else arr[:, :, 0]
@@ -201,13 +235,16 @@ def to_gray(array: np.ndarray, encoding: str) -> np.ndarray:
 def to_bgr(array: np.ndarray, encoding: str) -> np.ndarray:
     """uint8 BGR image ``(h, w, 3)`` for colour trackers and display.
 
-    8-bit encodings are converted exactly (``bgr8`` is returned as is).  ``mono16``/``16UC1``
+    8-bit encodings are converted exactly (``bgr8`` is returned as is); the camera encodings
+    by OpenCV (YUV 4:2:2 with BT.601 video-range coefficients, Bayer by bilinear demosaicing).  ``mono16``/``16UC1``
     /``32FC1`` are scaled to 0..255 by the image's own finite min..max (a display mapping, not
     a calibrated one; non-finite pixels become 0).
     """
     arr = _check_array(array, encoding)
     if encoding == "bgr8":
         return arr
+    if encoding in CAMERA_ENCODINGS:   # one OpenCV call: YUV 4:2:2 or Bayer demosaicing
+        return cv2.cvtColor(np.ascontiguousarray(arr), CAMERA_ENCODINGS[encoding][0])
     if encoding in ("rgb8", "rgba8", "bgra8"):
         code = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR,
                 "bgra8": cv2.COLOR_BGRA2BGR}[encoding]

@@ -38,12 +38,13 @@ def sample(encoding: str, h: int = 5, w: int = 7) -> np.ndarray:
 @pytest.mark.parametrize("encoding", sorted(SUPPORTED_ENCODINGS))
 def test_round_trip_every_encoding(world, encoding):
     types = WORLDS[world]
-    arr = sample(encoding)
+    width = 8 if encoding.startswith("yuv422") else 7   # YUV 4:2:2 packs pixel pairs
+    arr = sample(encoding, w=width)
     header = make_header(types, "camera", 1_500_000_001)
     msg = numpy_to_image(arr, encoding, header, types=types)
     dtype, channels = SUPPORTED_ENCODINGS[encoding]
-    assert (msg.height, msg.width, msg.encoding) == (5, 7, encoding)
-    assert msg.step == 7 * dtype.itemsize * channels
+    assert (msg.height, msg.width, msg.encoding) == (5, width, encoding)
+    assert msg.step == width * dtype.itemsize * channels
     assert msg.is_bigendian == int(sys.byteorder == "big")
     assert msg.header.frame_id == "camera"
     assert stamp_to_nanoseconds(msg.header.stamp) == 1_500_000_001
@@ -117,8 +118,8 @@ def test_non_contiguous_input_is_written_correctly(world):
 
 
 @pytest.mark.parametrize("msg, words", [
-    (fake(bytes(6), encoding="bayer_rggb8"), "not supported"),
-    (fake(bytes(6), encoding="yuv422"), "not supported"),
+    (fake(bytes(6), encoding="bayer_rggb16"), "not supported"),
+    (fake(bytes(12), encoding="yuv422", step=6), "width must be even"),
     (fake(bytes(18), encoding="8UC3"), "not supported"),
     (fake(bytes(6), encoding="fancy"), "unknown image encoding"),
     (fake(bytes(5)), "fewer than step*height"),
@@ -142,7 +143,7 @@ def test_bad_messages_raise_clear_errors(msg, words):
     (np.zeros((0, 4, 3), np.uint8), "bgr8", "zero size"),
     (np.zeros((4, 4), bool), "mono8", "needs dtype"),
     ([[1, 2]], "mono8", "numpy array"),
-    (np.zeros((4, 4), np.uint8), "bayer_rggb8", "not supported"),
+    (np.zeros((4, 4), np.uint8), "bayer_rggb16", "not supported"),
 ])
 def test_bad_arrays_raise_clear_errors(arr, encoding, words):
     with pytest.raises(ImageConversionError, match=words):
@@ -189,6 +190,8 @@ def test_padded_buffers_of_either_byte_order_read_back(encoding, h, w, pad, big,
                                                         seed):
     """Rows are serialized here independently (row bytes + padding), then read back."""
     dtype, channels = SUPPORTED_ENCODINGS[encoding]
+    if encoding.startswith("yuv422"):
+        w += w % 2                          # pixel pairs: the width is even
     rng = np.random.default_rng(seed)
     shape = (h, w) if channels == 1 else (h, w, channels)
     arr = (rng.normal(size=shape) * 100).astype(dtype) if dtype.kind == "f" else \

@@ -28,7 +28,7 @@ ORACLE = {"mono8": (1, 1, "B"), "8UC1": (1, 1, "B"), "mono16": (2, 1, "H"),
           "16UC1": (2, 1, "H"), "32FC1": (4, 1, "f"), "rgb8": (1, 3, "B"),
           "bgr8": (1, 3, "B"), "rgba8": (1, 4, "B"), "bgra8": (1, 4, "B")}
 NUMPY_OF = {"B": np.uint8, "H": np.uint16, "f": np.float32}
-OTHER_ENCODINGS = ["rgb16", "bgra16", "yuv422", "uyvy", "nv21", "bayer_rggb8", "64FC1",
+OTHER_ENCODINGS = ["rgb16", "bgra16", "yuv420", "uyvy", "nv21", "bayer_rggb16", "64FC1",
                    "8SC1", "16SC1", "32SC1", "8UC3", "16UC3", "32FC3", "MONO8", "Mono16",
                    "rgb8 ", " bgr8", "bgr", "mono", "", "8UC", "32FC", "jpeg", "mono8\x00"]
 
