@@ -413,3 +413,191 @@ def test_compiled_branch_glue_with_plain_loops(plain_compiled, columns):
         assert hist[b, c] == pytest.approx(ref.cost_history[b, c], rel=1e-12)
         assert np.isnan(np.delete(hist[b], [0, c])).all()
     assert plain_compiled.compiled_block_factorizer() is plain_compiled._factorize_block
+
+
+# --- mutation testing (#18): cases that pin down details the tests above leave open -----
+
+def _positive_stationary_point(p, q):
+    """Largest root y > 0 of y^3 + p y + q where the cubic rises through 0 (a minimum of
+    the quartic whose derivative it is), by bisection, or 0 if there is none: an oracle
+    independent of the closed forms.  Beyond b = max(sqrt(-p/3), 0) the cubic increases;
+    every root lies in |y| <= 1 + max(|p|, |q|) (Cauchy's bound)."""
+    f = lambda y: y * y * y + p * y + q
+    lo = np.sqrt(-p / 3.0) if p < 0 else 0.0
+    hi = 1.0 + max(abs(p), abs(q))
+    if f(lo) > 0:
+        return 0.0
+    for _ in range(400):
+        mid = 0.5 * (lo + hi)
+        if f(mid) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
+# (p, q, largest real root), each root derived by hand
+HARD_CUBICS = [
+    # y^3 + 1e-6 y + 0.5: y = -c + p/(3c) + O(p^2), c = cbrt(0.5); the "+ sqrt(D)" form
+    # of Cardano loses everything here (-q/2 + sqrt(D) = 0 in floating point)
+    (1e-6, 0.5, -0.5 ** (1.0 / 3.0) + 1e-6 / (3.0 * 0.5 ** (1.0 / 3.0))),
+    # p >> q: y = -q/p - y^3/p = -q/p to 1e-24 relative; u - p/(3u) cancels almost
+    # completely, so only the Newton polish makes the root accurate
+    (1e8, 1.0, -1e-8),
+    (1e12, 1.0, -1e-12),
+    # (y - 1)^2 (y + 2) and (y - 15)^2 (y + 30): double largest roots, where fp ~ 0 and a
+    # Newton step would divide rounding noise by ~0
+    (-3.0, 2.0, 1.0),
+    (-675.0, 6750.0, 15.0),
+    # y^3 + y + 2 = (y + 1)(y^2 - y + 2); y^3 = 0
+    (1.0, 2.0, -1.0),
+    (0.0, 0.0, 0.0),
+    # p = -3e-210 (m^3 ~ 5e-315, so -q/(2 m^3) overflows in the unused trigonometric branch)
+    (-3e-210, 1e-5, -1e-5 ** (1.0 / 3.0)),
+]
+
+
+@pytest.mark.parametrize("p, q, root", HARD_CUBICS)
+def test_largest_real_root_on_ill_conditioned_cubics(p, q, root):
+    # the vectorised root raises no floating-point error (its unused branches divide by
+    # zero, overflow and take 0/0 on these inputs)
+    with np.errstate(divide="raise", invalid="raise", over="raise", under="ignore"):
+        got = largest_real_root(np.array([p]), np.array([q]))[0]
+        scalar = sf._root_scalar(p, q)
+    assert got == pytest.approx(root, rel=1e-9, abs=1e-30)
+    assert scalar == pytest.approx(root, rel=1e-9, abs=1e-30)
+
+
+@pytest.mark.parametrize("a", [5.9, -5.9, 10.9, -10.9])
+def test_largest_real_root_at_a_double_root(a):
+    # (y - a)^2 (y + 2a) = y^3 - 3a^2 y + 2a^3: rounding can push the arccos argument
+    # just outside [-1, 1] (it is exactly -1 or 1), which the clip must absorb
+    p, q = -3.0 * a * a, 2.0 * a ** 3
+    root = a if a > 0 else -2.0 * a
+    assert largest_real_root(np.array([p]), np.array([q]))[0] == pytest.approx(root, abs=1e-6)
+    assert sf._root_scalar(p, q) == pytest.approx(root, abs=1e-6)
+
+
+def _exact_minimizer(c1, c2, lam):
+    """Minimiser of h^4 + c1 h^2 + c2 h + lam |h| from the largest root of the derivative
+    on the side of -c2 (bisection), compared with J(0) = 0."""
+    a = abs(c2)
+    y = _positive_stationary_point(0.5 * c1, 0.25 * (lam - a))
+    if y <= 0 or y ** 4 + c1 * y * y + (lam - a) * y >= 0:
+        return 0.0
+    return -y if c2 > 0 else y
+
+
+def test_coordinate_minimizer_computes_in_float64():
+    # float32 inputs are converted, not computed in float32 (a float32 root is off by ~1e-8)
+    c1 = np.array([-2.5, 1.3, -7.1, -0.3], np.float32)
+    c2 = np.array([0.7, -3.3, 2.9, -1.1], np.float32)
+    h = coordinate_minimizer(c1, c2, 0.1)
+    assert h.dtype == np.float64
+    for i in range(4):
+        assert h[i] == pytest.approx(_exact_minimizer(float(c1[i]), float(c2[i]), 0.1),
+                                     rel=1e-12)
+
+
+@pytest.mark.parametrize("c2", [0.0, 1e-300, -1e-300])
+def test_a_near_tie_with_zero_goes_to_zero(c2):
+    # c1 = -6: t = 2 and the shortcut threshold is lambda = 2 t^(3/2) = 4 sqrt(2); one ulp
+    # below it h = sqrt(2) beats 0 by ~1e-15 only, i.e. within the documented tolerance
+    # 1e-15 (1 + |c1| + |c2|), so the tie rule returns 0 (a wrong sign of lambda or a
+    # wrong tolerance returns +-sqrt(2))
+    lam = float(np.nextafter(4.0 * np.sqrt(2.0), 0.0))
+    assert not lam - abs(c2) >= 4.0 * np.sqrt(2.0)          # the shortcut does not decide
+    assert coordinate_minimizer(np.array([-6.0]), np.array([c2]), lam)[0] == 0.0
+    assert sf._minimizer_scalar(-6.0, c2, lam) == 0.0
+
+
+def test_scalar_minimizer_and_root_raise_no_floating_point_errors():
+    # degenerate inputs: p = q = 0 (m = 0), c1 in [0, 1) (t = 0), c1 < 0 (t > 0)
+    with np.errstate(all="raise"):
+        assert sf._root_scalar(0.0, 0.0) == 0.0
+        assert sf._root_scalar(0.0, -8.0) == pytest.approx(2.0)
+        assert sf._minimizer_scalar(0.5, 0.0, 1.0) == 0.0
+        assert sf._minimizer_scalar(0.0, 0.0, 0.0) == 0.0
+        assert sf._minimizer_scalar(-2.0, 0.0, 0.0) == pytest.approx(1.0)
+        assert sf._minimizer_scalar(-6.0, 0.0, 0.5) == pytest.approx(
+            _exact_minimizer(-6.0, 0.0, 0.5), rel=1e-12)
+
+
+def test_factorization_cost_of_one_block_is_a_scalar_in_float64():
+    sigma = np.array([[1.0, 0.5], [0.5, 2.0]])
+    cost = factorization_cost(sigma, np.array([1.0, -1.0]), 0.25)
+    assert np.ndim(cost) == 0
+    # float32 factors are converted first: M = 4097 (exact in float32) gives
+    # M M^T = 16785409 > 2^24, which float32 would round to 16785408
+    m32 = np.array([[4097.0]], np.float32)
+    assert factorization_cost(np.zeros((1, 1)), m32, 0.5) == 16785409.0 ** 2 + 0.5 * 4097.0
+
+
+def test_cost_history_has_one_column_per_possible_cycle():
+    res = sparse_factorize(np.diag([4.0, 1.0]), 0.0, max_cycles=5, tol=1e-9,
+                           record_cost=True, backend="numpy")
+    # cost of M = 0: 16 + 1; after cycle 1 and 2 (M = (2, 0)): 1; cycles 3-5 not run
+    np.testing.assert_array_equal(res.cost_history, [[17.0, 1.0, 1.0] + [np.nan] * 3])
+
+
+def test_one_pixel_blocks_are_factorized():
+    # p = 1: h^4 - 2 Sigma h^2 + lambda |h|, Sigma = 4, lambda = 0 -> h = 2; Sigma = 0 -> 0
+    res = sparse_factorize(np.array([[[4.0]], [[0.0]]]), 0.0, tol=1e-9, backend="numpy")
+    np.testing.assert_allclose(res.factors[:, :, 0], [[2.0], [0.0]], atol=1e-12)
+    assert res.cycles.tolist() == [2, 1] and res.converged.tolist() == [True, True]
+
+
+@pytest.mark.parametrize("shape", [(0, 3, 3), (2, 0, 0)])
+def test_empty_blocks_report_no_cycle_and_no_convergence(shape):
+    res = sparse_factorize(np.zeros(shape), 0.1, backend="numpy")
+    assert res.cycles.tolist() == [0] * shape[0]
+    assert res.converged.dtype == bool and res.converged.tolist() == [False] * shape[0]
+
+
+@pytest.mark.parametrize("n_cols", [1, 2])
+def test_fused_block_factorizer_with_tolerance_zero(n_cols):
+    # tol = 0: diag(4, 1) stops once a cycle changes nothing (cycle 2), as the reference
+    m, cycles, converged = _call_block(np.diag([4.0, 1.0]), 0.0, n_cols, 10, 0.0)
+    assert (cycles, converged) == (2, True)
+
+
+@pytest.fixture
+def counting_compiled(monkeypatch):
+    """Like plain_compiled, counting the calls of the (uncompiled) kernel."""
+    calls = []
+
+    def kernel(*args):
+        calls.append(1)
+        return sf._factorize_loops(*args)
+
+    monkeypatch.setattr(sf, "_compiled_kernel", lambda: kernel)
+    return calls
+
+
+def test_backend_choice_with_a_compiled_kernel(counting_compiled):
+    sigma = np.diag([4.0, 1.0, 0.5])
+    sparse_factorize(sigma, 0.0, backend="numpy")
+    assert counting_compiled == []                  # "numpy" means the reference
+    sparse_factorize(sigma, 0.0, backend="auto")
+    assert counting_compiled == [1]                 # "auto" compiles when it can ...
+    res = sparse_factorize(sigma, 0.0, backend="auto", tol=1e-9, record_cost=True)
+    assert counting_compiled == [1]                 # ... unless a cost history is asked
+    # for: the reference records every cycle (the compiled branch only the first and last)
+    np.testing.assert_array_equal(res.cost_history[0, :3], [16.0 + 1.0 + 0.25, 1.25, 1.25])
+
+
+def test_compiled_block_factorizer_is_none_without_the_compiled_backend(monkeypatch):
+    monkeypatch.setattr(sf, "_compiled_kernel", lambda: None)
+    assert sf.compiled_block_factorizer() is None
+
+
+def test_no_numba_environment_variable_disables_the_compiled_kernel(monkeypatch):
+    # a fresh cache (the module caches its first answer); the compile step would rebind the
+    # module's loop functions, so they are restored afterwards as well
+    monkeypatch.setattr(sf, "_COMPILED", [])
+    for name in ("_root_scalar", "_minimizer_scalar", "_factorize_block",
+                 "_factorize_block_one_column"):
+        monkeypatch.setattr(sf, name, getattr(sf, name))
+    monkeypatch.setenv("MK_TRACKER_NO_NUMBA", "1")
+    assert sf._compiled_kernel() is None
+    assert sf._COMPILED == [None]
