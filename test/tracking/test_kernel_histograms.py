@@ -526,3 +526,223 @@ def test_roi_has_nan_only_for_float_rois_with_a_bad_value():
     bad = np.zeros((2, 2, 3), np.float32)
     bad[1, 1, 2] = np.inf
     assert roi_has_nan(bad)
+
+
+# -- mutation testing (#18): details the tests above leave open -----------------------------
+
+from mk_tracker.tracking import kernel_histograms as _kh  # noqa: E402
+
+
+def test_error_messages_name_the_bad_value():
+    cases = [
+        (lambda: bin_lookup_tables("lab", BINS),
+         "colour_space must be one of ('hsv', 'bgr'), got 'lab'"),
+        (lambda: bin_lookup_tables("hsv", (0, 8, 4)), "bins must lie in [1, 256], got (0, 8, 4)"),
+        (lambda: profile_values(np.zeros(2), "box"),
+         "profile must be one of ('roof', 'gaussian'), got 'box'"),
+        (lambda: _kh.KernelTemplate(np.array([3.0, 3.0]), 1, "box"),
+         "profile must be one of ('roof', 'gaussian'), got 'box'"),
+        (lambda: SearchRegion(np.zeros((4, 4), np.int32), (0, 0), 1, M, "box", "numpy"),
+         "profile must be one of ('roof', 'gaussian'), got 'box'"),
+        (lambda: resolve_backend("gpu"),
+         "backend must be one of ('auto', 'numpy', 'compiled'), got 'gpu'"),
+        (lambda: SearchRegion(np.full((2, 2), M, np.int32), (0, 0), 1, M, backend="numpy"),
+         f"bin indices must lie in [0, {M})"),
+        (lambda: SearchRegion(np.zeros((4, 4), np.int32), (0, 0), 1, M, backend="numpy")
+         .evaluate(np.ones((2, 2)), np.ones((3, 2)), np.ones((2, M))),
+         f"2 kernels need 2 centres and models of {M} bins, got centres (3, 2) and "
+         f"models (2, {M})"),
+    ]
+    weight_msg = "weighting must be one of ('kl', 'bhattacharyya'), got 'l2'"
+    sample = sample_kernel(np.zeros((9, 9), np.int64), (0, 0), np.array([4.5, 4.5]),
+                           np.array([2.0, 2.0]))
+    q = np.full(M, 1.0 / M)
+    template = _kh.KernelTemplate(np.array([2.0, 2.0]), 1)
+    padded = _kh.PaddedBins(np.zeros((9, 9), np.int64), (0, 0), 1, M, template.reach)
+    cases += [
+        (lambda: pixel_weights(sample, q, q, 0.01, "l2"), weight_msg),
+        (lambda: evaluate_kernel(np.zeros((9, 9), np.int64), (0, 0), np.array([4.5, 4.5]),
+                                 np.array([2.0, 2.0]), q, weighting="l2"), weight_msg),
+        (lambda: padded.evaluate(template, np.array([4.5, 4.5]), q, 0.01, "l2"), weight_msg),
+        (lambda: SearchRegion(np.zeros((4, 4), np.int32), (0, 0), 1, M, backend="numpy")
+         .evaluate(np.ones((1, 2)), np.ones((1, 2)), np.ones((1, M)), 0.01, "l2"), weight_msg),
+    ]
+    for call, message in cases:
+        with pytest.raises(ValueError) as info:
+            call()
+        assert str(info.value) == message
+
+
+def test_compiled_refused_message_without_numba(monkeypatch):
+    monkeypatch.setattr(_kh, "compiled_kernels", lambda: None)
+    with pytest.raises(KernelBackendError) as info:
+        resolve_backend("compiled")
+    assert str(info.value) == ("the compiled backend needs numba, which is not installed "
+                               "(or MK_TRACKER_NO_NUMBA is set)")
+    assert resolve_backend("auto") == "numpy" and resolve_backend("numpy") == "numpy"
+
+
+def test_lookup_tables_accept_1_to_256_bins_and_are_shared_read_only_int32():
+    for bins in [(1, 1, 1), (256, 256, 256), (180, 1, 256)]:
+        table = bin_lookup_tables("hsv", bins)
+        assert table.shape == (3, 256) and table.dtype == np.int32
+        assert not table.flags.writeable
+        assert bin_lookup_tables("hsv", bins) is table          # built once
+        # every level combination is a valid flat bin, even hue levels >= 180 that OpenCV
+        # never produces (the compiled loops index histograms without bounds checks)
+        assert int(table[0].max() + table[1].max() + table[2].max()) < number_of_bins(bins)
+    assert bin_lookup_tables("hsv", (16, 8, 4))[0, 255] == 15 * 8 * 4     # hue bin clamped
+    for bins in [(257, 8, 4), (16, 0, 4), (16, 8, 257)]:
+        with pytest.raises(ValueError):
+            bin_lookup_tables("bgr", bins)
+
+
+def test_float_rois_are_clipped_to_0_255():
+    roi = np.array([[[-5.0, 300.0, 256.0], [0.0, 255.0, 1.0]]])
+    # bgr with 256 levels per channel: the bin spells out the (clipped) levels
+    b = quantize(roi, "bgr", (256, 256, 256))
+    assert b.tolist() == [[(0 * 256 + 255) * 256 + 255, (0 * 256 + 255) * 256 + 1]]
+
+
+def test_a_sample_outside_the_roi_is_empty_and_its_histogram_zero():
+    bins = np.zeros((10, 10), np.int32)
+    s = sample_kernel(bins, (0, 0), np.array([50.0, 50.0]), np.array([3.0, 3.0]))
+    for name in ("bins", "k", "g", "xs", "ys", "v"):
+        assert getattr(s, name).shape == (0,), name
+    assert s.bins.dtype.kind == "i" and s.empty
+    assert np.array_equal(kernel_histogram(s, M), np.zeros(M))
+
+
+def _brute_force_pixels(shape, origin, stride, centre, axes):
+    """(row, col) of the ROI elements whose pixel centres are strictly inside the ellipse."""
+    out = []
+    for r in range(shape[0]):
+        for c in range(shape[1]):
+            x = origin[0] + c * stride + 0.5
+            y = origin[1] + r * stride + 0.5
+            if ((x - centre[0]) / axes[0]) ** 2 + ((y - centre[1]) / axes[1]) ** 2 < 1.0:
+                out.append((r, c))
+    return out
+
+
+def test_sample_kernel_takes_exactly_the_pixels_inside_the_ellipse():
+    rng = np.random.default_rng(21)
+    shape = (17, 23)
+    bins = np.arange(shape[0] * shape[1]).reshape(shape)       # the bin names the element
+    for trial in range(60):
+        stride = int(rng.integers(1, 4))
+        origin = (int(rng.integers(-12, 12)), int(rng.integers(-12, 12)))   # negative too
+        axes = rng.uniform(0.6, 9.0, 2)
+        centre = rng.uniform(-15.0, 60.0, 2)
+        s = sample_kernel(bins, origin, centre, axes, stride=stride)
+        expected = _brute_force_pixels(shape, origin, stride, centre, axes)
+        assert sorted(s.bins.tolist()) == sorted(r * shape[1] + c for r, c in expected)
+        assert s.xs.dtype == np.float64 and s.ys.dtype == np.float64
+
+
+def test_a_one_pixel_kernel_has_a_one_hot_histogram():
+    # axes 0.6 around a pixel centre: only that pixel, k = 1 - 0 = 1; off-centre by 0.3 px,
+    # k = 1 - 0.25 = 0.75 (a total weight below 1 is normalised as well)
+    bins = np.arange(25).reshape(5, 5)
+    for centre, k in (([2.5, 2.5], 1.0), ([2.5, 2.8], 0.75)):
+        s = sample_kernel(bins, (0, 0), np.array(centre), np.array([0.6, 0.6]))
+        assert s.bins.tolist() == [12] and s.k.tolist() == pytest.approx([k])
+        assert np.array_equal(kernel_histogram(s, 25), np.eye(25)[12])
+
+
+def test_bhattacharyya_weights_are_the_square_root_of_the_kl_weights():
+    # q = (0.5, 0.5, 0, 0), p = (0.25, 0.25, 0.25, 0.25), eps = 0: q/p = (2, 2, 0, 0)
+    s = _kh.KernelSample(bins=np.array([0, 1, 2]), k=np.ones(3), g=np.ones(3), xs=np.zeros(3),
+                         ys=np.zeros(3), v=np.zeros(3))
+    q = np.array([0.5, 0.5, 0.0, 0.0])
+    p = np.full(4, 0.25)
+    assert pixel_weights(s, q, p, 0.0).tolist() == [2.0, 2.0, 0.0]
+    assert pixel_weights(s, q, p, 0.0, "bhattacharyya").tolist() == \
+        pytest.approx([np.sqrt(2.0), np.sqrt(2.0), 0.0])
+
+
+def test_scale_ratio_by_hand_with_little_kernel_weight():
+    # k = (0.3, 0.4), v = (0.7, 0.6), g = 1, w = (1, 3), h^2 = 1 + 1:
+    # r = 2/2 (sum w g v / sum w k - sum g v / sum k) = 2.5/1.5 - 1.3/0.7
+    s = _kh.KernelSample(bins=np.array([0, 1]), k=np.array([0.3, 0.4]), g=np.ones(2),
+                         xs=np.zeros(2), ys=np.zeros(2), v=np.array([0.7, 0.6]))
+    r = scale_ratio(s, np.array([1.0, 3.0]), np.array([1.0, 1.0]))
+    assert r == pytest.approx(2.5 / 1.5 - 1.3 / 0.7, rel=1e-12)
+
+
+def test_evaluate_kernel_defaults_and_fields():
+    bins = np.zeros((20, 20), np.int64)
+    bins[:, 10:] = 1
+    q = np.zeros(4)
+    q[0] = 1.0
+    # axes (2, 2) at a pixel corner (10, 10), stride 1 by default: offsets -1.5..1.5,
+    # v = (dx^2 + dy^2) / 4 < 1 for 12 of the 16 pixels (not the corners, v = 1.125)
+    ev = evaluate_kernel(bins, (0, 0), np.array([10.0, 10.0]), np.array([2.0, 2.0]), q)
+    assert ev.n_pixels == 12
+    assert ev.similarity == pytest.approx(np.exp(-ev.cost), rel=1e-12)
+    # half the weight in bin 0: p~_0 = 0.99 * 0.5 + 0.01 / 4, J = log(1 / p~_0)
+    assert ev.cost == pytest.approx(-np.log(0.99 * 0.5 + 0.0025), rel=1e-12)
+    empty = evaluate_kernel(bins, (0, 0), np.array([90.0, 90.0]), np.array([2.0, 2.0]), q)
+    assert np.array_equal(empty.p, np.zeros(4)) and empty.mean_shift.shape == (2,)
+    assert empty.scale_ratio == 0.0
+
+
+def test_template_reach_is_the_ellipse_plus_one_stride():
+    t = _kh.KernelTemplate(np.array([15.0, 20.0]), 2)
+    assert t.reach == (9, 11)                 # ceil(15 / 2) + 1, ceil(20 / 2) + 1
+    t = _kh.KernelTemplate(np.array([4.0, 3.0]), 1)
+    assert t.reach == (5, 4)
+
+
+def test_padded_evaluation_far_outside_the_roi_with_the_smallest_padding():
+    # centres beyond every edge: the grid node is clamped into the ROI, and with the padding
+    # equal to the reach the gathered offsets must stay inside the padded array
+    img = _blob_scene()
+    bins = quantize(img[:40, :50], "hsv", BINS)
+    axes = np.array([9.0, 7.0])
+    q = np.full(M, 1.0 / M)
+    template = _kh.KernelTemplate(axes, 1)
+    padded = _kh.PaddedBins(bins, (0, 0), 1, M, template.reach)
+    for centre in ([55.0, 20.0], [20.0, 45.0], [-5.0, 20.0], [20.0, -4.0], [56.0, 44.0]):
+        centre = np.array(centre)
+        fast = padded.evaluate(template, centre, q)
+        n = len(_brute_force_pixels(bins.shape, (0, 0), 1, centre, axes))
+        assert n > 0 and fast.n_pixels == n
+        direct = evaluate_kernel(bins, (0, 0), centre, axes, q)
+        assert fast.cost == pytest.approx(direct.cost, abs=1e-12)
+        assert sorted(zip(fast.sample.xs.tolist(), fast.sample.ys.tolist())) == \
+            sorted(zip(direct.sample.xs.tolist(), direct.sample.ys.tolist()))
+
+
+def test_search_region_repads_for_larger_kernels_in_either_direction():
+    img = _blob_scene()
+    bins = quantize(img, "hsv", BINS)
+    region = SearchRegion(bins, (0, 0), 1, M, "roof", "numpy")
+    q = np.full((1, M), 1.0 / M)
+    centre = np.array([[85.3, 60.7]])
+    # small, then wider only, then taller only, then small again
+    for axes in ([4.0, 4.0], [30.0, 4.0], [4.0, 30.0], [30.0, 30.0], [4.0, 4.0]):
+        axes = np.array([axes])
+        batch = region.evaluate(axes, centre, q)
+        direct = evaluate_kernel(bins, (0, 0), centre[0], axes[0], q[0])
+        assert batch.n_pixels[0] == direct.n_pixels
+        assert batch.costs[0] == pytest.approx(direct.cost, abs=1e-12)
+        assert np.allclose(batch.mean_shift[0], direct.mean_shift, atol=1e-9)
+
+
+def test_default_epsilon_is_0_01_and_weighting_kl():
+    img = _blob_scene()
+    bins = quantize(img, "hsv", BINS)
+    rng = np.random.default_rng(2)
+    q = rng.random((1, M))
+    q /= q.sum()
+    axes, centre = np.array([[12.0, 9.0]]), np.array([[80.2, 55.9]])
+    region = SearchRegion(bins, (0, 0), 1, M, "roof", "numpy")
+    a = region.evaluate(axes, centre, q)
+    b = region.evaluate(axes, centre, q, 0.01, "kl")
+    assert a.costs[0] == b.costs[0] and np.array_equal(a.mean_shift, b.mean_shift)
+    template = _kh.KernelTemplate(axes[0], 1)
+    padded = _kh.PaddedBins(bins, (0, 0), 1, M, template.reach)
+    c = padded.evaluate_batch([template], centre, q)
+    assert c.costs[0] == b.costs[0] and np.array_equal(c.mean_shift, b.mean_shift)
+    assert region.evaluate(axes, centre, q, 0.5).costs[0] != b.costs[0]   # epsilon matters
