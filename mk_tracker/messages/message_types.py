@@ -38,6 +38,7 @@ _TYPE_NAMES: dict[str, str] = {
     "Time": "builtin_interfaces/msg/Time",
     "Header": "std_msgs/msg/Header",
     "Image": "sensor_msgs/msg/Image",
+    "CompressedImage": "sensor_msgs/msg/CompressedImage",
     "Point": "geometry_msgs/msg/Point",
     "Quaternion": "geometry_msgs/msg/Quaternion",
     "Pose": "geometry_msgs/msg/Pose",
@@ -74,6 +75,7 @@ class MessageTypes:
     Time: Any
     Header: Any
     Image: Any
+    CompressedImage: Any
     Point: Any
     Quaternion: Any
     Pose: Any

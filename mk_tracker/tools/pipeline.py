@@ -66,6 +66,8 @@ from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_
                                          kernel_drawings, skipped_reason, thermal_input,
                                          tracker_debug_image, tracker_input, tracker_inputs,
                                          tracks_to_detections)
+from mk_tracker.bags.image_topics import ImageTopicError, check_image_topic, compressed_topics
+from mk_tracker.messages.compressed_image import as_image
 from mk_tracker.messages.image_conversion import ImageConversionError
 from mk_tracker.messages.message_types import bag_message_types, stamp_to_nanoseconds, stamp_to_seconds
 from mk_tracker.tracking.multi_object_tracker import (IDENTITY_HOMOGRAPHY, MultiObjectTracker,
@@ -87,6 +89,8 @@ GROUND_TRUTH_TOPIC = "/ground_truth"
 SCENE_INFO_TOPIC = "/scene_info"
 DETECTION_TOPIC_CANDIDATES = ("/thermal/detections", "/detections")
 DETECTION_TYPE = "vision_msgs/msg/Detection2DArray"
+#: below this fraction of tracked image messages a run exits non-zero (``--min-usable``)
+MIN_USABLE_FRACTION = 0.1
 
 
 # -- options and results --------------------------------------------------------------------
@@ -237,6 +241,9 @@ class _Run:
         self.writer: BagWriter | None = None
         self.types = None
         self.last_detector_stamp: float | None = None
+        #: topics holding sensor_msgs/CompressedImage, decoded on reading (from the bag's
+        #: topic types: no option needed)
+        self.compressed_topics: set[str] = set()
 
     # per-topic handlers ------------------------------------------------------------------
     def scene_info(self, msg: Any) -> None:
@@ -462,15 +469,19 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
         for text in reader.problems:
             r.problem(f"bag: {text}")
         topics = reader.topics
-        if options.image_topic not in topics and options.thermal_topic in topics:
+        if (options.image_topic not in topics and options.thermal_topic in topics
+                and f"{options.image_topic}/compressed" not in topics):
             # thermal-only mode (issue #19): no RGB camera, so the people found in the
             # thermal image are tracked in that same image (detections in its own frame)
             options = replace(options, image_topic=options.thermal_topic)
             run.options = options
             r.thermal_only = True
-        if options.image_topic not in topics:
-            raise PipelineError(f"{bag}: no {options.image_topic} topic to track in (topics: "
-                                f"{', '.join(sorted(topics))})")
+        try:   # before any message is read: a missing or non-image topic stops here
+            check_image_topic(topics, options.image_topic,
+                              "--thermal-topic" if r.thermal_only else "--image-topic")
+        except ImageTopicError as exc:
+            raise PipelineError(f"{bag}: {exc}") from exc
+        run.compressed_topics = compressed_topics(topics)
         source = choose_detection_source(options.detections, topics, options.single_target,
                                          options.thermal_topic)
         r.detection_source = source
@@ -565,6 +576,14 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
             run.rgb_image(None, m.timestamp_ns)
         run.result.problem(f"undecodable message: {exc}")
         return
+    if topic in run.compressed_topics:
+        try:
+            msg = as_image(msg)           # JPEG/PNG decoded into an Image-like message
+        except ImageConversionError as exc:
+            if topic == opts.image_topic:
+                run.rgb_image(None, m.timestamp_ns)
+            run.result.problem(f"undecodable compressed image on {topic}: {exc}")
+            return
     if topic == SCENE_INFO_TOPIC:
         run.scene_info(msg)
     elif topic == opts.image_topic:
@@ -602,6 +621,10 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-video", action="store_true", help="do not write video.mp4")
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--min-usable", type=float, default=MIN_USABLE_FRACTION,
+                        metavar="FRACTION", help="exit non-zero (3) when fewer than this "
+                        "fraction of the image messages could be tracked (default "
+                        f"{MIN_USABLE_FRACTION})")
 
 
 def options_from_args(args: argparse.Namespace) -> PipelineOptions:
@@ -634,4 +657,22 @@ def run(args: argparse.Namespace) -> int:
         print("scores: " + format_metrics(result.metrics))
     for name, path in result.files.items():
         print(f"  {name}: {path}")
+    unusable = usable_frames_problem(result, args.min_usable, args.image_topic)
+    if unusable:
+        print(f"mk_tracker process: {unusable}", file=sys.stderr)
+        return 3
     return 0
+
+
+def usable_frames_problem(result: PipelineResult, min_fraction: float,
+                          image_topic: str) -> str | None:
+    """Why a run is a failure although it ended (too few of its image messages were
+    tracked: fewer than ``min_fraction``), with its first problems; None when it is not."""
+    if result.frames > 0 and result.tracked_frames >= min_fraction * result.frames:
+        return None
+    share = result.tracked_frames / result.frames if result.frames else 0.0
+    first = "; ".join(result.problems[:3]) or "no problem was logged"
+    return (f"only {result.tracked_frames} of {result.frames} image messages on "
+            f"{image_topic} could be tracked ({share:.0%}, below --min-usable "
+            f"{min_fraction:g}); first problems: {first}. Check the image topic and its "
+            f"encoding (--image-topic; the supported encodings are in the README)")
