@@ -88,6 +88,8 @@ class BagReader:
         self._expected_types: dict[str, str] = {}
         self._expected_per_file: dict[str, int] = {}
         self.storage: str = ""
+        #: rosbag2 ``compression_mode`` of the bag ("" none, "file", "message"; zstd only)
+        self.compression_mode: str = ""
         try:
             self._open()
         except BaseException:
@@ -116,7 +118,8 @@ class BagReader:
 
     def _paths_from_metadata(self) -> list[Path]:
         meta_path = self.path / "metadata.yaml"
-        found = sorted(p for p in self.path.iterdir() if p.suffix in (".mcap", ".db3"))
+        found = sorted(p for p in self.path.iterdir() if p.suffix in (".mcap", ".db3") or
+                       p.name.endswith((".mcap.zstd", ".db3.zstd")))
         if not meta_path.is_file():
             self._problem(f"{meta_path}: missing (not a complete rosbag2 bag); "
                           f"reading the {len(found)} storage file(s) found instead")
@@ -140,9 +143,13 @@ class BagReader:
                           f"({type(exc).__name__}: {exc}); reading the storage files found")
             self._expected = None
             return found
-        if info.get("compression_mode") not in (None, "", "none", "NONE"):
-            raise BagError(f"{meta_path}: compressed bags "
-                           f"({info.get('compression_mode')}) are not supported")
+        mode = str(info.get("compression_mode") or "").lower()
+        if mode not in ("", "none"):
+            fmt = str(info.get("compression_format") or "").lower()
+            if mode not in ("file", "message") or fmt != "zstd":
+                raise BagError(f"{meta_path}: compressed bags ({mode}, {fmt or 'no format'})"
+                               f" are read only in file or message mode with zstd")
+            self.compression_mode = mode
         paths = [self.path / Path(f).name for f in files]
         existing = []
         for p in paths:
@@ -154,7 +161,7 @@ class BagReader:
 
     def _open_file(self, path: Path) -> None:
         try:
-            f = open_storage_file(path, self.storage, self.on_error)
+            f = open_storage_file(path, self.storage, self.on_error, self.compression_mode)
         except sqlite3.DatabaseError as exc:
             self._problem(f"{path}: damaged SQLite database ({exc})")
             return

@@ -12,6 +12,12 @@
   standard library; a truncated file is salvaged row by row from a repaired copy.
 * :func:`open_storage_file` -- the format by file suffix (else the bag's storage
   identifier), the MCAP scan fallback; the place to add another storage format.
+* zstd compression as ``ros2 bag record --compression-format zstd`` writes it, with the
+  zstd codec rosbags itself uses: ``--compression-mode file`` (``*.mcap.zstd``,
+  ``*.db3.zstd``) is decompressed into a temporary file that is then read like any other,
+  salvage included; a truncated compressed file keeps what decompressed.  ``message`` mode
+  (:class:`ZstdMessages`) decompresses each payload; one that does not decompress is an
+  error or, with ``on_error="skip"``, a skipped message and a problem.
 
 The file's own topic table is read, not ``metadata.yaml``'s, because rosbags' bag reader
 matches the two by QoS string and silently yields nothing when they differ (real
@@ -22,8 +28,10 @@ matches the two by QoS string and silently yields nothing when they differ (real
 
 from __future__ import annotations
 
+import shutil
 import sqlite3
 import struct
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -370,9 +378,95 @@ class SqliteFile(StorageFile):
             self._tmp.close()
 
 
-def open_storage_file(path: Path, storage: str, on_error: OnError) -> StorageFile:
+ZSTD_SUFFIX = ".zstd"
+
+
+def _zstd() -> Any:
+    """The zstd codec rosbags reads compressed bags with (stdlib 3.14, else the backport)."""
+    try:
+        from compression import zstd  # type: ignore[import-not-found]
+    except ImportError:
+        from backports import zstd  # type: ignore[import-not-found,no-redef]
+    return zstd
+
+
+class ZstdMessages(StorageFile):
+    """A storage file whose message payloads are each zstd-compressed (rosbag2
+    ``compression_mode: message``)."""
+
+    def __init__(self, inner: StorageFile, on_error: OnError):
+        self.inner, self.on_error = inner, on_error
+        self.path, self.topics, self.counts = inner.path, inner.topics, inner.counts
+        self.problems = inner.problems
+
+    def messages(self, topics, start, stop):
+        zstd = _zstd()
+        for ts, topic, data in self.inner.messages(topics, start, stop):
+            try:
+                yield ts, topic, zstd.decompress(bytes(data))
+            except (zstd.ZstdError, ValueError, EOFError) as exc:
+                text = (f"{self.path}: a {topic} message at {ts} does not decompress "
+                        f"(zstd: {exc})")
+                if self.on_error == "raise":
+                    raise BagError(text) from exc
+                self.problems.append(text + "; skipped")
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def _decompress_file(path: Path, problems: list[str]) -> Path:
+    """Decompress the zstd file ``path`` (``x.mcap.zstd``) into a temporary directory as
+    ``x.mcap``; what decompressed before damage or truncation is kept (a problem says so)."""
+    zstd = _zstd()
+    folder = Path(tempfile.mkdtemp(prefix="mk_tracker_zstd_"))
+    target = folder / path.name[:-len(ZSTD_SUFFIX)]
+    written, complete = 0, False
+    try:
+        decompressor = zstd.ZstdDecompressor()
+        with path.open("rb") as src, target.open("wb") as dst:
+            while not complete:
+                block = src.read(1 << 16)
+                if not block:
+                    break
+                out = decompressor.decompress(block)   # what the blocks so far hold
+                dst.write(out)
+                written += len(out)
+                complete = decompressor.eof
+        problem = None if complete else "ends before the end of its zstd frame"
+    except (zstd.ZstdError, EOFError, OSError, ValueError) as exc:
+        problem = f"{type(exc).__name__}: {exc}"
+    if problem:
+        problems.append(f"{path}: damaged or truncated zstd file ({problem}); reading the "
+                        f"{written} bytes that decompressed")
+    return target
+
+
+class _Decompressed(StorageFile):
+    """A storage file read from a temporary decompressed copy, removed on close."""
+
+    def __init__(self, inner: StorageFile, folder: Path, problems: list[str]):
+        self.inner, self.folder = inner, folder
+        self.path, self.topics, self.counts = inner.path, inner.topics, inner.counts
+        self.problems = problems + inner.problems
+        inner.problems = self.problems
+
+    def messages(self, topics, start, stop):
+        return self.inner.messages(topics, start, stop)
+
+    def close(self) -> None:
+        try:
+            self.inner.close()
+        finally:
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def open_storage_file(path: Path, storage: str, on_error: OnError,
+                      compression_mode: str = "") -> StorageFile:
     """Open one storage file: MCAP by the ``.mcap`` suffix, sqlite3 by ``.db3``, otherwise
-    by ``storage`` (the bag's ``storage_identifier``, "" if unknown).
+    by ``storage`` (the bag's ``storage_identifier``, "" if unknown).  A ``.zstd`` file is
+    decompressed first (file compression); ``compression_mode="message"`` decompresses
+    every payload (:class:`ZstdMessages`).
 
     An MCAP file that the indexed reader refuses raises :class:`BagError` when ``on_error``
     is ``"raise"`` and is scanned (:class:`McapScan`) when it is ``"skip"``.  A damaged
@@ -380,6 +474,20 @@ def open_storage_file(path: Path, storage: str, on_error: OnError) -> StorageFil
     """
     from rosbags.rosbag2 import ReaderError
 
+    if path.suffix == ZSTD_SUFFIX:
+        problems: list[str] = []
+        plain = _decompress_file(path, problems)
+        if problems and on_error == "raise":
+            shutil.rmtree(plain.parent, ignore_errors=True)
+            raise BagError(problems[0])
+        try:
+            inner = open_storage_file(plain, storage, on_error, compression_mode)
+        except BaseException:
+            shutil.rmtree(plain.parent, ignore_errors=True)
+            raise
+        return _Decompressed(inner, plain.parent, problems)
+    if compression_mode == "message":
+        return ZstdMessages(open_storage_file(path, storage, on_error), on_error)
     if path.suffix == ".mcap" or (storage == "mcap" and path.suffix != ".db3"):
         try:
             return McapFile(path)
