@@ -3,7 +3,8 @@ video file or a plain image folder goes to :mod:`mk_tracker.bags.recording_impor
 
 Topics written (project conventions, frame id ``camera``, one message per frame each):
 
-* ``/image_raw``     ``sensor_msgs/msg/Image``, ``bgr8``;
+* ``/image_raw``     ``sensor_msgs/msg/Image``, ``bgr8`` (with ``--compressed jpeg|png``:
+  ``/image_raw/compressed``, ``sensor_msgs/msg/CompressedImage``, as image_transport writes);
 * ``/ground_truth``  ``vision_msgs/msg/Detection2DArray``: id = ground-truth identity as a
   string, score 1.0 (an empty array for frames without ground truth);
 * ``/detections``    ``vision_msgs/msg/Detection2DArray`` of the public detections when the
@@ -28,7 +29,9 @@ from mk_tracker.bags.datasets import DatasetError, Sequence, detect_layout, read
 from mk_tracker.bags.recording_import import import_recording, open_recording, read_homography
 from mk_tracker.bags.video_source import FrameSourceError, is_video_file
 from mk_tracker.messages.detection_messages import Detection, make_detection_array
-from mk_tracker.messages.image_conversion import numpy_to_image
+from mk_tracker.messages.compressed_image import (CODECS, image_message, transport_topic,
+                                                  transport_type)
+from mk_tracker.messages.image_conversion import ImageConversionError
 from mk_tracker.messages.message_types import bag_message_types, make_header
 
 IMAGE_TOPIC = "/image_raw"
@@ -63,12 +66,20 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--class-id", default="person",
                         help="class_id of the ground-truth and detection boxes")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--compressed", choices=sorted(CODECS), default=None,
+                        help="write the images as sensor_msgs/CompressedImage on "
+                        "<topic>/compressed, as a robot's image_transport records them "
+                        "(16-bit thermal needs png)")
+    parser.add_argument("--jpeg-quality", type=int, default=95, metavar="Q",
+                        help="JPEG quality 0..100 with --compressed jpeg (default 95)")
 
 
 def import_sequence(sequence: Sequence, out: Path, storage: str = "mcap",
                     start_ns: int = 0, class_id: str = "person",
-                    progress: Callable[[int, int], None] | None = None) -> dict[str, int]:
+                    progress: Callable[[int, int], None] | None = None,
+                    codec: str | None = None, jpeg_quality: int = 95) -> dict[str, int]:
     """Write ``sequence`` to a new bag at ``out``; returns the message count per topic.
+    With ``codec`` the images are CompressedImage messages on ``/image_raw/compressed``.
 
     On failure the partly written bag directory is removed and the error re-raised.
     """
@@ -79,7 +90,8 @@ def import_sequence(sequence: Sequence, out: Path, storage: str = "mcap",
     try:
         with BagWriter(out, storage, typestore=store) as bag:
             created = True
-            bag.add_topic(IMAGE_TOPIC, "sensor_msgs/msg/Image")
+            image_topic = transport_topic(IMAGE_TOPIC, codec)
+            bag.add_topic(image_topic, transport_type(codec))
             bag.add_topic(GROUND_TRUTH_TOPIC, "vision_msgs/msg/Detection2DArray")
             if sequence.detections is not None:
                 bag.add_topic(DETECTIONS_TOPIC, "vision_msgs/msg/Detection2DArray")
@@ -87,8 +99,9 @@ def import_sequence(sequence: Sequence, out: Path, storage: str = "mcap",
                 stamp = sequence.timestamp_ns(k, start_ns)
                 header = make_header(types, FRAME_ID, stamp)
                 image = sequence.image(k)
-                bag.write(IMAGE_TOPIC, stamp, numpy_to_image(image, "bgr8", header,
-                                                             types=types))
+                bag.write(image_topic, stamp, image_message(image, "bgr8", header, types=types,
+                                                            codec=codec,
+                                                            jpeg_quality=jpeg_quality))
                 truth = [Detection(box, 1.0, class_id, str(identity))
                          for identity, box in sorted(sequence.ground_truth[k].items())]
                 bag.write(GROUND_TRUTH_TOPIC, stamp, make_detection_array(truth, header, types))
@@ -116,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
         return fail(f"{args.out} exists already; choose a new --out path")
     if not (args.start_time >= 0):
         return fail(f"--start-time must be >= 0, got {args.start_time}")
+    if not 0 <= args.jpeg_quality <= 100:
+        return fail(f"--jpeg-quality must be 0..100, got {args.jpeg_quality}")
     if _is_recording(args.folder) or args.thermal:
         return _run_recording(args, fail)
     if args.rgb is not None or args.homography is not None:
@@ -139,8 +154,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         counts = import_sequence(sequence, args.out, args.storage,
                                  round(args.start_time * 1e9), args.class_id,
-                                 None if args.quiet else progress)
-    except (DatasetError, BagError) as exc:
+                                 None if args.quiet else progress, args.compressed,
+                                 args.jpeg_quality)
+    except (DatasetError, BagError, ImageConversionError) as exc:
         return fail(str(exc))
     if not args.quiet:
         summary = ", ".join(f"{topic} {n}" for topic, n in counts.items())
@@ -182,9 +198,12 @@ def _run_recording(args: argparse.Namespace, fail: Callable[[str], int]) -> int:
     try:
         counts = import_recording(source, args.out, thermal=args.thermal, rgb=rgb,
                                   homography=homography, storage=args.storage,
-                                  start_ns=round(args.start_time * 1e9), progress=progress)
+                                  start_ns=round(args.start_time * 1e9), progress=progress,
+                                  codec=args.compressed, jpeg_quality=args.jpeg_quality)
     except (FrameSourceError, BagError) as exc:
         return fail(str(exc))
+    except ImageConversionError as exc:
+        return fail(f"{exc}; choose another --compressed")
     if not args.quiet:
         summary = ", ".join(f"{topic} {n}" for topic, n in counts.items())
         print(f"wrote {args.out} ({args.storage}): {summary}", file=sys.stderr)

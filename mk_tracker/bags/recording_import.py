@@ -30,7 +30,7 @@ from mk_tracker.bags.bag_typestore import make_typestore
 from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.bags.video_source import (FrameSource, FrameSourceError, open_frames,
                                           to_colour, to_thermal)
-from mk_tracker.messages.image_conversion import numpy_to_image
+from mk_tracker.messages.compressed_image import image_message, transport_topic, transport_type
 from mk_tracker.messages.message_types import bag_message_types, make_header
 
 IMAGE_TOPIC = "/image_raw"
@@ -66,9 +66,12 @@ def read_homography(path: str | Path) -> np.ndarray:
 def import_recording(source: FrameSource, out: Path, *, thermal: bool = False,
                      rgb: FrameSource | None = None, homography: np.ndarray | None = None,
                      storage: str = "mcap", start_ns: int = 0,
-                     progress: Callable[[int], None] | None = None) -> dict[str, int]:
+                     progress: Callable[[int], None] | None = None,
+                     codec: str | None = None, jpeg_quality: int = 95) -> dict[str, int]:
     """Write ``source`` (and ``rgb``) to a new bag at ``out``; returns the message count per
-    topic.  ``source.fps`` must be set.  On failure the partly written bag is removed."""
+    topic.  ``source.fps`` must be set.  On failure the partly written bag is removed.
+    With ``codec`` (``"jpeg"``/``"png"``) every image topic becomes ``<topic>/compressed``
+    holding CompressedImage messages."""
     if source.fps is None:
         raise FrameSourceError(f"{source.path}: no frame rate; give one (--fps)")
     if rgb is not None and not thermal:
@@ -81,10 +84,12 @@ def import_recording(source: FrameSource, out: Path, *, thermal: bool = False,
     try:
         with BagWriter(out, storage, typestore=store) as bag:
             created = True
-            main_topic = THERMAL_TOPIC if thermal else IMAGE_TOPIC
-            bag.add_topic(main_topic, "sensor_msgs/msg/Image")
+            thermal_topic = transport_topic(THERMAL_TOPIC, codec)
+            image_topic = transport_topic(IMAGE_TOPIC, codec)
+            main_topic = thermal_topic if thermal else image_topic
+            bag.add_topic(main_topic, transport_type(codec))
             if rgb is not None:
-                bag.add_topic(IMAGE_TOPIC, "sensor_msgs/msg/Image")
+                bag.add_topic(image_topic, transport_type(codec))
             if homography is not None:
                 bag.add_topic(SCENE_INFO_TOPIC, "std_msgs/msg/String")
                 info = {"homography": [float(v) for v in np.asarray(homography).reshape(9)],
@@ -99,16 +104,19 @@ def import_recording(source: FrameSource, out: Path, *, thermal: bool = False,
                 if thermal:
                     grey, encoding = to_thermal(frame)
                     header = make_header(types, THERMAL_FRAME_ID, stamp)
-                    bag.write(THERMAL_TOPIC, stamp, numpy_to_image(grey, encoding, header,
-                                                                   types=types))
+                    bag.write(thermal_topic, stamp, image_message(
+                        grey, encoding, header, types=types, codec=codec,
+                        jpeg_quality=jpeg_quality))
                 else:
                     header = make_header(types, RGB_FRAME_ID, stamp)
-                    bag.write(IMAGE_TOPIC, stamp, numpy_to_image(to_colour(frame), "bgr8",
-                                                                 header, types=types))
+                    bag.write(image_topic, stamp, image_message(
+                        to_colour(frame), "bgr8", header, types=types, codec=codec,
+                        jpeg_quality=jpeg_quality))
                 if colour is not None:
                     header = make_header(types, RGB_FRAME_ID, stamp)
-                    bag.write(IMAGE_TOPIC, stamp, numpy_to_image(to_colour(colour), "bgr8",
-                                                                 header, types=types))
+                    bag.write(image_topic, stamp, image_message(
+                        to_colour(colour), "bgr8", header, types=types, codec=codec,
+                        jpeg_quality=jpeg_quality))
                 if progress is not None:
                     progress(k + 1)
             counts = dict(bag.counts)
@@ -116,7 +124,7 @@ def import_recording(source: FrameSource, out: Path, *, thermal: bool = False,
         if created and out.exists():
             shutil.rmtree(out, ignore_errors=True)
         raise
-    main = counts.get(THERMAL_TOPIC if thermal else IMAGE_TOPIC, 0)
+    main = counts.get(main_topic, 0)
     if main == 0:
         shutil.rmtree(out, ignore_errors=True)
         raise FrameSourceError(f"{source.path}: no frame could be read")

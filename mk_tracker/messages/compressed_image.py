@@ -22,7 +22,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from mk_tracker.messages.image_conversion import ImageConversionError, _check_array
+from mk_tracker.messages.image_conversion import (ImageConversionError, _check_array,
+                                                  numpy_to_image)
 from mk_tracker.messages.message_types import MessageTypes, make_header
 
 #: ROS type names of the two image messages a camera topic may carry
@@ -138,3 +139,23 @@ def numpy_to_compressed(array: np.ndarray, encoding: str, codec: str, header: An
         header = make_header(types, "")
     return types.CompressedImage(header=header, format=fmt,
                                  data=types.byte_array(np.frombuffer(blob, np.uint8)))
+
+
+def transport_topic(topic: str, codec: str | None) -> str:
+    """The topic image_transport publishes ``topic`` on: ``<topic>/compressed`` with a
+    codec, ``topic`` itself without."""
+    return f"{topic}/compressed" if codec else topic
+
+
+def transport_type(codec: str | None) -> str:
+    """The message type of :func:`transport_topic`."""
+    return COMPRESSED_TYPE if codec else IMAGE_TYPE
+
+
+def image_message(array: np.ndarray, encoding: str, header: Any, *, types: MessageTypes,
+                  codec: str | None = None, jpeg_quality: int = 95) -> Any:
+    """An Image (``codec`` None) or a CompressedImage of ``array``."""
+    if codec is None:
+        return numpy_to_image(array, encoding, header, types=types)
+    return numpy_to_compressed(array, encoding, codec, header, types=types,
+                               jpeg_quality=jpeg_quality)
