@@ -50,6 +50,23 @@ exceeds ``scale_similarity_gate`` = 0.8: with the paper's mean > 0.3, an occlude
 (ellipse edge covered by an occluder) biases ``r(h)`` and the box shrank or grew by the
 5 %/frame limit until the target was lost.  :func:`paper_config` restores the paper's gates.
 
+Search additions (not in the paper; off by default, on for tracks started by hand, see
+:mod:`mk_tracker.tracking.manual_track`; issue #16).  Algorithm 1 is a local descent: each
+kernel's mean-shift vector (C.3) only sees pixels under the kernel, so a target that moved
+further than about one kernel half-axis from the start (a low frame rate, a fast walker, a
+Kalman prediction whose velocity is not yet learnt) is not found.  (a) Coarse-to-fine start
+(``multi_start_radius``): the whole layout is scored at a grid of translations of the
+predicted start in one batched evaluation, and when the best grid point scores higher than
+where Algorithm 1 ended from the prediction, Algorithm 1 runs again from it; the result with
+the higher mean similarity (5) is kept, so the Kalman prediction (Sec. IV-D) stays the first
+start and wins ties.  (b) Failure re-search (``recovery_similarity``): when the weighted
+visibility (7)-(8) of the result says the target is not seen, a region of
+``recovery_margin`` box sizes is scanned with the back-projection ``q / (q + p)`` of the
+target's colour model ``q`` against the region's histogram ``p``; the layout is evaluated at
+the scan's peaks and Algorithm 1 runs from the best one, whose result is kept only if the
+multiple-kernel similarity confirms it.  (c) :meth:`MultiKernelTracker.start` lays the
+kernels out on the part of a box inside the image (a person entering at an edge).
+
 State and mutation.  :meth:`MultiKernelTracker.refine` *mutates* the :class:`TargetState` it
 is given: on success the kernel centres move to the result; the scale and the models change
 only above the gates described above.  When the result is ``lost`` the
@@ -179,16 +196,18 @@ class MultiKernelConfig:
     recovery_similarity: float = parameter(
         0.0, "Failure re-search (not in the paper): when a result's weighted visibility "
         "sum_i W_i rho_i / N ((7)-(8)) is below this, the region around the start box is "
-        "scanned with the back-projection of the target's colour model and Algorithm 1 runs "
-        "from the best peaks; a peak's result replaces the first one when its weighted "
-        "visibility reaches this value and its mean similarity is higher.  0 = never",
+        "scanned with the back-projection of the target's colour model, the layout is "
+        "evaluated at the scan's peaks and Algorithm 1 runs from the best one; its result "
+        "replaces the first one when its weighted visibility reaches this value and its mean "
+        "similarity is higher.  0 = never",
         minimum=0.0, maximum=1.0)
     recovery_margin: float = parameter(
         2.0, "Scan region of the failure re-search: the start box grown by this many box "
         "sizes on every side, clipped to the image", minimum=0.1, maximum=100.0)
     recovery_candidates: int = parameter(
-        3, "Back-projection peaks (at least one box apart) from which the failure re-search "
-        "runs Algorithm 1", minimum=1, maximum=20)
+        3, "Back-projection peaks (at least one box apart) at which the failure re-search "
+        "evaluates the kernel layout (Algorithm 1 then runs from the best)",
+        minimum=1, maximum=20)
     recovery_scan_cells: int = parameter(
         8, "Sampling of the back-projection scan: about this many samples across the box "
         "width (stride ceil(w / this) px)", minimum=2, maximum=64)
@@ -351,11 +370,13 @@ def _checked_image(image: np.ndarray) -> np.ndarray:
         raise TrackingInputError(str(exc)) from exc
 
 
-def _region(box: tuple[float, float, float, float], margin: float, width: int, height: int
-            ) -> tuple[int, int, int, int] | None:
-    """Integer search region ``(x0, y0, x1, y1)`` of ``box`` grown by ``margin``, clipped."""
+def _region(box: tuple[float, float, float, float], margin: float, width: int, height: int,
+            extra_px: float = 0.0) -> tuple[int, int, int, int] | None:
+    """Integer search region ``(x0, y0, x1, y1)`` of ``box`` grown by ``margin`` (a fraction
+    of its width in x, of its height in y) plus ``extra_px`` pixels on every side, clipped."""
     x, y, w, h = box
-    grown = (x - margin * w, y - margin * h, w * (1 + 2 * margin), h * (1 + 2 * margin))
+    mx, my = margin * w + extra_px, margin * h + extra_px
+    grown = (x - mx, y - my, w + 2 * mx, h + 2 * my)
     clipped = clip_box(grown, width, height)
     if clipped is None:
         return None
@@ -498,9 +519,10 @@ class MultiKernelTracker:
                                          f"finite numbers")
             x += pc - state.center
         start_box = kernels_bounding_box(x, axes)
-        # the region also covers the grid of starts (multi_start_radius widths in x and y,
-        # no more than that many heights in y for a box taller than wide)
-        region = _region(start_box, cfg.search_margin + cfg.multi_start_radius, width, height)
+        # the region also covers the grid of starts: multi_start_radius box widths in x and,
+        # in the same pixels, in y
+        reach = cfg.multi_start_radius * start_box[2]
+        region = _region(start_box, cfg.search_margin, width, height, extra_px=reach)
         if region is None:
             return self._lost(state, x, axes, "outside_image")
         stride = self._stride(axes)
@@ -509,8 +531,9 @@ class MultiKernelTracker:
             return self._lost(state, x, axes, "nan_pixels")
         best = self._algorithm1(search, region, x, state)
         if cfg.multi_start_radius > 0:
-            alt_start = self._grid_start(search, x, state, start_box[2])
-            if alt_start is not None:
+            alt_start, alt_score = self._grid_start(search, x, state, start_box[2])
+            # the second run only when the grid point already beats where the first one ended
+            if alt_start is not None and alt_score > float(best[1].similarities.mean()):
                 alt = self._algorithm1(search, region, alt_start, state)
                 if float(alt[1].similarities.mean()) > float(best[1].similarities.mean()):
                     best = alt
@@ -615,17 +638,18 @@ class MultiKernelTracker:
         return x, ev, iterations, history
 
     def _grid_start(self, search: SearchRegion, x: np.ndarray, state: TargetState,
-                    box_width: float) -> np.ndarray | None:
+                    box_width: float) -> tuple[np.ndarray | None, float]:
         """The coarse stage of the coarse-to-fine search: the kernel layout at ``x`` translated
         by every point of a ``(2k+1) x (2k+1)`` grid (spacing ``multi_start_radius * w / k``)
         is evaluated in one batch, and the translation with the highest mean similarity
-        ``sum_i rho_i / N`` (5) is returned as kernel centres; None when that is the
-        untranslated start (ties keep it: the Kalman prediction is the prior, Sec. IV-D)."""
+        ``sum_i rho_i / N`` (5) is returned as kernel centres with that similarity; None
+        when that is the untranslated start (ties keep it: the Kalman prediction is the
+        prior, Sec. IV-D)."""
         cfg = self.config
         k = int(cfg.multi_start_steps)
         spacing = cfg.multi_start_radius * float(box_width) / k
         if not spacing > 0.0:
-            return None
+            return None, 0.0
         steps = np.arange(-k, k + 1, dtype=np.float64) * spacing
         gx, gy = np.meshgrid(steps, steps)
         offsets = np.stack([gx.reshape(-1), gy.reshape(-1)], axis=1)
@@ -637,14 +661,17 @@ class MultiKernelTracker:
         axes = np.tile(state.half_axes, (n_o, 1))
         models = np.tile(state.models, (n_o, 1))
         sims = self._evaluate(search, axes, centres, models).similarities.reshape(n_o, n_k)
-        best = int(np.argmax(sims.mean(axis=1)))     # first maximum: the prediction on ties
+        means = sims.mean(axis=1)
+        best = int(np.argmax(means))                 # first maximum: the prediction on ties
         if best == 0:
-            return None
-        return x + offsets[best]
+            return None, float(means[0])
+        return x + offsets[best], float(means[best])
 
     def _recovery_starts(self, image: np.ndarray, state: TargetState,
-                         box: tuple[float, float, float, float]) -> list[np.ndarray]:
-        """Candidate box centres for the failure re-search, best first.
+                         box: tuple[float, float, float, float]
+                         ) -> tuple[list[np.ndarray], SearchRegion | None]:
+        """Candidate box centres for the failure re-search, best first, and the quantised
+        scan region (a :class:`SearchRegion` at the scan's stride).
 
         The region ``box`` grown by ``recovery_margin`` box sizes is quantised every
         ``ceil(w / recovery_scan_cells)`` px; each sample gets the back-projection weight
@@ -659,11 +686,11 @@ class MultiKernelTracker:
         height, width = image.shape[:2]
         region = _region(box, cfg.recovery_margin, width, height)
         if region is None:
-            return []
+            return [], None
         stride = max(1, int(np.ceil(box[2] / cfg.recovery_scan_cells)))
         bins = quantize_region(image, region, stride, cfg.colour_space, cfg.bins, self.backend)
         if bins is None or bins.size == 0:
-            return []
+            return [], None
         q = state.models.mean(axis=0)
         p = np.bincount(bins.reshape(-1), minlength=self.n_bins)[:self.n_bins].astype(
             np.float64) / bins.size
@@ -681,38 +708,44 @@ class MultiKernelTracker:
             out.append(np.array([region[0] + j * stride, region[1] + i * stride],
                                 dtype=np.float64))
             score[max(0, i - kh + 1):i + kh, max(0, j - kw + 1):j + kw] = -1.0
-        return out
+        scan = SearchRegion(bins, (region[0], region[1]), stride, self.n_bins, cfg.profile,
+                            self.backend)
+        return out, scan
 
     def _recover(self, image: np.ndarray, state: TargetState,
                  start_box: tuple[float, float, float, float], mean_sim: float):
-        """Algorithm 1 from each :meth:`_recovery_starts` peak (kernels translated so their
-        centroid (14) is at the peak, each in its own search region); the best result whose
-        weighted visibility (7)-(8) reaches ``recovery_similarity`` and whose mean similarity
-        beats ``mean_sim`` (the first search's), as ``((x, ev, iterations, history),
-        search)``, or None."""
+        """The failure re-search: the kernel layout is placed at every
+        :meth:`_recovery_starts` peak and evaluated in one batch on the scan's samples; from
+        the peak with the highest mean similarity (5) Algorithm 1 runs in its own search
+        region.  Its result is returned as ``((x, ev, iterations, history), search)`` when its
+        weighted visibility (7)-(8) reaches ``recovery_similarity`` and its mean similarity
+        beats ``mean_sim`` (the first search's); else None."""
         cfg = self.config
         height, width = image.shape[:2]
         axes = state.half_axes
         centroid = np.array([start_box[0] + start_box[2] / 2.0,
                              start_box[1] + start_box[3] / 2.0])
         x0 = state.centres - state.center + centroid
-        stride = self._stride(axes)
-        best = None
-        for peak in self._recovery_starts(image, state, start_box):
-            x = x0 + (peak - centroid)
-            region = _region(kernels_bounding_box(x, axes), cfg.search_margin, width, height)
-            if region is None:
-                continue
-            search = self._search_region(image, region, stride)
-            if search is None:
-                continue
-            res = self._algorithm1(search, region, x, state)
-            sims = res[1].similarities
-            m = float(sims.mean())
-            if visibility_similarity(sims, None, "weighted") >= cfg.recovery_similarity \
-                    and m > mean_sim:
-                best, mean_sim = (res, search), m
-        return best
+        peaks, scan = self._recovery_starts(image, state, start_box)
+        if not peaks:
+            return None
+        n_k, n_p = state.num_kernels, len(peaks)
+        centres = (x0[None, :, :] + (np.array(peaks) - centroid)[:, None, :]).reshape(-1, 2)
+        sims = self._evaluate(scan, np.tile(axes, (n_p, 1)), centres,
+                              np.tile(state.models, (n_p, 1))).similarities.reshape(n_p, n_k)
+        x = x0 + (peaks[int(np.argmax(sims.mean(axis=1)))] - centroid)
+        region = _region(kernels_bounding_box(x, axes), cfg.search_margin, width, height)
+        if region is None:
+            return None
+        search = self._search_region(image, region, self._stride(axes))
+        if search is None:
+            return None
+        res = self._algorithm1(search, region, x, state)
+        found = res[1].similarities
+        if visibility_similarity(found, None, "weighted") >= cfg.recovery_similarity \
+                and float(found.mean()) > mean_sim:
+            return res, search
+        return None
 
     def _update_scale(self, search: SearchRegion, state: TargetState, weights: np.ndarray,
                       ev: KernelBatch) -> None:

@@ -91,11 +91,11 @@ def test_the_grid_start_keeps_the_prediction_when_the_target_is_there():
     search_img = _frame([(100, 60)], seed=1)
     region = (0, 0, W, H)
     search = tracker._search_region(search_img, region, 1)
-    assert tracker._grid_start(search, state.centres, state, TW) is None
+    assert tracker._grid_start(search, state.centres, state, TW)[0] is None
     # a second copy of the target 1.5 w to the right scores the same: the tie keeps the
     # prediction (the first grid point examined)
     search2 = tracker._search_region(_frame([(100, 60), (130, 60)], seed=1), region, 1)
-    assert tracker._grid_start(search2, state.centres, state, TW) is None
+    assert tracker._grid_start(search2, state.centres, state, TW)[0] is None
 
 
 # -- failure re-search -----------------------------------------------------------------------
@@ -132,7 +132,7 @@ def test_scan_peaks_are_ordered_and_a_box_apart():
     img = _frame([(40, 60), (240, 60)], seed=2)
     img[60:100, 250:260] = 120              # the right copy is half covered (grey)
     # scan region: the box grown by 6 box sizes, x in [30, 290), y clipped to [0, 160)
-    starts = tracker._recovery_starts(img, state, (150.0, 60.0, TW, TH))
+    starts, _ = tracker._recovery_starts(img, state, (150.0, 60.0, TW, TH))
     assert len(starts) == 2
     # stride ceil(20 / 10) = 2 px: the full copy's centre (50, 80) first, then the half
     # copy's visible half around (245, 80)
@@ -179,3 +179,10 @@ def test_without_the_grid_start_the_hand_started_track_falls_behind():
     errors = _follow(ManualTrackConfig(num_kernels=2, multi_start_radius=0.0,
                                        recovery_similarity=0.0))
     assert errors.max() > 10.0
+
+
+def test_search_region_margin_and_extra_pixels():
+    from mk_tracker.tracking.multi_kernel import _region
+    # box x 10..20, y 10..30; margin 0.5 -> 5 px in x, 10 px in y; plus 5 px on every side
+    assert _region((10.0, 10.0, 10.0, 20.0), 0.5, 100, 100, extra_px=5.0) == (0, 0, 30, 45)
+    assert _region((10.0, 10.0, 10.0, 20.0), 0.5, 100, 100) == (5, 0, 25, 40)
