@@ -38,13 +38,16 @@ from mk_tracker.messages.image_conversion import (CAMERA_ENCODINGS, ImageConvers
 from mk_tracker.tracking.multi_object_tracker import FrameDetection, FrameResult
 from mk_tracker.parameters import ParameterError
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
+from mk_tracker.detection.background_detector import BackgroundDetector, BackgroundDetectorConfig
 from mk_tracker.detection.ignore_regions import MaskedDetector, parse_regions
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 
 RGB_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8", *CAMERA_ENCODINGS)
 #: YUV 4:2:2 (a thermal camera behind a UVC driver) gives its luma; Bayer is never thermal.
 THERMAL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1", "yuv422", "yuv422_yuy2")
-METHODS = ("kernel_covariance", "threshold")
+METHODS = ("kernel_covariance", "threshold", "background")
+#: what the background-subtraction detector takes (an RGB camera, or grey)
+BACKGROUND_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8", "mono16", "16UC1")
 #: ``last_mode`` values of a detector that mean "this frame was not used", with the reason.
 SKIPPED_MODES = {
     "invalid_frame": "too few finite pixels (NaN-filled or empty frame)",
@@ -56,10 +59,12 @@ SKIPPED_MODES = {
 
 def build_detector(method: str, kernel_config: ThermalDetectorConfig,
                    threshold_config: ThresholdDetectorConfig,
-                   ignore_regions: Sequence[float] = ()) -> Any:
+                   ignore_regions: Sequence[float] = (),
+                   background_config: BackgroundDetectorConfig | None = None) -> Any:
     """The detector object of ``method`` (one of :data:`METHODS`): the sparse kernel
-    covariance detector (Schizas et al. 2018, Algorithm 2) or the threshold baseline,
-    seeing its frames through the ``ignore_regions`` (flat ``[x, y, w, h, ...]``,
+    covariance detector (Schizas et al. 2018, Algorithm 2), the threshold baseline, or
+    background subtraction for a static RGB camera (Chu et al. 2013, Sec. IV-D), seeing its
+    frames through the ``ignore_regions`` (flat ``[x, y, w, h, ...]``,
     :mod:`mk_tracker.detection.ignore_regions`) when there are any."""
     try:
         regions = parse_regions(ignore_regions)
@@ -69,9 +74,23 @@ def build_detector(method: str, kernel_config: ThermalDetectorConfig,
         detector: Any = ThermalDetector(kernel_config)
     elif method == "threshold":
         detector = ThresholdDetector(threshold_config)
+    elif method == "background":
+        detector = BackgroundDetector(background_config)
     else:
         raise ParameterError(f"method: {method!r} is not one of {list(METHODS)}")
     return MaskedDetector(detector, regions) if regions else detector
+
+
+def detector_input(msg: Any, method: str) -> np.ndarray:
+    """The pixels a detector of ``method`` takes from ``msg``: :func:`thermal_input` for the
+    thermal methods; RGB, grey or 16-bit grey for ``background``."""
+    if method != "background":
+        return thermal_input(msg)
+    if msg.encoding not in BACKGROUND_ENCODINGS:
+        raise ImageConversionError(
+            f"encoding {msg.encoding!r} is not a background-subtraction input "
+            f"(supported: {', '.join(BACKGROUND_ENCODINGS)})")
+    return image_to_numpy(msg)
 
 
 def thermal_input(msg: Any) -> np.ndarray:

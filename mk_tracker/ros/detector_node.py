@@ -35,7 +35,7 @@ from mk_tracker.messages.detection_messages import make_detection_array
 from mk_tracker.detection.ignore_regions import parse_regions
 from mk_tracker.frame_processing import (METHODS, build_detector, detector_debug_image,
                                          detector_event, detector_outputs, skipped_reason,
-                                         thermal_input)
+                                         detector_input)
 from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
@@ -47,6 +47,7 @@ from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscriptio
 from mk_tracker.ros.subscription_events import log_matches
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
+from mk_tracker.detection.background_detector import BackgroundDetector, BackgroundDetectorConfig
 from mk_tracker.warm_up import warm_up_detector
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ class DetectorNodeConfig:
 def default_configs() -> dict[str, Any]:
     """Every config the node declares, by parameter prefix (for config/detector.yaml)."""
     return {"": DetectorNodeConfig(), "detector": ThermalDetectorConfig(),
-            "threshold": ThresholdDetectorConfig()}
+            "threshold": ThresholdDetectorConfig(), "background": BackgroundDetectorConfig()}
 
 
 def _check_with(factory: Any) -> Any:
@@ -131,8 +132,11 @@ class DetectorNode(Node):
         threshold_cfg = self._bridge.add_config(
             "threshold", ThresholdDetectorConfig(), extra_check=_check_with(ThresholdDetector),
             on_change=lambda _cfg: self._rebuild_if_active("threshold"))
-        self.detector = build_detector(self.node_config.method, kernel_cfg, threshold_cfg,
-                                       self.node_config.ignore_regions)
+        self._bridge.add_config(
+            "background", BackgroundDetectorConfig(),
+            extra_check=_check_with(BackgroundDetector),
+            on_change=lambda _cfg: self._rebuild_if_active("background"))
+        self.detector = self._build()
         self._bridge.activate()
         self._counters = _Counters()
         self._last_stamp: float | None = None
@@ -163,16 +167,19 @@ class DetectorNode(Node):
         if rebuild:
             self._rebuild_if_active(config.method)
 
+    def _build(self) -> Any:
+        return build_detector(self.node_config.method, self._bridge.config("detector"),
+                              self._bridge.config("threshold"),
+                              self.node_config.ignore_regions,
+                              self._bridge.config("background"))
+
     def _rebuild_if_active(self, method: str) -> None:
         """Apply a changed config; the detector not in use is built when selected."""
         if method != self.node_config.method:
             return
         # a detector holds a sliding window of frames; a new config starts a new window
         with self._lock:
-            self.detector = build_detector(self.node_config.method,
-                                           self._bridge.config("detector"),
-                                           self._bridge.config("threshold"),
-                                           self.node_config.ignore_regions)
+            self.detector = self._build()
         self.get_logger().info(f"detector rebuilt ({self.node_config.method}) with the new "
                                "parameters")
 
@@ -183,7 +190,7 @@ class DetectorNode(Node):
     def _process_image(self, msg: Image) -> None:
         counters = self._counters
         try:
-            frame = thermal_input(msg)
+            frame = detector_input(msg, self.node_config.method)
         except ImageConversionError as exc:
             counters.bad_images += 1
             self._warn(f"skipping a thermal image: {exc}")

@@ -63,7 +63,7 @@ from mk_tracker.messages.detection_messages import (Detection, DetectionMessageE
 from mk_tracker.evaluation.metrics import MotRow
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_detector,
                                          detector_outputs,
-                                         kernel_drawings, skipped_reason, thermal_input,
+                                         kernel_drawings, skipped_reason, detector_input,
                                          tracker_debug_image, tracker_input, tracker_inputs,
                                          tracks_to_detections)
 from mk_tracker.bags.image_topics import ImageTopicError, check_image_topic, compressed_topics
@@ -166,7 +166,9 @@ def parse_box(text: str) -> tuple[float, float, float, float]:
 
 def choose_detection_source(option: str, topics: Mapping[str, Any], single_target: bool,
                             thermal_topic: str = THERMAL_TOPIC) -> str:
-    """``"thermal"``, ``"none"`` or ``"topic:NAME"`` for the ``--detections`` option."""
+    """``"thermal"``, ``"background"``, ``"none"`` or ``"topic:NAME"`` for the
+    ``--detections`` option (``background``: background subtraction on the tracked image
+    itself, for a static RGB camera without a thermal one)."""
     if option == "auto":
         if single_target:
             return "none"
@@ -181,8 +183,8 @@ def choose_detection_source(option: str, topics: Mapping[str, Any], single_targe
         if thermal_topic not in topics:
             raise PipelineError(f"--detections thermal: the bag has no {thermal_topic}")
         return "thermal"
-    if option == "none":
-        return "none"
+    if option in ("none", "background"):
+        return option
     if option.startswith("topic:"):
         name = option[len("topic:"):]
         if name not in topics:
@@ -191,7 +193,8 @@ def choose_detection_source(option: str, topics: Mapping[str, Any], single_targe
             raise PipelineError(f"--detections {option}: {name} is a {topics[name].msgtype}, "
                                 f"not a {DETECTION_TYPE}")
         return option
-    raise PipelineError(f"--detections must be auto, thermal, none or topic:NAME, got "
+    raise PipelineError(f"--detections must be auto, thermal, background, none or "
+                        f"topic:NAME, got "
                         f"{option!r}")
 
 
@@ -229,6 +232,7 @@ class _Run:
         self.tracker: MultiObjectTracker | None = None
         self.tracker_config = config.tracker
         self.detector = None
+        self.detector_method = "kernel_covariance"
         self.detections = DetectionBuffer(config.detection_buffer, config.detection_wait)
         #: RGB images held back for their detections: (message or None when undecodable,
         #: bag time ns, stamp s, bag time s when read)
@@ -256,9 +260,9 @@ class _Run:
     def thermal_image(self, msg: Any) -> None:
         r = self.result
         try:
-            frame = thermal_input(msg)
+            frame = detector_input(msg, self.detector_method)
         except ImageConversionError as exc:
-            r.problem(f"skipping a thermal image: {exc}")
+            r.problem(f"skipping a detector image: {exc}")
             return
         stamp = stamp_to_seconds(msg.header.stamp)
         try:
@@ -487,7 +491,12 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
         r.detection_source = source
         if source == "thermal":
             run.detector = build_detector(config.method, config.detector, config.threshold,
-                                          config.ignore_regions)
+                                          config.ignore_regions, config.background)
+            run.detector_method = config.method
+        elif source == "background":
+            run.detector = build_detector("background", config.detector, config.threshold,
+                                          config.ignore_regions, config.background)
+            run.detector_method = "background"
         has_truth = (options.ground_truth_topic in topics
                      and topics[options.ground_truth_topic].count > 0)
         if options.init_from_gt and not has_truth:
@@ -587,8 +596,8 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
     if topic == SCENE_INFO_TOPIC:
         run.scene_info(msg)
     elif topic == opts.image_topic:
-        if source == "thermal" and topic == opts.thermal_topic:     # thermal-only mode
-            run.thermal_image(msg)
+        if (source == "thermal" and topic == opts.thermal_topic) or source == "background":
+            run.thermal_image(msg)        # thermal-only mode, or background subtraction
         run.rgb_image(msg, m.timestamp_ns)
     elif topic == opts.ground_truth_topic:
         run.ground_truth(msg)
@@ -604,7 +613,8 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", type=Path, help="rosbag2 bag (directory or .mcap/.db3)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--detections", default="auto", metavar="SOURCE",
-                        help="auto | thermal | none | topic:NAME (default auto)")
+                        help="auto | thermal | background | none | topic:NAME (default auto; "
+                             "background: background subtraction on the RGB image)")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--init", metavar="X,Y,W,H", default=None,
                        help="single target: start a track on this box in the first frame")

@@ -26,6 +26,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
 from mk_tracker.detection.threshold_detector import ThresholdDetectorConfig
+from mk_tracker.detection.background_detector import BackgroundDetectorConfig
 from mk_tracker.frame_processing import build_detector
 from mk_tracker.parameters import ParameterError, parameter_specs, updated
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker, MultiObjectTrackerConfig
@@ -116,6 +117,7 @@ class PipelineConfig:
     tracker: MultiObjectTrackerConfig = field(default_factory=MultiObjectTrackerConfig)
     detector: ThermalDetectorConfig = field(default_factory=ThermalDetectorConfig)
     threshold: ThresholdDetectorConfig = field(default_factory=ThresholdDetectorConfig)
+    background: BackgroundDetectorConfig = field(default_factory=BackgroundDetectorConfig)
     method: str = DETECTOR_NODE_DEFAULTS["method"]
     ignore_regions: tuple = DETECTOR_NODE_DEFAULTS["ignore_regions"]
     detector_class_id: str = DETECTOR_NODE_DEFAULTS["class_id"]
@@ -137,7 +139,8 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         files.append(Path(p))
     det_cfgs, det_rest = split_parameters(
         read_node_parameters(files, "detector_node"),
-        {"detector": ThermalDetectorConfig(), "threshold": ThresholdDetectorConfig()})
+        {"detector": ThermalDetectorConfig(), "threshold": ThresholdDetectorConfig(),
+         "background": BackgroundDetectorConfig()})
     trk_cfgs, trk_rest = split_parameters(read_node_parameters(files, "tracker_node"),
                                           {"tracker": MultiObjectTrackerConfig()})
     try:
@@ -154,7 +157,7 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         raise PipelineError(f"detection_wait must be in [0, 2] s, got {wait}")
     config = PipelineConfig(
         tracker=trk_cfgs["tracker"], detector=det_cfgs["detector"],
-        threshold=det_cfgs["threshold"],
+        threshold=det_cfgs["threshold"], background=det_cfgs["background"],
         method=str(det_rest.get("method", DETECTOR_NODE_DEFAULTS["method"])),
         ignore_regions=_float_tuple(det_rest.get("ignore_regions",
                                                  DETECTOR_NODE_DEFAULTS["ignore_regions"])),
@@ -166,7 +169,7 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])))
     try:
         build_detector(config.method, config.detector, config.threshold,
-                       config.ignore_regions)
+                       config.ignore_regions, config.background)
         MultiObjectTracker(config.tracker)
     except ValueError as exc:
         raise PipelineError(f"parameters rejected: {exc}") from exc

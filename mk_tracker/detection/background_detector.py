@@ -1,0 +1,364 @@
+"""People in a static RGB (or grey) camera by background subtraction: the automatic front end
+of Chu et al. (2013), Sec. IV-D and Fig. 8 ("from the background subtraction to the end of
+tracking, everything is fully automatic"), for users with no thermal camera (issue #13).
+
+The per-pixel background model is OpenCV's (a maintained implementation): MOG2, the
+adaptive Gaussian mixture of Zivkovic (2004, 2006), or KNN (Zivkovic & van der Heijden
+2006), chosen by ``model``.  Both mark shadows separately (value 127), which are dropped.
+This module turns the foreground mask into one box per person:
+
+1. **Working scale.**  Frames wider than ``max_width`` are reduced first (area averaging):
+   the mask of a person needs no more pixels than that, and the cost falls with the square.
+2. **Global change.**  When more than ``max_foreground_fraction`` of the frame is foreground
+   (lights switched on, the camera moved), the model is restarted from this frame, the event
+   counted (:attr:`global_changes`) and no box is reported for the frame, instead of one
+   frame-sized detection flooding the tracker.
+3. **Morphology sized to a person.**  An opening of about a tenth of the expected person
+   width removes speckle; a closing with a tall, narrow element joins a person cut by a thin
+   vertical occluder (a pole or a sign) or split at the waist.
+4. **Person size per image row, learnt online.**  A component whose aspect ratio is that of
+   one upright person gives a sample (bottom row, height); a line ``h = a + b * y_bottom``
+   is fitted to them by least squares with exponential forgetting (``size_memory``): under a
+   ground-plane camera a person's image height is close to linear in the row of the feet.
+5. **Joining.**  Two boxes that overlap horizontally and are separated vertically by less
+   than ``join_gap`` of the expected height are one person broken apart.
+6. **Splitting groups.**  A component wider than ``split_ratio`` expected person widths is
+   cut into ``round(width / expected width)`` people at the minima of the mask's vertical
+   projection (column sums) near the evenly spaced cut positions; each part's box is then
+   tightened to its own foreground rows.
+
+People who stand still become background and are no longer detected: with OpenCV's
+background ratio (0.9) a still colour joins the background after about ``0.1 * history``
+frames at the automatic learning rate; the tracker keeps their tracks by coasting (its lifecycle), as for any missed
+detection.  Bad input: a frame of another size restarts the model (:attr:`last_event` says
+why); a stamp going backwards restarts it too; a repeated stamp is skipped
+(``last_mode == "out_of_order"``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+
+from mk_tracker.detection.thermal_image import ThermalInputError
+from mk_tracker.parameters import parameter, validate_config
+from mk_tracker.stamps import checked_stamp
+
+MODELS = ("mog2", "knn")
+SHADOW_VALUE = 127
+
+
+@dataclass(frozen=True)
+class BackgroundDetectorConfig:
+    """Constants of the background-subtraction detector (``background.*`` parameters)."""
+
+    model: str = parameter("mog2", "Per-pixel background model: OpenCV MOG2 (Gaussian "
+                           "mixture) or KNN", choices=MODELS)
+    history: int = parameter(500, "Frames the background model remembers (a person standing "
+                             "still for about a tenth of this becomes background)", minimum=2,
+                             maximum=100_000)
+    var_threshold: float = parameter(
+        16.0, "Foreground threshold: squared Mahalanobis distance (MOG2) or squared distance "
+        "(KNN uses 25x this value, its own default scale)", minimum=1.0, maximum=10_000.0)
+    shadow_threshold: float = parameter(
+        0.5, "Shadow test of the model: a darker pixel whose brightness ratio to the "
+        "background is at least this is a shadow and dropped (higher: fewer shadows, so dark "
+        "clothes are not taken for shadows)", minimum=0.0, maximum=1.0)
+    learning_rate: float = parameter(
+        -1.0, "Model learning rate per frame; -1 = 1/history (OpenCV's automatic rate)",
+        minimum=-1.0, maximum=1.0)
+    startup_frames: int = parameter(10, "Frames after a (re)start before boxes are reported "
+                                    "(the model learns the background first)", minimum=0,
+                                    maximum=10_000)
+    max_width: int = parameter(320, "Frames wider than this are reduced before the model "
+                               "(px; speed)", minimum=32, maximum=10_000)
+    max_foreground_fraction: float = parameter(
+        0.5, "Foreground share of the frame above which the scene changed globally (lights, "
+        "camera moved): the model restarts, no box", minimum=0.01, maximum=1.0)
+    min_person_height: float = parameter(
+        24.0, "Smallest person height in the full image, px (sizes the morphology and the "
+        "smallest box)", minimum=2.0, maximum=10_000.0)
+    person_aspect: float = parameter(0.4, "Width / height of one upright person",
+                                     minimum=0.1, maximum=2.0)
+    min_fill: float = parameter(0.1, "Smallest share of foreground pixels in a box",
+                                minimum=0.0, maximum=1.0)
+    join_gap: float = parameter(0.3, "Largest vertical gap, in expected person heights, "
+                                "between two parts joined into one person", minimum=0.0,
+                                maximum=2.0)
+    split_ratio: float = parameter(1.6, "A blob wider than this many expected person widths "
+                                   "is split into several people", minimum=1.0, maximum=10.0)
+    size_memory: float = parameter(
+        500.0, "Person-size samples remembered by the per-row height model (exponential "
+        "forgetting)", minimum=1.0, maximum=1e6)
+
+
+@dataclass(frozen=True)
+class ForegroundDetection:
+    """One person: ``box`` ``(x, y, w, h)`` in full-image pixels, ``score`` = share of
+    foreground pixels in the box, ``pixel_count`` foreground pixels (working scale)."""
+
+    box: tuple[float, float, float, float]
+    score: float
+    pixel_count: int
+
+
+class PersonHeightModel:
+    """``h = a + b * y_bottom`` fitted online by least squares with exponential forgetting
+    (weights ``(1 - 1/memory)^age``); without enough spread in ``y`` it is the weighted mean
+    height."""
+
+    def __init__(self, memory: float) -> None:
+        self.decay = 1.0 - 1.0 / max(float(memory), 1.0)
+        self.sums = np.zeros(5)          # n, y, h, yy, yh
+
+    @property
+    def samples(self) -> float:
+        return float(self.sums[0])
+
+    def add(self, y_bottom: float, height: float) -> None:
+        self.sums *= self.decay
+        self.sums += (1.0, y_bottom, height, y_bottom * y_bottom, y_bottom * height)
+
+    def height_at(self, y_bottom: float) -> float | None:
+        n, sy, sh, syy, syh = self.sums
+        if n < 2.5:                      # fewer than about 3 samples
+            return None
+        var = syy / n - (sy / n) ** 2
+        mean_h = sh / n
+        if var < 1.0:                    # all samples on (nearly) one row
+            return float(mean_h)
+        b = (syh / n - (sy / n) * mean_h) / var
+        return float(mean_h + b * (y_bottom - sy / n))
+
+
+class BackgroundDetector:
+    """Background subtraction + person-shaped boxes; same ``process`` interface as the
+    thermal detectors."""
+
+    def __init__(self, config: BackgroundDetectorConfig | None = None) -> None:
+        self.config = config if config is not None else BackgroundDetectorConfig()
+        validate_config(self.config)
+        self.heights = PersonHeightModel(self.config.size_memory)
+        self.global_changes = 0
+        self.restarts = 0
+        self.last_mode = "startup"
+        self.last_event: str | None = None
+        self._shape: tuple[int, ...] | None = None
+        self._last_stamp: float | None = None
+        self._model: Any = None
+        self._since_restart = 0
+        self._mono16_map: tuple[float, float] | None = None
+
+    # -- model ---------------------------------------------------------------------------
+    def _new_model(self) -> Any:
+        c = self.config
+        if c.model == "knn":
+            model = cv2.createBackgroundSubtractorKNN(history=c.history,
+                                                      dist2Threshold=25.0 * c.var_threshold,
+                                                      detectShadows=True)
+        else:
+            model = cv2.createBackgroundSubtractorMOG2(history=c.history,
+                                                       varThreshold=c.var_threshold,
+                                                       detectShadows=True)
+        model.setShadowThreshold(float(c.shadow_threshold))
+        return model
+
+    def reset(self) -> None:
+        """Forget the background (the person-size model is kept: the camera is the same)."""
+        self._model = self._new_model()
+        self._since_restart = 0
+        self._mono16_map = None
+        self.restarts += 1
+
+    # -- input ---------------------------------------------------------------------------
+    def _as_uint8(self, frame: np.ndarray, encoding: str | None) -> np.ndarray:
+        arr = np.asarray(frame)
+        if arr.ndim == 3 and arr.shape[2] == 4:
+            arr = arr[:, :, :3]
+        if encoding in ("rgb8", "rgba8"):
+            arr = arr[:, :, ::-1]
+        if arr.dtype == np.uint8:
+            return np.ascontiguousarray(arr)
+        if arr.dtype == np.uint16 or arr.dtype.kind == "f":
+            if self._mono16_map is None:       # fixed after a restart: no flicker
+                finite = arr[np.isfinite(arr)] if arr.dtype.kind == "f" else arr
+                if finite.size == 0:
+                    raise ThermalInputError("frame has no finite pixel")
+                lo, hi = np.percentile(finite, (0.5, 99.5))
+                self._mono16_map = (float(lo), 255.0 / max(float(hi - lo), 1e-6))
+            lo, scale = self._mono16_map
+            out = np.nan_to_num((arr.astype(np.float32) - lo) * scale, nan=0.0)
+            return np.clip(out, 0, 255).astype(np.uint8)
+        raise ThermalInputError(f"unsupported pixel type {arr.dtype}")
+
+    # -- per frame -----------------------------------------------------------------------
+    def process(self, frame: Any, stamp: float, encoding: str | None = None
+                ) -> list[ForegroundDetection]:
+        """People in ``frame`` (BGR/RGB/grey, 8 or 16 bit) taken at ``stamp`` seconds."""
+        t = checked_stamp(stamp, ThermalInputError)
+        self.last_event = None
+        if self._last_stamp is not None and t == self._last_stamp:
+            self.last_mode = "out_of_order"
+            return []
+        image = self._as_uint8(frame, encoding)
+        if self._model is None:
+            self.reset()
+        elif image.shape != self._shape:
+            self.last_event = (f"frame {image.shape[1]}x{image.shape[0]} differs from the "
+                               f"previous {self._shape[1]}x{self._shape[0]}: background "
+                               "model restarted")
+            self.reset()
+        elif self._last_stamp is not None and t < self._last_stamp:
+            self.last_event = "time went backwards: background model restarted"
+            self.reset()
+        self._shape = image.shape
+        self._last_stamp = t
+        height, width = image.shape[:2]
+        scale = min(1.0, self.config.max_width / float(width))
+        small = image if scale >= 1.0 else cv2.resize(
+            image, (max(1, round(width * scale)), max(1, round(height * scale))),
+            interpolation=cv2.INTER_AREA)
+        raw = self._model.apply(small, learningRate=self.config.learning_rate)
+        self._since_restart += 1
+        mask = (raw == 255).astype(np.uint8)
+        if (self._since_restart > self.config.startup_frames
+                and mask.mean() > self.config.max_foreground_fraction):
+            self.global_changes += 1
+            self.last_event = (f"{100 * mask.mean():.0f} % of the frame changed at once: "
+                               "background model restarted")
+            self.reset()
+            self._model.apply(small, learningRate=1.0)
+            self._since_restart = 1
+            self.last_mode = "global_change"
+            return []
+        if self._since_restart <= self.config.startup_frames:
+            self.last_mode = "startup"
+            return []
+        self.last_mode = "tracking"
+        boxes = self._person_boxes(mask, scale)
+        inv = 1.0 / scale
+        return [ForegroundDetection((x * inv, y * inv, w * inv, h * inv), fill, count)
+                for (x, y, w, h), fill, count in boxes]
+
+    # -- mask -> people --------------------------------------------------------------------
+    def _person_boxes(self, mask: np.ndarray, scale: float
+                      ) -> list[tuple[tuple[float, float, float, float], float, int]]:
+        c = self.config
+        min_h = c.min_person_height * scale
+        min_w = max(1.0, c.person_aspect * min_h)
+        k_open = max(1, int(round(min_w / 10.0)) | 1)
+        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
+        # fragments of one person (clothes like the background, a thin occluder) are grouped
+        # by a person-sized dilation; each group's box is that of its own foreground pixels
+        k_group = (max(3, int(round(min_w / 2.0)) | 1), max(3, int(round(min_h / 2.0)) | 1))
+        grouping = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_RECT, k_group))
+        n, labels = cv2.connectedComponents(grouping, connectivity=8)
+        labels = np.where(mask > 0, labels, 0)
+        min_area = 0.3 * min_w * min_h
+        parts = []
+        for i in range(1, n):
+            ys, xs = np.nonzero(labels == i)
+            if xs.size < 0.15 * min_w * min_h:
+                continue
+            parts.append((float(xs.min()), float(ys.min()), float(xs.max() - xs.min() + 1),
+                          float(ys.max() - ys.min() + 1)))
+        parts = self._join(parts, min_h / scale, scale)
+        out = []
+        for box in parts:
+            for sub in self._split(mask, box, scale):
+                x, y, w, h = sub
+                if h < 0.5 * min_h or w * h < min_area:
+                    continue
+                x0, y0 = int(x), int(y)
+                count = int(mask[y0:y0 + int(h), x0:x0 + int(w)].sum())
+                fill = count / max(w * h, 1.0)
+                if fill < c.min_fill:
+                    continue
+                self._learn(sub, scale)
+                out.append((sub, min(1.0, fill), count))
+        return out
+
+    def _expected_height(self, y_bottom: float, scale: float) -> float | None:
+        """Expected person height (working scale) with feet at ``y_bottom`` (working scale)."""
+        h = self.heights.height_at(y_bottom / scale)
+        if h is None:
+            return None
+        return max(h, self.config.min_person_height) * scale
+
+    def _learn(self, box: tuple[float, float, float, float], scale: float) -> None:
+        x, y, w, h = box
+        aspect = w / max(h, 1e-9)
+        a = self.config.person_aspect
+        if (0.6 * a <= aspect <= 1.5 * a and h / scale >= self.config.min_person_height):
+            # one upright person (not a fragment): a size sample
+            self.heights.add((y + h) / scale, h / scale)
+
+    def _join(self, boxes: list, _min_h_full: float, scale: float) -> list:
+        """Merge parts stacked vertically with a small gap (a person broken apart)."""
+        boxes = sorted(boxes, key=lambda b: b[1])
+        merged = True
+        while merged:
+            merged = False
+            for i in range(len(boxes)):
+                for j in range(i + 1, len(boxes)):
+                    a, b = boxes[i], boxes[j]
+                    overlap = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+                    if overlap < 0.5 * min(a[2], b[2]):
+                        continue
+                    top, bottom = (a, b) if a[1] <= b[1] else (b, a)
+                    gap = bottom[1] - (top[1] + top[3])
+                    bottom_y = max(a[1] + a[3], b[1] + b[3])
+                    expected = self._expected_height(bottom_y, scale) or \
+                        self.config.min_person_height * scale
+                    union_h = bottom_y - min(a[1], b[1])
+                    if gap > self.config.join_gap * expected or union_h > 1.3 * expected:
+                        continue
+                    x0, y0 = min(a[0], b[0]), min(a[1], b[1])
+                    x1 = max(a[0] + a[2], b[0] + b[2])
+                    boxes[i] = (x0, y0, x1 - x0, bottom_y - y0)
+                    del boxes[j]
+                    merged = True
+                    break
+                if merged:
+                    break
+        return boxes
+
+    def _split(self, mask: np.ndarray, box: tuple, scale: float) -> list:
+        """Cut a blob wider than ``split_ratio`` expected widths at projection minima."""
+        x, y, w, h = box
+        expected_h = self._expected_height(y + h, scale)
+        if expected_h is None:
+            return [box]
+        expected_w = self.config.person_aspect * expected_h
+        if w <= self.config.split_ratio * expected_w:
+            return [box]
+        people = max(2, int(round(w / expected_w)))
+        x0, y0, x1, y1 = int(x), int(y), int(x + w), int(y + h)
+        columns = mask[y0:y1, x0:x1].sum(axis=0).astype(np.float64)
+        step = (x1 - x0) / people
+        window = max(1, int(step / 3))
+        cuts = [x0]
+        for k in range(1, people):
+            centre = int(round(k * step))
+            lo, hi = max(1, centre - window), min(len(columns) - 1, centre + window)
+            if hi <= lo:
+                continue
+            # the emptiest column; among equals the one nearest the even spacing
+            candidates = np.arange(lo, hi)
+            best = np.lexsort((np.abs(candidates - centre), columns[lo:hi]))[0]
+            cuts.append(x0 + int(candidates[best]))
+        cuts.append(x1)
+        parts = []
+        for left, right in zip(cuts[:-1], cuts[1:]):
+            if right - left < 1:
+                continue
+            rows = np.flatnonzero(mask[y0:y1, left:right].any(axis=1))
+            if rows.size == 0:
+                continue
+            top, bottom = y0 + int(rows[0]), y0 + int(rows[-1]) + 1
+            parts.append((float(left), float(top), float(right - left), float(bottom - top)))
+        return parts or [box]
+
