@@ -746,3 +746,206 @@ def test_default_epsilon_is_0_01_and_weighting_kl():
     c = padded.evaluate_batch([template], centre, q)
     assert c.costs[0] == b.costs[0] and np.array_equal(c.mean_shift, b.mean_shift)
     assert region.evaluate(axes, centre, q, 0.5).costs[0] != b.costs[0]   # epsilon matters
+
+
+def _hand_kernel(bins, origin, stride, centre, axes, q, eps, weighting="kl",
+                 profile="roof"):
+    """Every output of one kernel straight from the definitions (module docstring), pixel by
+    pixel: an oracle that shares no code with the module."""
+    m = q.size
+    pix = []
+    for r in range(bins.shape[0]):
+        for c in range(bins.shape[1]):
+            x = origin[0] + c * stride + 0.5
+            y = origin[1] + r * stride + 0.5
+            v = ((x - centre[0]) / axes[0]) ** 2 + ((y - centre[1]) / axes[1]) ** 2
+            if v < 1.0:
+                k = 1.0 - v if profile == "roof" else np.exp(-2.0 * v)
+                g = 1.0 if profile == "roof" else 2.0 * np.exp(-2.0 * v)
+                pix.append((int(bins[r, c]), x, y, v, k, g))
+    if not pix:
+        return dict(n=0, p=np.zeros(m), cost=np.inf, sim=0.0, ms=np.zeros(2), ratio=0.0)
+    p = np.zeros(m)
+    for b, x, y, v, k, g in pix:
+        p[b] += k
+    p /= p.sum()
+    ps = (1.0 - eps) * p + eps / m
+    cost = sum(q[u] * np.log(q[u] / ps[u]) for u in range(m) if q[u] > 0)
+    w = {b: (q[b] / ps[b]) ** (0.5 if weighting == "bhattacharyya" else 1.0)
+         for b, *_ in pix}
+    s = sum(w[b] * g for b, x, y, v, k, g in pix)
+    ms = np.zeros(2)
+    if s > 0:
+        ms = np.array([sum(w[b] * g * x for b, x, y, v, k, g in pix) / s - centre[0],
+                       sum(w[b] * g * y for b, x, y, v, k, g in pix) / s - centre[1]])
+    sk = sum(k for *_, k, g in pix)
+    wk = sum(w[b] * k for b, x, y, v, k, g in pix)
+    ratio = 0.0
+    if wk > 0:
+        ratio = 2.0 / (axes[0] ** 2 + axes[1] ** 2) * (
+            sum(w[b] * g * v for b, x, y, v, k, g in pix) / wk
+            - sum(g * v for *_, v, k, g in pix) / sk)
+    return dict(n=len(pix), p=p, cost=cost, sim=np.exp(-max(cost, 0.0)), ms=ms, ratio=ratio,
+                pixels=sorted((b, x, y) for b, x, y, *_ in pix))
+
+
+# small kernels on a 6 x 7 ROI whose bin names the element: empty first (a kernel after an
+# empty one must still be evaluated), one pixel with k = 0.75 (total weight below 1), two
+# pixels with k = 0.67 and 0.27, a pixel exactly on the ellipse (v = 1, not inside), and
+# kernels that hang over the ROI's edges
+SMALL_KERNELS = [((40.0, 40.0), (1.0, 1.0)), ((2.5, 2.8), (0.6, 0.6)),
+                 ((2.9, 2.5), (0.7, 0.4)), ((3.0, 2.5), (1.5, 1.0)),
+                 ((0.2, 0.3), (1.3, 1.1)), ((6.9, 5.8), (1.2, 1.6)), ((3.5, 3.5), (2.2, 1.7))]
+
+
+@pytest.mark.parametrize("weighting", ["kl", "bhattacharyya"])
+@pytest.mark.parametrize("profile", ["roof", "gaussian"])
+def test_every_path_equals_the_definitions_on_small_kernels(weighting, profile):
+    bins = np.arange(42).reshape(6, 7)
+    m = 42
+    centres = np.array([c for c, _ in SMALL_KERNELS])
+    axes = np.array([a for _, a in SMALL_KERNELS])
+    models = np.zeros((len(centres), m))
+    for i, (c, a) in enumerate(zip(centres, axes)):
+        hand = _hand_kernel(bins, (0, 0), 1, c, a, np.full(m, 1.0 / m), 0.01, weighting,
+                            profile)
+        models[i] = hand["p"] if hand["n"] else 1.0 / m    # its own histogram: cost < 1
+        models[i, (i * 5) % m] += 0.3
+        models[i] /= models[i].sum()
+    hands = [_hand_kernel(bins, (0, 0), 1, c, a, q, 0.01, weighting, profile)
+             for c, a, q in zip(centres, axes, models)]
+    assert [h["n"] for h in hands][:4] == [0, 1, 2, 2]     # (3, 2.5): v = 1 at x = 1.5, 4.5
+    assert any(0 < h["cost"] < 1 for h in hands)
+
+    def check(n, p, cost, sim, ms, ratio):
+        for i, h in enumerate(hands):
+            assert n[i] == h["n"], i
+            assert np.allclose(p[i], h["p"], rtol=0, atol=1e-12), i
+            assert cost[i] == pytest.approx(h["cost"], abs=1e-12), i
+            assert sim[i] == pytest.approx(h["sim"], abs=1e-12), i
+            assert np.allclose(ms[i], h["ms"], rtol=0, atol=1e-12), i
+            assert ratio[i] == pytest.approx(h["ratio"], abs=1e-12), i
+
+    with np.errstate(all="raise"):
+        evs = [evaluate_kernel(bins, (0, 0), c, a, q, profile=profile, weighting=weighting)
+               for c, a, q in zip(centres, axes, models)]
+        check(*zip(*[(e.n_pixels, e.p, e.cost, e.similarity, e.mean_shift, e.scale_ratio)
+                     for e in evs]))
+        templates = [_kh.KernelTemplate(a, 1, profile) for a in axes]
+        padded = _kh.PaddedBins(bins, (0, 0), 1, m,
+                                tuple(int(r) for r in np.max([t.reach for t in templates], 0)))
+        many = padded.evaluate_many(templates, centres, models, 0.01, weighting)
+        check(*zip(*[(e.n_pixels, e.p, e.cost, e.similarity, e.mean_shift, e.scale_ratio)
+                     for e in many]))
+        for e, h in zip(many, hands):          # the kept pixels, in image coordinates
+            if h["n"]:
+                got = sorted(zip(e.sample.bins.tolist(), e.sample.xs.tolist(),
+                                 e.sample.ys.tolist()))
+                assert np.allclose(got, h["pixels"], rtol=0, atol=1e-12)
+        for backend in ("numpy", "plain"):
+            if backend == "plain":
+                n_k = len(centres)
+                b = _kh.KernelBatch(np.zeros((n_k, m)), np.zeros(n_k), np.zeros(n_k),
+                                    np.zeros((n_k, 2)), np.zeros(n_k, np.int64), np.zeros(n_k))
+                _kh._kernels_loops(bins.astype(np.int32), 0, 0, 1, centres, axes, models,
+                                   0.01, weighting == "bhattacharyya", profile == "gaussian",
+                                   b.p, b.costs, b.similarities, b.mean_shift, b.n_pixels,
+                                   b.scale_ratios)
+            else:
+                b = SearchRegion(bins, (0, 0), 1, m, profile, "numpy").evaluate(
+                    axes, centres, models, weighting=weighting)
+                assert b.n_pixels.dtype == np.int64
+            check(b.n_pixels, b.p, b.costs, b.similarities, b.mean_shift, b.scale_ratios)
+        # all kernels valid: the batch's fast path
+        b = padded.evaluate_batch(templates[1:], centres[1:], models[1:], 0.01, weighting)
+        assert b.n_pixels.dtype == np.int64
+        check(np.r_[0, b.n_pixels], np.r_[[np.zeros(m)], b.p], np.r_[np.inf, b.costs],
+              np.r_[0.0, b.similarities], np.r_[[np.zeros(2)], b.mean_shift],
+              np.r_[0.0, b.scale_ratios])
+
+
+def test_a_kernel_reaching_past_the_padding_in_one_direction_is_refused():
+    bins = np.zeros((20, 20), np.int64)
+    padded = _kh.PaddedBins(bins, (0, 0), 1, M, (4, 4))
+    for axes in ([8.0, 2.0], [2.0, 8.0]):
+        with pytest.raises(ValueError, match="padding"):
+            padded.evaluate(_kh.KernelTemplate(np.array(axes), 1), np.array([10.0, 10.0]),
+                            np.full(M, 1.0 / M))
+
+
+def test_a_template_serves_rois_of_different_widths():
+    # the template caches its flat offsets for one row width; another ROI width needs others
+    bins = np.arange(42).reshape(6, 7)
+    q = np.full(42, 1.0 / 42)
+    template = _kh.KernelTemplate(np.array([1.5, 1.2]), 1)
+    for width in (7, 5, 7):
+        roi = bins[:, :width]
+        padded = _kh.PaddedBins(roi, (0, 0), 1, 42, template.reach)
+        ev = padded.evaluate(template, np.array([2.6, 3.1]), q)
+        hand = _hand_kernel(roi, (0, 0), 1, np.array([2.6, 3.1]), np.array([1.5, 1.2]), q,
+                            0.01)
+        assert sorted(ev.sample.bins.tolist()) == sorted(
+            int(roi[int(y - 0.5), int(x - 0.5)]) for x, y in zip(ev.sample.xs, ev.sample.ys))
+        assert ev.n_pixels == hand["n"] and np.allclose(ev.p, hand["p"], atol=1e-12)
+
+
+def test_compiled_loops_take_exactly_the_pixels_inside_the_ellipse():
+    rng = np.random.default_rng(23)
+    shape = (9, 11)
+    bins = np.arange(99, dtype=np.int32).reshape(shape)
+    for trial in range(40):
+        stride = int(rng.integers(1, 4))
+        origin = (int(rng.integers(0, 5)), int(rng.integers(0, 5)))
+        n_k = 4
+        axes = rng.uniform(0.5, 4.0, (n_k, 2))
+        centres = rng.uniform(-3.0, 40.0, (n_k, 2))
+        models = np.full((n_k, 99), 1.0 / 99)
+        p, costs, sims = np.zeros((n_k, 99)), np.zeros(n_k), np.zeros(n_k)
+        ms, counts, ratios = np.zeros((n_k, 2)), np.zeros(n_k, np.int64), np.zeros(n_k)
+        _kh._kernels_loops(bins, origin[0], origin[1], stride, centres, axes, models, 0.01,
+                           False, False, p, costs, sims, ms, counts, ratios)
+        for i in range(n_k):
+            expected = _brute_force_pixels(shape, origin, stride, centres[i], axes[i])
+            assert counts[i] == len(expected)
+            assert np.array_equal(p[i] > 0, np.isin(np.arange(99), [r * 11 + c for r, c
+                                                                      in expected])), i
+
+
+def test_backend_numpy_never_uses_the_compiled_loops(monkeypatch):
+    calls = []
+
+    def quantize_loops(*args):
+        calls.append("q")
+        return _kh._quantize_loops(*args)
+
+    def kernels_loops(*args):
+        calls.append("k")
+        return _kh._kernels_loops(*args)
+
+    monkeypatch.setattr(_kh, "compiled_kernels", lambda: (quantize_loops, kernels_loops))
+    assert resolve_backend("numpy") == "numpy" and resolve_backend("auto") == "compiled"
+    img = _blob_scene()[:20, :30]
+    for backend in ("numpy", "compiled", "auto"):
+        before = len(calls)
+        got = quantize_region(img, (2, 1, 29, 19), 2, "hsv", BINS, backend)
+        assert np.array_equal(got, quantize(img[1:19:2, 2:29:2], "hsv", BINS))
+        assert len(calls) - before == (0 if backend == "numpy" else 1)
+    # the default backend is "auto"
+    assert np.array_equal(quantize_region(img, (0, 0, 30, 20), 1, "bgr", (4, 4, 4)),
+                          quantize(img, "bgr", (4, 4, 4)))
+    # an empty region gives an empty array on either path (bgr: OpenCV's HSV conversion
+    # refuses an empty image, so the numpy path raises for an empty HSV region)
+    for backend in ("numpy", "compiled"):
+        assert quantize_region(img, (5, 5, 5, 9), 1, "bgr", BINS, backend).shape == (4, 0)
+        assert quantize_region(img, (5, 5, 8, 5), 2, "bgr", BINS, backend).shape == (0, 2)
+    region = SearchRegion(quantize(img, "hsv", BINS), (0, 0), 1, M, "roof", "compiled")
+    batch = region.evaluate(np.array([[3.0, 2.0]]), np.array([[10.0, 10.0]]),
+                            np.full((1, M), 1.0 / M))
+    assert calls[-1] == "k" and batch.n_pixels.dtype == np.int64 and batch.n_pixels[0] > 0
+
+
+def test_no_numba_environment_variable_disables_the_compiled_kernels(monkeypatch):
+    monkeypatch.setattr(_kh, "_COMPILED", [])
+    monkeypatch.setenv("MK_TRACKER_NO_NUMBA", "1")
+    assert _kh.compiled_kernels() is None
+    assert _kh._COMPILED == [None]
