@@ -55,6 +55,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from mk_tracker.bags.bag_errors import BagError
+from mk_tracker.bags.video_source import FrameSourceError, image_files, is_video_file
 from mk_tracker.bags.bag_io import open_bag
 from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.boxes import InvalidBoxError, as_box, iou
@@ -610,7 +611,14 @@ def _handle(run: _Run, reader: Any, m: Any, source: str) -> None:
 # -- command line ---------------------------------------------------------------------------
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bag", type=Path, help="rosbag2 bag (directory or .mcap/.db3)")
+    parser.add_argument("bag", type=Path, help="rosbag2 bag (directory or .mcap/.db3), or a "
+                        "video file / image folder (imported into OUT/input_bag first)")
+    parser.add_argument("--thermal", action="store_true",
+                        help="the video / image folder is a thermal camera (thermal-only "
+                             "mode); default: an RGB camera, detected by background "
+                             "subtraction")
+    parser.add_argument("--fps", type=float, default=None,
+                        help="frame rate of an image folder (a video's own rate otherwise)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--detections", default="auto", metavar="SOURCE",
                         help="auto | thermal | background | none | topic:NAME (default auto; "
@@ -650,12 +658,46 @@ def options_from_args(args: argparse.Namespace) -> PipelineOptions:
                            use_scene_homography=not args.no_scene_homography)
 
 
+def is_recording(path: Path) -> bool:
+    """A video file, or a folder of images that is not a bag (no metadata.yaml / .mcap /
+    .db3 in it)."""
+    path = Path(path)
+    if is_video_file(path):
+        return True
+    if not path.is_dir() or (path / "metadata.yaml").exists():
+        return False
+    if any(path.glob("*.mcap")) or any(path.glob("*.db3")):
+        return False
+    return bool(image_files(path))
+
+
+def import_for_processing(path: Path, out: Path, options: PipelineOptions, *,
+                          thermal: bool, fps: float | None) -> tuple[Path, PipelineOptions]:
+    """Import the recording ``path`` into ``out/input_bag`` (RGB, or thermal with
+    ``thermal``) and the options to process it: ``--detections auto`` becomes background
+    subtraction for an RGB recording (issue #13) and the thermal detector for a thermal
+    one (thermal-only mode, issue #19)."""
+    from mk_tracker.bags.recording_import import import_recording, open_recording
+    bag = out / "input_bag"
+    if bag.exists():
+        raise PipelineError(f"{bag} exists already; choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    import_recording(open_recording(path, fps), bag, thermal=thermal)
+    if options.detections == "auto" and not options.single_target:
+        options = replace(options, detections="thermal" if thermal else "background")
+    return bag, options
+
+
 def run(args: argparse.Namespace) -> int:
     try:
         options = options_from_args(args)
         config = load_pipeline_config(args.params_file)
-        result = process_bag(args.bag, args.out, config, options)
-    except (PipelineError, BagError, ParameterError) as exc:
+        bag = args.bag
+        if is_recording(bag):          # a video or image folder: import it first
+            bag, options = import_for_processing(bag, Path(args.out), options,
+                                                 thermal=args.thermal, fps=args.fps)
+        result = process_bag(bag, args.out, config, options)
+    except (PipelineError, BagError, ParameterError, FrameSourceError) as exc:
         print(f"mk_tracker process: {exc}", file=sys.stderr)
         return 2
     fps = result.frames / result.seconds if result.seconds > 0 else float("nan")

@@ -180,3 +180,21 @@ def test_process_tracks_a_thermal_only_bag_in_the_thermal_image(tmp_path):
     assert rc == 0, summary
     assert summary["thermal_only"] is True and summary["detection_source"] == "thermal"
     assert summary["frames"] == 40 and summary["detections"] > 0
+
+
+def test_process_runs_on_a_video_in_one_step(tmp_path):
+    """`mk_tracker process VIDEO`: imported into OUT/input_bag, and an RGB recording with
+    --detections auto is detected by background subtraction (issue #13)."""
+    from mk_tracker.synthetic.scene_bag import build_preset
+    scene = build_preset("crowd", seed=5, people=2, frames=40, width=320, height=240)
+    video = tmp_path / "clip.avi"
+    _write_video(video, [scene.frame(k).rgb for k in range(40)], fps=25.0)
+    out = tmp_path / "run"
+    rc = cli.main(["process", str(video), "--out", str(out), "--quiet", "--no-video"])
+    summary = json.loads((out / "summary.json").read_text())
+    assert rc == 0, summary
+    assert summary["detection_source"] == "background" and summary["frames"] == 40
+    assert summary["detections"] > 0
+    assert len(_messages(out / "input_bag", "/image_raw")) == 40
+    # the same output folder again: refused, nothing overwritten
+    assert cli.main(["process", str(video), "--out", str(out), "--quiet", "--no-video"]) != 0
