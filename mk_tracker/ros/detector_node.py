@@ -6,8 +6,9 @@ covariance factorization, Schizas, Maroulas & Ren 2018) and the threshold baseli
 
 Topics (names are parameters):
 
-* subscribes ``thermal/image_raw`` (sensor_msgs/Image: mono8, mono16, 16UC1, 32FC1),
-  sensor-data QoS, depth 1; only the newest frame is processed, overwritten frames are
+* subscribes ``thermal/image_raw`` (sensor_msgs/Image: mono8, mono16, 16UC1, 32FC1, yuv422
+  luma; or, with ``image_transport: compressed``, sensor_msgs/CompressedImage PNG/JPEG on
+  ``thermal/image_raw/compressed``), sensor-data QoS, depth 1; only the newest frame is processed, overwritten frames are
   counted and reported (:class:`mk_tracker.ros.latest_frame.LatestFrameWorker`);
 * publishes ``thermal/detections`` (vision_msgs/Detection2DArray): header copied from the
   image, ``id`` empty, one result with ``class_id`` and the detector's score
@@ -36,6 +37,9 @@ from mk_tracker.detection.ignore_regions import parse_regions
 from mk_tracker.frame_processing import (METHODS, build_detector, detector_debug_image,
                                          detector_event, detector_outputs, skipped_reason,
                                          detector_input)
+from mk_tracker.messages.compressed_image import as_image
+from mk_tracker.messages.image_transport import TRANSPORTS
+from mk_tracker.ros.image_subscription import ImageSubscription
 from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
@@ -44,7 +48,6 @@ from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
 from mk_tracker.ros.qos import SubscriptionQosConfig, publisher_qos, subscription_qos
-from mk_tracker.ros.subscription_events import log_matches
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 from mk_tracker.detection.background_detector import BackgroundDetector, BackgroundDetectorConfig
@@ -60,6 +63,14 @@ class DetectorNodeConfig:
         "thermal/detections", "Output topic (vision_msgs/Detection2DArray)", read_only=True)
     image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
                                                  "QoS of the image subscription")
+    image_transport: str = parameter(
+        "raw", "raw: sensor_msgs/Image on image_topic; compressed: sensor_msgs/CompressedImage "
+        "(JPEG or PNG, 16-bit PNG for mono16) on <image_topic>/compressed, as image_transport "
+        "publishes it", choices=TRANSPORTS, read_only=True)
+    no_image_warning: float = parameter(
+        5.0, "Seconds without an image after which the node looks at the ROS graph once and "
+        "warns if image_topic has another type or a /compressed (or raw) sibling exists; "
+        "0 = never", minimum=0.0, maximum=3600.0, read_only=True)
     method: str = parameter(
         "kernel_covariance", "Detection method: sparse kernel covariance factorization "
         "(Schizas et al. 2018) or the threshold baseline", choices=METHODS)
@@ -151,12 +162,11 @@ class DetectorNode(Node):
                            lambda: warm_up_detector(kernel_cfg))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="detector_node-frames").start()
-        self.create_subscription(
-            Image, cfg.image_topic, self._worker.submit, subscription_qos(cfg.image_qos),
-            event_callbacks=log_matches(self.get_logger().info,
-                                        self.resolve_topic_name(cfg.image_topic)))
+        self._images = ImageSubscription(self, cfg.image_topic, cfg.image_transport,
+                                         self._worker.submit, subscription_qos(cfg.image_qos),
+                                         cfg.no_image_warning)
         self.get_logger().info(
-            f"detecting people ({cfg.method}) in {self.resolve_topic_name(cfg.image_topic)} -> "
+            f"detecting people ({cfg.method}) in {self._images.topic} -> "
             f"{self.resolve_topic_name(cfg.detections_topic)}")
 
     # -- parameters ----------------------------------------------------------------------
@@ -190,6 +200,7 @@ class DetectorNode(Node):
     def _process_image(self, msg: Image) -> None:
         counters = self._counters
         try:
+            msg = as_image(msg)             # a CompressedImage is decoded here
             frame = detector_input(msg, self.node_config.method)
         except ImageConversionError as exc:
             counters.bad_images += 1

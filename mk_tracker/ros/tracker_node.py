@@ -8,8 +8,10 @@ going backwards, lifecycle) is the library's, the per-frame glue is
 
 Topics (names are parameters):
 
-* subscribes ``image_raw`` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, mono8), sensor-data
-  QoS, depth 1; only the newest frame is processed, overwritten frames are counted and
+* subscribes ``image_raw`` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, mono8, yuv422,
+  yuv422_yuy2, 8-bit Bayer; or, with ``image_transport: compressed``, sensor_msgs/
+  CompressedImage JPEG/PNG on ``image_raw/compressed``), sensor-data QoS, depth 1; only
+  the newest frame is processed, overwritten frames are counted and
   reported (:class:`mk_tracker.ros.latest_frame.LatestFrameWorker`);
 * subscribes ``thermal/detections`` (vision_msgs/Detection2DArray from any publisher);
   the last ``detection_buffer`` messages are kept, and each frame gets those stamped at or
@@ -50,6 +52,9 @@ from mk_tracker.messages.detection_messages import (Detection, DetectionMessageE
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, detection_plane,
                                          kernel_drawings, tracker_debug_image, tracker_input,
                                          tracker_inputs, tracks_to_detections)
+from mk_tracker.messages.compressed_image import as_image
+from mk_tracker.messages.image_transport import TRANSPORTS
+from mk_tracker.ros.image_subscription import ImageSubscription
 from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
@@ -75,6 +80,14 @@ class TrackerNodeConfig:
     detections_topic: str = parameter(
         "thermal/detections", "Detections topic (vision_msgs/Detection2DArray)", read_only=True)
     tracks_topic: str = parameter("tracks", "Output topic of tracked boxes", read_only=True)
+    image_transport: str = parameter(
+        "raw", "raw: sensor_msgs/Image on image_topic; compressed: sensor_msgs/CompressedImage "
+        "(JPEG or PNG, 16-bit PNG for mono16) on <image_topic>/compressed, as image_transport "
+        "publishes it", choices=TRANSPORTS, read_only=True)
+    no_image_warning: float = parameter(
+        5.0, "Seconds without an image after which the node looks at the ROS graph once and "
+        "warns if image_topic has another type or a /compressed (or raw) sibling exists; "
+        "0 = never", minimum=0.0, maximum=3600.0, read_only=True)
     image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
                                                  "QoS of the image subscription")
     detections_qos: SubscriptionQosConfig = parameter(
@@ -178,9 +191,9 @@ class TrackerNode(Node):
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="tracker_node-frames").start()
         log = self.get_logger().info
-        self.create_subscription(
-            Image, cfg.image_topic, self._worker.submit, subscription_qos(cfg.image_qos),
-            event_callbacks=log_matches(log, self.resolve_topic_name(cfg.image_topic)))
+        self._images = ImageSubscription(self, cfg.image_topic, cfg.image_transport,
+                                         self._worker.submit, subscription_qos(cfg.image_qos),
+                                         cfg.no_image_warning)
         self.create_subscription(
             Detection2DArray, cfg.detections_topic, self._on_detections,
             subscription_qos(cfg.detections_qos),
@@ -189,7 +202,7 @@ class TrackerNode(Node):
         self.create_subscription(Detection2D, "~/start_track", self._on_start_track,
                                  subscription_qos(SubscriptionQosConfig("reliable", 10)))
         self.get_logger().info(
-            f"tracking {self.resolve_topic_name(cfg.image_topic)} with detections from "
+            f"tracking {self._images.topic} with detections from "
             f"{self.resolve_topic_name(cfg.detections_topic)} -> "
             f"{self.resolve_topic_name(cfg.tracks_topic)}; "
             f"{tracker_cfg.multi_kernel.num_kernels} kernels per target")
@@ -247,6 +260,7 @@ class TrackerNode(Node):
     def _process_image(self, msg: Image) -> None:
         counters = self._counters
         try:
+            msg = as_image(msg)             # a CompressedImage is decoded here
             bgr = tracker_input(msg)
         except ImageConversionError as exc:
             counters.bad_images += 1

@@ -183,7 +183,7 @@ def test_bad_input_is_logged_and_skipped_and_tracking_continues(peer, start_trac
     assert len(ids_before) == 2
     stamp = scene.frame(15).stamp
     bad_images = [
-        (_image("yuv422", 480, 640, bytes(640 * 480 * 2), 1280, stamp), "yuv422"),
+        (_image("bayer_rggb16", 480, 640, bytes(640 * 480 * 2), 1280, stamp), "bayer_rggb16"),
         (_image("bgr8", 480, 640, bytes(1000), 1920, stamp), "fewer than step*height"),
         (_image("bgr8", 0, 0, b"", 0, stamp), "zero size"),
         (_image("bgr8", 480, 640, bytes(640 * 480 * 3), 100, stamp), "is smaller than width"),
@@ -210,7 +210,7 @@ def test_bad_input_is_logged_and_skipped_and_tracking_continues(peer, start_trac
     peer.spin_for(0.2)
     assert node.alive()
     log = node.output()
-    for text in ("yuv422", "fewer than step*height", "zero size", "unknown frame 'lidar'",
+    for text in ("bayer_rggb16", "fewer than step*height", "zero size", "unknown frame 'lidar'",
                  "time went backwards", "dropped 1 detection message(s) stamped after"):
         assert text in log, f"{text!r} not logged:\n{log}"
     assert "skipped 1 bad detection" in log
