@@ -1,5 +1,14 @@
 """Single-target benchmark of the multiple-kernel tracker against OpenCV's trackers.
 
+Default (issue #16): the **leave-one-clip-out protocol** of the hand-started tracker.  The
+development set (:func:`development_set`: OTB Crossing, OTB Woman, every TUD-Campus and
+TUD-Stadtmitte person, TUD-Stadtmitte at 6.25 fps, generator scenes at 7 fps with edge
+entries and fast walkers, a generator crowd) is run with every setting of a small grid of
+``manual_track`` settings (:data:`GRID`) and with CSRT and KCF on the same frames; for each
+clip the setting with the best success AUC on the other clips is chosen and reported on it
+(:func:`loso_main`).  It writes ``docs/benchmark_single_target.md``; ``--json FILE`` also
+dumps every figure.  ``--legacy`` gives the older in-sample tables described below.
+
 Runs, in one process on the same frames, the projected-gradient multiple-kernel tracker
 (1/2/4/6 kernels, with and without projected gradient, the single-kernel mean shift baseline
 and the paper's eps_J = 0.7N), our full tracker (the multiple-kernel refinement inside the
@@ -40,6 +49,7 @@ With the project's own .venv the contrib trackers are reported as unavailable.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -452,7 +462,14 @@ def main(argv=None) -> int:
     parser.add_argument("--held-out-seeds", default=",".join(map(str, HELD_OUT_SEEDS)),
                         help="comma-separated generator seeds of the held-out crowd scenes "
                         "(default %(default)s; others give a fresh check, e.g. 31,32,33,34)")
+    parser.add_argument("--json", default=None,
+                        help="also write every tracker's figures per sequence as JSON")
+    parser.add_argument("--legacy", action="store_true",
+                        help="the older in-sample tables of every tracker variant instead of "
+                        "the leave-one-clip-out protocol (writes a report only with --output)")
     args = parser.parse_args(argv)
+    if not args.legacy:
+        return loso_main(args, argv)
     try:
         seeds = tuple(int(v) for v in args.held_out_seeds.split(",") if v.strip())
     except ValueError:
@@ -470,8 +487,6 @@ def main(argv=None) -> int:
     seqs = [s for s in seqs if _selected(s.name, _names(args.sequences))]
     trackers = [(n, f) for n, f in trackers if _selected(n, _names(args.trackers))]
     output = args.output
-    if output is None and not (args.sequences or args.trackers):
-        output = str(REPO / "docs" / "benchmark_single_target.md")
     print(f"load average {load_before}; measured path: {fast_path()}", flush=True)
     warm_up(trackers)
     results: dict[str, dict[str, tuple[dict, float]]] = {}
@@ -804,7 +819,11 @@ def write_markdown(path: Path, seqs, trackers, results, argv, loads=None,
 
 #: hand-written findings of the investigation (issue #3); kept next to the code that
 #: produced them, regenerated into the report
-FINDINGS = """## Findings (hand-written from this run; the tables below are the evidence)
+FINDINGS = """## Findings (hand-written for issue #3 with the defaults of that time)
+
+*Historical: written for the `--legacy` tables when tracks started by hand had 6 kernels and
+no search additions; the defaults are now chosen by the leave-one-clip-out protocol
+(docs/benchmark_single_target.md).*
 
 * **Goal.**  The full tracker with the defaults for tracks started by hand (one shipped
   configuration, `MultiObjectTrackerConfig()`) is below every OpenCV tracker on each of the
@@ -932,6 +951,372 @@ FINDINGS = """## Findings (hand-written from this run; the tables below are the 
   the std reaches 1 box width only after ~1-2 s of coasting, and a person who turned while
   hidden is still far from the held box (hence 171 px on seed 21 person 5): the bound
   stops the runaway, it does not find the person."""
+
+
+# ------------------------------------------------------------------------------------------
+# Leave-one-clip-out protocol (issue #16): the primary figures of this benchmark
+
+from itertools import product  # noqa: E402
+
+from mk_tracker.synthetic.scene_config import (OccluderSpec, PersonSpec,  # noqa: E402
+                                               SceneConfig)
+from mk_tracker.synthetic.scene import make_scene  # noqa: E402
+
+#: seeds of the generator's 7 fps edge-entry scenes in the development set
+FAST_EDGE_SEEDS = (41, 42)
+#: generator crowd scenes (25 fps) in the development set
+DEV_CROWD_SEEDS = (11,)
+#: frame step of the low-frame-rate copies of TUD-Stadtmitte (25 fps / 4 = 6.25 fps)
+LOW_FPS_STEP = 4
+
+
+def fast_edge_scene(seed: int, frames: int = 40) -> "SyntheticScene":  # noqa: F821
+    """A 7 fps street: 4 people ~90 px tall (~30 px wide) walking 12-20 px per frame, two
+    of them entering at the left / right image edge (first box an edge-clipped sliver), two
+    walking together as a group, one pillar; conditions of issue #16's unseen clips."""
+    rng = np.random.default_rng([seed, 0x7F5])
+    w, h = 640, 480
+    people = []
+    for k in range(4):
+        speed = float(rng.uniform(12.0, 20.0))
+        y = float(rng.uniform(0.55, 0.9)) * h
+        if k == 0:        # enters at the left edge
+            wps = ((4.0, y), (w + 200.0, y + float(rng.uniform(-40, 40))))
+        elif k == 1:      # enters at the right edge
+            wps = ((w - 4.0, y), (-200.0, y + float(rng.uniform(-40, 40))))
+        else:             # a group of two walking together, crossing the others
+            x = float(rng.uniform(0.2, 0.4)) * w + (k - 2) * 34.0
+            wps = ((x, y), (x + float(rng.uniform(0.3, 0.5)) * w, y + float(rng.uniform(-60, 60))),
+                   (x + float(rng.uniform(-0.1, 0.2)) * w, y))
+        people.append(PersonSpec(waypoints=wps, speed=round(speed, 2), height=90.0,
+                                 after_last="continue"))
+    occ = (OccluderSpec(box=(float(rng.uniform(0.4, 0.6)) * w, 0.35 * h, 40.0, 0.5 * h),
+                        color=tuple(int(v) for v in rng.integers(40, 120, 3))),)
+    cfg = SceneConfig(seed=seed, frames=frames, fps=7.0, width=w, height=h, perspective=0.3,
+                      people=tuple(people), occluders=occ)
+    return make_scene(cfg)
+
+
+def _seqinfo_fps(root: Path) -> float:
+    ini = root / "seqinfo.ini"
+    if ini.is_file():
+        for line in ini.read_text().splitlines():
+            if line.strip().lower().startswith("framerate="):
+                return float(line.split("=", 1)[1])
+    return DEFAULT_FRAME_RATE
+
+
+def mot_person_sequences(name: str, step: int = 1, min_frames: int = 10) -> list[Sequence]:
+    """Every person of ``mot/<name>`` as a single target from its first gt box (clipped to the
+    image), scored on its frames with a box; ``step`` > 1 keeps every ``step``-th frame (a
+    lower frame rate with ``step`` times the motion per frame)."""
+    root = DATA / "mot" / name
+    if not root.is_dir():
+        return []
+    paths = sorted((root / "img1").glob("*.jpg"))
+    fps = _seqinfo_fps(root) / step
+    rows = read_mot_file(root / "gt" / "gt.txt", ground_truth=True)
+    first_img = cv2.imread(str(paths[0]))
+    height, width = first_img.shape[:2]
+    out = []
+    for pid in sorted({r.id for r in rows}):
+        mine = {r.frame: tuple(r.box) for r in rows if r.id == pid}
+        first, last = min(mine), max(mine)
+        numbers = list(range(first, last + 1, step))
+        if len(numbers) < min_frames:
+            continue
+        truth = [None if mine.get(f) is None else clip_box(mine[f], width, height)
+                 for f in numbers]
+        if truth[0] is None:
+            continue
+        suffix = "" if step == 1 else f" at {fps:g} fps"
+        out.append(Sequence(f"{name} person {pid}{suffix}",
+                            _image_reader([paths[f - 1] for f in numbers]), truth, truth[0],
+                            fps=fps))
+    return out
+
+
+def otb_sequence(name: str) -> list[Sequence]:
+    root = DATA / "otb" / name
+    if not root.is_dir():
+        return []
+    paths = sorted((root / "img").glob("*.jpg"))
+    truth = read_box_list(root / "groundtruth_rect.txt")[:len(paths)]
+    return [Sequence(f"OTB {name}", _image_reader(paths), truth, truth[0])]
+
+
+def development_set() -> list[tuple[str, Sequence]]:
+    """``(clip, sequence)`` of the development set; ``clip`` is the source video, the unit
+    that is held out (every person of a clip, and a clip's low-frame-rate copy, go
+    together, so no setting is ever reported on a clip whose images helped choose it)."""
+    out = [("OTB Crossing", s) for s in otb_sequence("Crossing")]
+    out += [("OTB Woman", s) for s in otb_sequence("Woman")]
+    out += [("TUD-Campus", s) for s in mot_person_sequences("TUD-Campus")]
+    out += [("TUD-Stadtmitte", s) for s in mot_person_sequences("TUD-Stadtmitte")]
+    out += [("TUD-Stadtmitte", s) for s in mot_person_sequences("TUD-Stadtmitte",
+                                                                 step=LOW_FPS_STEP,
+                                                                 min_frames=20)]
+    for seed in FAST_EDGE_SEEDS:
+        scene = fast_edge_scene(seed)
+        for pid in range(1, len(scene.config.people) + 1):
+            seq = synthetic_sequence(f"generator 7 fps edge/fast seed {seed} person {pid}",
+                                     scene, pid)
+            if seq.truth[0] is not None:
+                out.append((f"generator 7 fps seed {seed}", seq))
+    for seed in DEV_CROWD_SEEDS:
+        scene = crowd_scene(n_people=5, seed=seed, frames=150)
+        for pid in range(1, 6):
+            seq = synthetic_sequence(f"generator crowd 25 fps seed {seed} person {pid}",
+                                     scene, pid)
+            if seq.truth[0] is not None:
+                out.append((f"generator crowd seed {seed}", seq))
+    return out
+
+
+#: the settings of tracks started by hand that the protocol chooses between (a small grid:
+#: the layout, the coarse-to-fine start, the failure re-search, the bounded coasting)
+GRID = {
+    "num_kernels": (2, 6),
+    "multi_start_radius": (0.0, 0.5, 1.0),
+    "recovery_similarity": (0.0, 0.25, 0.4),
+    "max_coast_position_std": (0.0, 1.0),
+}
+
+
+def grid_configs() -> list[tuple[str, dict]]:
+    keys = list(GRID)
+    out = []
+    for values in product(*(GRID[k] for k in keys)):
+        setting = dict(zip(keys, values))
+        label = ", ".join(f"{k}={v:g}" for k, v in setting.items())
+        out.append((label, setting))
+    return out
+
+
+def manual_config(setting: dict) -> MultiObjectTrackerConfig:
+    d = MultiObjectTrackerConfig()
+    return replace(d, manual_track=replace(d.manual_track, **setting))
+
+
+def _mean_of(results: dict, names: list[str], key: str) -> float:
+    return float(np.mean([results[n][0][key] for n in names]))
+
+
+def choose(results: dict[str, dict], train: dict[str, list[str]]) -> str:
+    """The grid label with the highest success AUC on ``train`` (clip -> sequence names):
+    the mean over clips of each clip's mean, so a clip with many persons counts once."""
+    def score(label):
+        return float(np.mean([_mean_of(results[label], names, "success_auc")
+                              for names in train.values()]))
+    return max(results, key=score)
+
+
+def loso_main(args, argv) -> int:
+    cv2.setNumThreads(1)
+    load_before = os.getloadavg()
+    dev = development_set()
+    dev = [(c, s) for c, s in dev if _selected(s.name, _names(args.sequences))]
+    clips: dict[str, list[str]] = {}
+    for clip, seq in dev:
+        clips.setdefault(clip, []).append(seq.name)
+    grid = grid_configs()
+    peers = [(f"OpenCV {n}", _contrib(n)) for n in ("CSRT", "KCF")]
+    if args.list:
+        print("clips and sequences:")
+        for clip, names in clips.items():
+            print(f"  {clip}: " + "; ".join(names))
+        print("grid:\n  " + "\n  ".join(label for label, _ in grid))
+        return 0
+    factories = [(label, full_tracker_factory(manual_config(s))) for label, s in grid]
+    factories += [(n, opencv_tracker_factory(c)) for n, c in peers if c is not None]
+    print(f"load average {load_before}; measured path: {fast_path()}", flush=True)
+    warm_up(factories)
+    results: dict[str, dict] = {}
+    for clip, seq in dev:
+        frames = list(seq.frames())
+        cached = replace(seq, frames=lambda: iter(frames))
+        print(f"{clip} / {seq.name} ({len(seq.truth)} frames, {seq.fps:g} fps)", flush=True)
+        for name, factory in factories:
+            m, ms = run(cached, factory)
+            m.pop("boxes", None)
+            results.setdefault(name, {})[seq.name] = (m, ms)
+        best = min((n for n, _ in grid), key=lambda n: results[n][seq.name][0][
+            "mean_center_error"])
+        print("  " + "  ".join(f"{n.split()[-1]} {results[n][seq.name][0]['mean_center_error']:.1f}"
+                               for n, c in peers if c is not None)
+              + f"  grid best {results[best][seq.name][0]['mean_center_error']:.1f} ({best})",
+              flush=True)
+    grid_results = {label: results[label] for label, _ in grid}
+    folds = {}
+    for clip in clips:
+        train = {c: n for c, n in clips.items() if c != clip}
+        folds[clip] = choose(grid_results, train) if train else grid[0][0]
+    shipped = choose(grid_results, clips)
+    output = args.output or (None if args.sequences else
+                             str(REPO / "docs" / "benchmark_single_target.md"))
+    lines = loso_report(dev, clips, grid, peers, results, folds, shipped, argv,
+                        (load_before, os.getloadavg()))
+    print("\n".join(lines))
+    if output:
+        Path(output).write_text("\n".join(lines) + "\n", encoding="utf-8")
+        print(f"wrote {output}")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"folds": folds, "shipped": shipped,
+                                               "clips": clips, "results": results}, indent=1))
+    return 0
+
+
+def _cells(m: dict) -> str:
+    return (f"{m['mean_center_error']:.1f} | {m['precision_at_20px']:.2f} | "
+            f"{m['success_auc']:.2f}")
+
+
+def loso_report(dev, clips, grid, peers, results, folds, shipped, argv, loads) -> list[str]:
+    cmd = ("PYTHONPATH=. OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 "
+           "/tmp/bench_venv/bin/python benchmarks/bench_single_target.py"
+           + ("" if not argv else " " + " ".join(argv)))
+    peer_names = [n for n, c in peers if c is not None]
+    lines = ["# Single-target benchmark: hand-started tracker, held-out (leave-one-clip-out)",
+             "", "Produced by:", "", "```", cmd, "```", "",
+             f"Machine: 2 cores, load average {loads[0][0]:.1f} at the start and "
+             f"{loads[1][0]:.1f} at the end. Run finished "
+             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. OpenCV {cv2.__version__}"
+             f" (one thread); multiple-kernel code path: {fast_path()}.", "",
+             "## Protocol", "",
+             "* **Tracker**: `MultiObjectTracker` with one track started by hand on the first "
+             "ground-truth box (clipped to the image, the same box for every tracker), no "
+             "detector, no re-initialisation; frame stamps `i / fps`.  Scored in every frame "
+             "with a truth box; a tracker that reports failure is scored on its last box.",
+             "* **Grid** (the settings of tracks started by hand, `manual_track.*`; everything "
+             "else at its default): " + "; ".join(f"`{k}` in {{{', '.join(f'{v:g}' for v in vs)}}}"
+                                                   for k, vs in GRID.items())
+             + f" ({len(grid)} settings).",
+             "* **Leave one clip out**: for every clip (source video) the setting with the "
+             "highest success AUC on all *other* clips (mean over clips of the clip's mean over "
+             "its sequences) is chosen, and only that setting's figures on the held-out clip's "
+             "sequences are reported below.  A clip's persons and its low-frame-rate copy are "
+             "held out together, so no figure comes from a setting chosen with its images.",
+             "* **Shipped defaults** = the setting chosen on all clips: "
+             f"`{shipped}`.  Its own figures on these clips are in-sample (last table).",
+             "* Metrics: mean centre error (px, lower is better), precision@20 px, success AUC "
+             "(IoU).  Peers: " + (", ".join(peer_names) or "none (opencv-contrib missing)")
+             + " on the same frames and first box.",
+             "", "## Held-out figures (primary)", ""]
+    names_all = [s.name for _, s in dev]
+    held = {}
+    for clip, names in clips.items():
+        for n in names:
+            held[n] = results[folds[clip]][n]
+    head = "| sequence | clip | ours err | P@20 | AUC | ms | " + " | ".join(
+        f"{p} err | P@20 | AUC" for p in peer_names) + " |"
+    lines += [head, "|" + "---|" * (5 + 1 + 3 * len(peer_names))]
+    for clip, seq in dev:
+        m, ms = held[seq.name]
+        row = f"| {seq.name} | {clip} | {_cells(m)} | {ms:.2f} |"
+        for p in peer_names:
+            row += f" {_cells(results[p][seq.name][0])} |"
+        lines.append(row)
+
+    def summary(label, names):
+        ours = {k: float(np.mean([held[n][0][k] for n in names]))
+                for k in ("mean_center_error", "precision_at_20px", "success_auc")}
+        row = f"| {label} | {len(names)} | {_cells(ours)} | " \
+              f"{float(np.median([held[n][1] for n in names])):.2f} |"
+        for p in peer_names:
+            pm = {k: float(np.mean([results[p][n][0][k] for n in names]))
+                  for k in ("mean_center_error", "precision_at_20px", "success_auc")}
+            row += f" {_cells(pm)} |"
+        return row
+    lines += ["", "Means per clip and overall (each sequence counts once; ms = median):", "",
+              "| clip | sequences | ours err | P@20 | AUC | ms | " + " | ".join(
+                  f"{p} err | P@20 | AUC" for p in peer_names) + " |",
+              "|" + "---|" * (6 + 3 * len(peer_names))]
+    for clip, names in clips.items():
+        lines.append(summary(clip, names))
+    real = [n for c, ns in clips.items() if not c.startswith("generator") for n in ns]
+    if real:
+        lines.append(summary("**all real sequences**", real))
+    lines.append(summary("**all sequences**", names_all))
+    wins = sum(held[n][0]["mean_center_error"] < results["OpenCV CSRT"][n][0][
+        "mean_center_error"] for n in real) if "OpenCV CSRT" in peer_names else 0
+    if "OpenCV CSRT" in peer_names:
+        lines += ["", f"Lower mean centre error than CSRT on {wins} of {len(real)} real "
+                  "sequences (issue #16 asks for all)."]
+    lines += ["", "## Setting chosen per held-out clip", "",
+              "| held-out clip | chosen on the other clips |", "|---|---|"]
+    for clip in clips:
+        lines.append(f"| {clip} | `{folds[clip]}` |")
+    lines += ["", "## Every grid setting (in-sample: mean over clips of clip means)", "",
+              "| setting | err | P@20 | AUC | median ms |", "|---|---|---|---|---|"]
+    for label, _ in grid:
+        r = results[label]
+        vals = {k: float(np.mean([_mean_of(r, ns, k) for ns in clips.values()]))
+                for k in ("mean_center_error", "precision_at_20px", "success_auc")}
+        ms = float(np.median([r[n][1] for n in names_all]))
+        mark = " (shipped)" if label == shipped else ""
+        lines.append(f"| `{label}`{mark} | {_cells(vals)} | {ms:.2f} |")
+    lines += ["", LOSO_NOTES, "", LOSO_FINDINGS]
+    return lines
+
+
+LOSO_FINDINGS = """## Findings (hand-written from the run of 2026-11-25 14:12 UTC)
+
+The tables above are the evidence.
+
+* **Choice.**  The protocol chose the same setting on 6 of the 7 folds -- 2 kernels,
+  `multi_start_radius` 1, `recovery_similarity` 0.4, `max_coast_position_std` 1 -- and with
+  the OTB Woman clip held out the same but `max_coast_position_std` 0.  That setting is the
+  shipped default (`ManualTrackConfig`).
+* **Held out, against the peers.**  All 39 sequences: 41.5 px / P@20 0.69 / AUC 0.51
+  (CSRT 49.8 / 0.67 / 0.52, KCF 99.2 / 0.36 / 0.28).  The 26 real sequences: 59.4 px / 0.54 /
+  0.41 (CSRT 58.8 / 0.58 / 0.45).  Lower error than CSRT on 14 of 26 real sequences.
+  Issue #16's single-target goals (below CSRT on every real sequence; <= 20 px, P@20 >= 0.75,
+  AUC >= 0.50 over a mixed set) are **not met**.
+* **What each mechanism adds** (in-sample grid table, 2 kernels, `max_coast_position_std` 1;
+  err / P@20 / AUC): neither search 50.9 / 0.64 / 0.44; failure re-search only 22.0 / 0.78 /
+  0.54; coarse-to-fine start only (radius 1) 23.5 / 0.76 / 0.53; both 20.8 / 0.78 / 0.54.
+  6 kernels are worse in every combination (best 30.2 / 0.73 / 0.50): the issue's report
+  that 6 kernels lost people whom 2 kept holds here too.  The bounded coasting
+  (`max_coast_position_std` 1) earns its place: without it the shipped setting gives 37.8 px.
+  `column_recentre` acts only on 4-6 kernel layouts, so with the 2-kernel default it never runs.
+* **The issue's failure modes on the development clips.**  Generator 7 fps clips (people
+  ~30 px wide, 12-20 px per frame, two of four entering at an edge from a clipped sliver):
+  4.0-4.7 px, P@20 1.00 (CSRT 4.4 and 79.5 px; it lost both edge entries of seed 42).
+  TUD-Stadtmitte at 6.25 fps: persons 2, 4, 7 at 7.9 / 13.5 / 19.9 px (CSRT 9.7 / 6.1 /
+  123.9).
+* **What still fails.**  OTB Woman, 153.8 px (CSRT 2.8): within ~15 frames the kernels'
+  similarity falls to ~0 although the box is on her (the camera pans, the light changes,
+  the first frame's models are kept), so the track is unseen and no scan peak is confirmed;
+  a model update (rate 0.02 / 0.05 / 0.1, one exploration run on Woman, not in the grid)
+  gave 103 / 37 / 99 px, no cure.  TUD-Stadtmitte person 3 (standing; 314 px, 321 px at
+  6.25 fps; CSRT 13 / 17): a passer-by with similar colours drags the box away while the
+  visibility stays above 0.4.  Persons 6, 8, 9, 10 of TUD-Stadtmitte (hidden in groups for
+  long stretches): every tracker is far off (CSRT 190 / 75 / 170 / 85 px).
+* **Honesty about the protocol.**  The grid's values are chosen leave-one-clip-out; the
+  mechanisms themselves (and the grid's candidate values) were designed while looking at
+  failures on these development clips (OTB Woman, TUD-Stadtmitte person 3), so these
+  figures are not a test on unseen video.  Issue #16's own unseen clips are that test.
+* **Speed.**  Median CPU time per frame of the shipped setting: 2.73 ms in this run (load
+  average 6-7 on 2 cores; the 2-kernel tracker without the searches: 1.53 ms in the same
+  run); 2.17 ms in an earlier run with the same accuracy at load ~5.  Over the 2 ms budget
+  at this load.  The extra cost is the grid evaluation in every frame and the scan in every
+  unseen frame; on real video the weighted visibility is often below 0.4 while the box is
+  on the person (TUD-Stadtmitte person 2: the scan ran in 75 of 120 frames).
+* **"Lost".**  A hand-started track still never enters the `lost` state: the tracker passes
+  it an unseen time of 0 (`multi_object_tracker.py`), so it stays `occluded` and keeps
+  searching (now with the wider re-search) until it leaves the image."""
+
+
+LOSO_NOTES = """Notes.
+* Development clips: OTB Crossing; OTB Woman (legs hidden by cars, camera pans);
+  TUD-Campus and TUD-Stadtmitte persons (each person a sequence; TUD-Stadtmitte also at
+  6.25 fps, every 4th frame, 4x the motion per frame); generator scenes at 7 fps with people
+  ~30 px wide walking 12-20 px per frame, entering at the image edges (first box a clipped
+  sliver), a group of two and a pillar (`fast_edge_scene`, seeds 41, 42); a 25 fps generator
+  crowd (seed 11).  Persons with fewer than 10 frames are left out.
+* Real sequences run at their stated rate (TUD: `seqinfo.ini` or 25 fps; OTB: 25 fps).
+* The older tables (bare refinement variants, CamShift, MIL, the synthetic occlusion scenes)
+  are produced with `--legacy --output FILE`; they are in-sample figures."""
 
 
 if __name__ == "__main__":

@@ -10,6 +10,11 @@ instead of those of tracks born from detections, and :func:`manual_track_kalman`
 :func:`manual_track_lifecycle` and :func:`manual_track_multi_kernel` build their Kalman,
 lifecycle and multiple-kernel configurations.
 
+Search (issue #16): a coarse-to-fine start around the Kalman prediction and a failure
+re-search by colour back-projection (``multi_start_radius``, ``recovery_similarity``; the
+mechanisms are in :mod:`mk_tracker.tracking.multi_kernel`, which these settings switch on
+for tracks started by hand only).
+
 Column re-centring (``ManualTrackConfig.column_recentre``): a two-column layout (4-6 kernels,
 Fig. 14b) has a stable wrong optimum with one column on the person and the other on
 background; :func:`columns_cover` says whether both columns of a result see the target and
@@ -69,6 +74,16 @@ class ManualTrackConfig:
       (hence ``max_coast_position_std``: once the predicted centre's std exceeds the
       search's reach the track holds its position, :meth:`Track.hold_if_uncertain`).
 
+    Issue #16 (unseen walking-people clips, 7 fps, people entering at the image edge) added
+    two searches around the paper's core, both in
+    :meth:`~mk_tracker.tracking.multi_kernel.MultiKernelTracker.refine`: a coarse-to-fine
+    start on a grid around the Kalman prediction (``multi_start_radius``) and a failure
+    re-search with the target's colour back-projection, confirmed by the multiple-kernel
+    similarity (``recovery_similarity``).  ``num_kernels``, ``multi_start_radius``,
+    ``recovery_similarity`` and ``max_coast_position_std`` are the settings chosen by the
+    leave-one-clip-out protocol of ``benchmarks/bench_single_target.py``
+    (docs/benchmark_single_target.md); the others were set earlier (above).
+
     Every field replaces one field of the tracker's ``kalman`` / ``lifecycle`` /
     ``multi_kernel`` sections for these tracks only; the rest of those sections applies to
     them unchanged.
@@ -92,9 +107,10 @@ class ManualTrackConfig:
         1.0, "Factor on the refinement's quality of a track started by hand in frames "
         "without a detection (replaces undetected_quality_factor)", minimum=0.0, maximum=1.0)
     num_kernels: int = parameter(
-        6, "Kernels of a track started by hand (replaces multi_kernel.num_kernels; 6 = 3 rows "
-        "x 2 columns, Fig. 14b: left/right structure that still places a person whose legs "
-        "are hidden)", choices=SUPPORTED_KERNEL_COUNTS)
+        2, "Kernels of a track started by hand (replaces multi_kernel.num_kernels; 2 = upper "
+        "and lower body, Fig. 4a, chosen by the leave-one-clip-out protocol of "
+        "bench_single_target.py over 6 = 3 rows x 2 columns, Fig. 14b)",
+        choices=SUPPORTED_KERNEL_COUNTS)
     scale_gate_statistic: str = parameter(
         "mean", "Scale gate statistic of a track started by hand (replaces "
         "multi_kernel.scale_gate_statistic; with 6 small kernels the minimum is almost never "
@@ -122,18 +138,20 @@ class ManualTrackConfig:
         minimum=0.0, maximum=100.0)
 
     multi_start_radius: float = parameter(
-        0.5, "Coarse-to-fine search of a track started by hand (replaces "
+        1.0, "Coarse-to-fine search of a track started by hand (replaces "
         "multi_kernel.multi_start_radius): the kernel layout is also scored at a 3x3 grid of "
         "translations of the Kalman prediction out to this many box widths, and Algorithm 1 "
-        "also runs from the best of them (a target that moved beyond the kernels' reach: low "
-        "frame rate, fast walker, velocity not yet learnt); 0 = from the prediction only",
+        "also runs from the best of them when it beats the first result (a target that moved "
+        "beyond the kernels' reach: low frame rate, fast walker, velocity not yet learnt); "
+        "0 = from the prediction only",
         minimum=0.0, maximum=5.0)
     recovery_similarity: float = parameter(
         0.4, "Failure re-search of a track started by hand (replaces "
         "multi_kernel.recovery_similarity): when the search's weighted visibility is below "
         "this (0.4 = occlusion_similarity: the track would coast), a region of "
         "multi_kernel.recovery_margin box sizes around it is scanned with the target's "
-        "colour back-projection and Algorithm 1 runs from the best peaks; 0 = never",
+        "colour back-projection, the layout is evaluated at its peaks and Algorithm 1 runs "
+        "from the best one, kept if the multiple-kernel similarity confirms it; 0 = never",
         minimum=0.0, maximum=1.0)
 
 
