@@ -318,6 +318,7 @@ class MultiObjectTracker:
         self._next_id = 1
         self.tracks: list[Track] = []
         self.last_stamp: float | None = None
+        self._frame_interval = 0.0       # seconds between the last two frames
         self.frame_size: tuple[int, int] | None = None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
                        "resets": 0, "size_resets": 0}
@@ -379,6 +380,8 @@ class MultiObjectTracker:
             self.totals["size_resets"] += 1
             self.reset()
         self.frame_size = size
+        if self.last_stamp is not None and stamp > self.last_stamp:
+            self._frame_interval = stamp - self.last_stamp
         self.last_stamp = stamp
         height, width = size
 
@@ -736,6 +739,9 @@ class MultiObjectTracker:
                 t.kf.update(det_box[:2] + det_box[2:] / 2.0, sigma_w=cfg.min_noise_px)
                 t.size = det_box[2:].copy()
             else:
+                if cfg.observation_centric_reupdate and not t.manual \
+                        and was is not TrackState.TENTATIVE:
+                    t.reupdate_from_last_seen(det_box, stamp, self._frame_interval)
                 t.correct(det_box, _quality(det.score))
                 if refined is not None and iou(refined[0], det_box) >= \
                         self.config.refine_consistency_iou:
@@ -753,6 +759,9 @@ class MultiObjectTracker:
                           size_weight=cfg.refinement_size_weight)
                 t.last_seen = stamp
             t.score = sim if sim is not None else 0.0
+        if cfg.observation_centric_reupdate and not t.manual and \
+                (det_box is not None or visible):
+            t.remember_seen()
         if t.manual:
             t.hold_if_uncertain(det_box is not None or visible,
                                 self.config.manual_track.max_coast_position_std)
