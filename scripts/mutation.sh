@@ -4,7 +4,14 @@
 #
 # Usage: bash scripts/mutation.sh [MODULE...]
 #   MODULE: boxes kalman association kernel_histograms sparse_factorization (default: all)
-# Environment: MUTATION_JOBS (parallel mutant runs, default 2).
+# Environment: MUTATION_JOBS (parallel mutant runs, default 2);
+#   MUTATION_RERUN=1: keep build/mutation/MODULE from an earlier run and run only the
+#   mutants that its results.txt does not list as killed, against the current test files
+#   (adding tests cannot revive a killed mutant, as long as mk_tracker/ is unchanged: the
+#   script refuses when the module's source differs from the copy in that folder);
+#   MUTATION_RERUN_SKIP=REGEX (with MUTATION_RERUN=1): mutants whose names match the
+#   extended regular expression keep their earlier status and are not rerun (e.g. those
+#   docs/mutation.md argues equivalent, which only cost time).
 #
 # Each module is mutated alone, with only its own test file(s), in a fresh copy of the
 # package and the tests under build/mutation/MODULE/ (mutmut reads its settings from a
@@ -84,6 +91,40 @@ SUMMARY="$WORK/summary.txt"
 : > "$SUMMARY"
 for m in "${MODULES[@]}"; do
   dir="$WORK/$m"
+  if [ "${MUTATION_RERUN:-0}" = 1 ]; then
+    [ -f "$dir/results.txt" ] || fail "MUTATION_RERUN=1: no earlier results in $dir"
+    cmp -s "$ROOT/${SOURCE[$m]}" "$dir/${SOURCE[$m]}" \
+      || fail "MUTATION_RERUN=1: ${SOURCE[$m]} changed since the run in $dir; run without it"
+    for t in ${TESTS[$m]}; do
+      cp "$ROOT/$t" "$dir/$t"
+      [ ! -d "$dir/mutants" ] || { mkdir -p "$dir/mutants/$(dirname "$t")"; cp "$ROOT/$t" "$dir/mutants/$t"; }
+    done
+    mapfile -t names < <(awk -F': ' 'NF == 2 && $2 != "killed" {gsub(/^ +/, "", $1); print $1}' \
+                          "$dir/results.txt" | { if [ -n "${MUTATION_RERUN_SKIP:-}" ]; then
+                            grep -Ev -- "$MUTATION_RERUN_SKIP" || true; else cat; fi; })
+    say "$m: rerunning the ${#names[@]} mutants not killed before (log: $dir/rerun.log)"
+    start=$SECONDS
+    cp "$dir/results.txt" "$dir/results.before.txt"
+    if [ "${#names[@]}" -gt 0 ]; then
+      (cd "$dir" && MK_TRACKER_NO_NUMBA=1 "$MVENV/bin/mutmut" run --max-children "$JOBS" \
+          "${names[@]}" > rerun.log 2>&1) \
+        || { tail -n 30 "$dir/rerun.log" >&2; fail "mutmut run failed for $m"; }
+    fi
+    (cd "$dir" && MK_TRACKER_NO_NUMBA=1 "$MVENV/bin/mutmut" results --all true \
+        > results.new.txt 2>/dev/null)
+    # the earlier status of each mutant, replaced by the new one for those rerun
+    awk -F': ' 'NR == FNR {if (NF == 2) {gsub(/^ +/, "", $1); new[$1] = $2}; next}
+                NF == 2 {gsub(/^ +/, "", $1); s = $2;
+                         if ($2 != "killed" && ($1 in new) && new[$1] != "not checked") s = new[$1];
+                         print "    " $1 ": " s}' \
+        "$dir/results.new.txt" "$dir/results.before.txt" > "$dir/results.txt"
+    counts="$(awk -F': ' 'NF == 2 {n[$2]++; t++} END {printf "%d mutants", t;
+             for (k in n) printf ", %s %d", k, n[k]}' "$dir/results.txt")"
+    line="$m (${SOURCE[$m]}): $counts; rerun of ${#names[@]} in $((SECONDS - start)) s"
+    echo "$line" | tee -a "$SUMMARY"
+    grep -v ': killed$' "$dir/results.txt" | sed 's/^ *//' >> "$SUMMARY" || true
+    continue
+  fi
   rm -rf "$dir"
   mkdir -p "$dir"
   (cd "$ROOT" && tar cf - --exclude=__pycache__ --exclude='*.nbi' --exclude='*.nbc' \

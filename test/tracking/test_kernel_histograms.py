@@ -949,3 +949,8 @@ def test_no_numba_environment_variable_disables_the_compiled_kernels(monkeypatch
     monkeypatch.setenv("MK_TRACKER_NO_NUMBA", "1")
     assert _kh.compiled_kernels() is None
     assert _kh._COMPILED == [None]
+
+
+def test_search_region_backend_defaults_to_auto():
+    region = SearchRegion(np.zeros((4, 4), np.int32), (0, 0), 1, M)
+    assert region.backend == resolve_backend("auto")
