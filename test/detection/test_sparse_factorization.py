@@ -499,13 +499,13 @@ def test_coordinate_minimizer_computes_in_float64():
                                      rel=1e-12)
 
 
-@pytest.mark.parametrize("c2", [0.0, 1e-300, -1e-300])
+@pytest.mark.parametrize("c2", [0.0, 1e-300, -1e-300, -10.0, 10.0])
 def test_a_near_tie_with_zero_goes_to_zero(c2):
-    # c1 = -6: t = 2 and the shortcut threshold is lambda = 2 t^(3/2) = 4 sqrt(2); one ulp
-    # below it h = sqrt(2) beats 0 by ~1e-15 only, i.e. within the documented tolerance
-    # 1e-15 (1 + |c1| + |c2|), so the tie rule returns 0 (a wrong sign of lambda or a
-    # wrong tolerance returns +-sqrt(2))
-    lam = float(np.nextafter(4.0 * np.sqrt(2.0), 0.0))
+    # c1 = -6: t = 2 and the shortcut threshold is lambda - |c2| = 2 t^(3/2) = 4 sqrt(2);
+    # one ulp below it h = -+sqrt(2) beats 0 by a few 1e-15 only, i.e. within the documented
+    # tolerance 1e-15 (1 + |c1| + |c2|), so the tie rule returns 0 (a wrong sign of lambda
+    # or a wrong tolerance, e.g. one that turns positive for |c2| > 1 + |c1|, returns it)
+    lam = float(np.nextafter(abs(c2) + 4.0 * np.sqrt(2.0), 0.0))
     assert not lam - abs(c2) >= 4.0 * np.sqrt(2.0)          # the shortcut does not decide
     assert coordinate_minimizer(np.array([-6.0]), np.array([c2]), lam)[0] == 0.0
     assert sf._minimizer_scalar(-6.0, c2, lam) == 0.0
