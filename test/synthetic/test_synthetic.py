@@ -466,3 +466,24 @@ def test_every_preset_rejects_bad_arguments_and_accepts_one_frame(name):
         for bad in ({"n_people": -1}, {"occluders": -2}, {"width": 0}, {"height": 4}):
             with pytest.raises(SceneError):
                 factory(seed=0, frames=2, **bad)
+
+
+def test_far_view_scene_is_7_fps_small_people_entering_and_leaving_at_the_edges():
+    from mk_tracker.synthetic.people import PERSON_ASPECT
+    from mk_tracker.synthetic.presets import far_view_scene
+    scene = far_view_scene(seed=3, frames=40)
+    cfg = scene.config
+    assert cfg.fps == 7.0 and scene.frame(1).stamp == pytest.approx(1.0 / 7.0)
+    assert len(cfg.people) == 10
+    for p in cfg.people:
+        assert 50.0 <= p.height <= 105.0 * 1.05 + 1e-9          # pairs: +5% for the second
+        assert 18.0 <= p.height * PERSON_ASPECT <= 40.0           # 18-38 px wide (+5%)
+        (x0, _), (x1, _) = p.waypoints
+        # starts outside one edge and walks across towards the other, then straight on
+        # (after_last "continue") until it has left the image
+        assert (x0 < 0 and x1 > x0 + 600) or (x0 > 640 and x1 < x0 - 600)
+        assert 6.0 <= p.speed <= 16.0 and p.after_last == "continue"
+    with pytest.raises(SceneError):
+        far_view_scene(n_people=-1)
+    with pytest.raises(SceneError):
+        far_view_scene(fps=0.0)
