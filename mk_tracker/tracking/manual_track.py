@@ -138,17 +138,18 @@ class ManualTrackConfig:
         minimum=0.0, maximum=100.0)
 
     multi_start_radius: float = parameter(
-        1.0, "Coarse-to-fine search of a track started by hand (replaces "
+        0.5, "Coarse-to-fine search of a track started by hand (replaces "
         "multi_kernel.multi_start_radius): the kernel layout is also scored at a 3x3 grid of "
         "translations of the Kalman prediction out to this many box widths, and Algorithm 1 "
-        "also runs from the best of them when it beats the first result (a target that moved "
+        "also runs from the best of them when the first search leaves the track unseen "
+        "(below occlusion_similarity) and the grid point beats its result (a target that moved "
         "beyond the kernels' reach: low frame rate, fast walker, velocity not yet learnt); "
         "0 = from the prediction only",
         minimum=0.0, maximum=5.0)
     recovery_similarity: float = parameter(
-        0.4, "Failure re-search of a track started by hand (replaces "
+        0.25, "Failure re-search of a track started by hand (replaces "
         "multi_kernel.recovery_similarity): when the search's weighted visibility is below "
-        "this (0.4 = occlusion_similarity: the track would coast), a region of "
+        "this (chosen by the leave-one-clip-out protocol over 0.4), a region of "
         "multi_kernel.recovery_margin box sizes around it is scanned with the target's "
         "colour back-projection, the layout is evaluated at its peaks and Algorithm 1 runs "
         "from the best one, kept if the multiple-kernel similarity confirms it; 0 = never",
@@ -175,6 +176,10 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    scale_gate_statistic=m.scale_gate_statistic,
                    scale_similarity_gate=m.scale_similarity_gate,
                    multi_start_radius=m.multi_start_radius,
+                   # the grid is tried when the search from the prediction leaves the
+                   # track unseen (the occlusion test of the lifecycle)
+                   multi_start_similarity=(m.occlusion_similarity if m.multi_start_radius > 0
+                                           else config.multi_kernel.multi_start_similarity),
                    recovery_similarity=m.recovery_similarity)
 
 

@@ -59,7 +59,8 @@ Kalman prediction whose velocity is not yet learnt) is not found.  (a) Coarse-to
 predicted start in one batched evaluation, and when the best grid point scores higher than
 where Algorithm 1 ended from the prediction, Algorithm 1 runs again from it; the result with
 the higher mean similarity (5) is kept, so the Kalman prediction (Sec. IV-D) stays the first
-start and wins ties.  (b) Failure re-search (``recovery_similarity``): when the weighted
+start and wins ties.  With ``multi_start_similarity`` < 1 the grid is tried only when the
+search from the prediction leaves the target unseen (weighted visibility (7)-(8) below it).  (b) Failure re-search (``recovery_similarity``): when the weighted
 visibility (7)-(8) of the result says the target is not seen, a region of
 ``recovery_margin`` box sizes is scanned with the back-projection ``q / (q + p)`` of the
 target's colour model ``q`` against the region's histogram ``p``; the layout is evaluated at
@@ -190,6 +191,11 @@ class MultiKernelConfig:
         "the prediction and from the best grid point; the result with the higher mean "
         "similarity is kept.  0 = start from the prediction only (Sec. IV-D)",
         minimum=0.0, maximum=5.0)
+    multi_start_similarity: float = parameter(
+        1.01, "The coarse-to-fine start runs only when the weighted visibility sum_i W_i "
+        "rho_i / N ((7)-(8)) of the search from the prediction is below this, i.e. when the "
+        "local search failed; 1.01 (above any visibility) = in every frame",
+        minimum=0.0, maximum=1.01)
     multi_start_steps: int = parameter(
         1, "k of multi_start_radius: grid points on each side of the prediction",
         minimum=1, maximum=5)
@@ -530,7 +536,9 @@ class MultiKernelTracker:
         if search is None:
             return self._lost(state, x, axes, "nan_pixels")
         best = self._algorithm1(search, region, x, state)
-        if cfg.multi_start_radius > 0:
+        if cfg.multi_start_radius > 0 and \
+                visibility_similarity(best[1].similarities, None, "weighted") \
+                < cfg.multi_start_similarity:
             alt_start, alt_score = self._grid_start(search, x, state, start_box[2])
             # the second run only when the grid point already beats where the first one ended
             if alt_start is not None and alt_score > float(best[1].similarities.mean()):
@@ -716,8 +724,8 @@ class MultiKernelTracker:
                  start_box: tuple[float, float, float, float], mean_sim: float):
         """The failure re-search: the kernel layout is placed at every
         :meth:`_recovery_starts` peak and evaluated in one batch on the scan's samples; from
-        the peak with the highest mean similarity (5) Algorithm 1 runs in its own search
-        region.  Its result is returned as ``((x, ev, iterations, history), search)`` when its
+        the peak with the highest mean similarity (5), if that already beats ``mean_sim``,
+        Algorithm 1 runs in its own search region.  Its result is returned as ``((x, ev, iterations, history), search)`` when its
         weighted visibility (7)-(8) reaches ``recovery_similarity`` and its mean similarity
         beats ``mean_sim`` (the first search's); else None."""
         cfg = self.config
@@ -733,7 +741,11 @@ class MultiKernelTracker:
         centres = (x0[None, :, :] + (np.array(peaks) - centroid)[:, None, :]).reshape(-1, 2)
         sims = self._evaluate(scan, np.tile(axes, (n_p, 1)), centres,
                               np.tile(state.models, (n_p, 1))).similarities.reshape(n_p, n_k)
-        x = x0 + (peaks[int(np.argmax(sims.mean(axis=1)))] - centroid)
+        means = sims.mean(axis=1)
+        best = int(np.argmax(means))
+        if not means[best] > mean_sim:      # no peak beats the first search even coarsely
+            return None
+        x = x0 + (peaks[best] - centroid)
         region = _region(kernels_bounding_box(x, axes), cfg.search_margin, width, height)
         if region is None:
             return None

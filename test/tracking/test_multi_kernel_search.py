@@ -186,3 +186,17 @@ def test_search_region_margin_and_extra_pixels():
     # box x 10..20, y 10..30; margin 0.5 -> 5 px in x, 10 px in y; plus 5 px on every side
     assert _region((10.0, 10.0, 10.0, 20.0), 0.5, 100, 100, extra_px=5.0) == (0, 0, 30, 45)
     assert _region((10.0, 10.0, 10.0, 20.0), 0.5, 100, 100) == (5, 0, 25, 40)
+
+
+def test_a_gated_grid_start_runs_only_when_the_first_search_fails():
+    cfg = MultiKernelConfig(multi_start_radius=1.5, multi_start_similarity=0.4)
+    calls = []
+    for dx, expect_call in ((2, False), (30, True)):
+        tracker = MultiKernelTracker(cfg)
+        state = tracker.start(_frame([(100, 60)]), (100.0, 60.0, TW, TH))
+        original = tracker._grid_start
+        tracker._grid_start = lambda *a, _o=original: calls.append(dx) or _o(*a)
+        res = tracker.refine(_frame([(100 + dx, 60)], seed=1), state)
+        assert (dx in calls) is expect_call
+        # either way the target is found: centre (110 + dx, 80)
+        assert _centre(res) == pytest.approx((110.0 + dx, 80.0), abs=1.5)
