@@ -12,6 +12,13 @@ env:
 test: env
 	$(PYTHON) -m pytest -q -rR test
 
+# The suite's library tests (no DDS processes) with the oldest supported libraries, those of
+# Ubuntu 24.04 + ROS 2 Jazzy from apt: numpy 1.26.4, OpenCV 4.6.0, SciPy 1.11.4, numba
+# 0.58.1, pandas 2.1.4 (requirements/oldest.txt, in .venv-oldest; scripts/test_oldest.sh).
+.PHONY: test-oldest
+test-oldest: env
+	bash scripts/test_oldest.sh -q -rR test --ignore=test/ros
+
 demo: env
 	.venv/bin/mk_tracker demo
 

@@ -134,9 +134,10 @@ def test_text_lines_are_written_top_left_one_below_the_other_in_the_colour():
     bands = _bands(ink.any(axis=1))
     assert len(bands) == 2, bands
     assert all(3 <= last - first + 1 <= 20 for first, last in bands), bands
-    # green text on black (anti-aliased: shades of green only), full green in the strokes
+    # green text on black (anti-aliased: shades of green only), (nearly) full green in the
+    # strokes: OpenCV 5 reaches 255, OpenCV 4.6 (Ubuntu 24.04) 252 with its anti-aliasing
     assert not out[..., 0].any() and not out[..., 2].any()
-    assert out[..., 1].max() == 255
+    assert out[..., 1].max() >= 240
 
 
 def test_text_lines_get_a_dark_background_as_wide_as_the_text():
