@@ -717,17 +717,21 @@ def test_padded_evaluation_far_outside_the_roi_with_the_smallest_padding():
 def test_search_region_repads_for_larger_kernels_in_either_direction():
     img = _blob_scene()
     bins = quantize(img, "hsv", BINS)
-    region = SearchRegion(bins, (0, 0), 1, M, "roof", "numpy")
     q = np.full((1, M), 1.0 / M)
     centre = np.array([[85.3, 60.7]])
-    # small, then wider only, then taller only, then small again
-    for axes in ([4.0, 4.0], [30.0, 4.0], [4.0, 30.0], [30.0, 30.0], [4.0, 4.0]):
-        axes = np.array([axes])
-        batch = region.evaluate(axes, centre, q)
-        direct = evaluate_kernel(bins, (0, 0), centre[0], axes[0], q[0])
-        assert batch.n_pixels[0] == direct.n_pixels
-        assert batch.costs[0] == pytest.approx(direct.cost, abs=1e-12)
-        assert np.allclose(batch.mean_shift[0], direct.mean_shift, atol=1e-9)
+    # small, then wider only, then taller only, then small again; and in a fresh region a
+    # tall kernel followed by a wide one (its width beyond the x padding but not the y one)
+    sequences = ([[4.0, 4.0], [30.0, 4.0], [4.0, 30.0], [30.0, 30.0], [4.0, 4.0]],
+                 [[4.0, 30.0], [20.0, 4.0]])
+    for sequence in sequences:
+        region = SearchRegion(bins, (0, 0), 1, M, "roof", "numpy")
+        for axes in sequence:
+            axes = np.array([axes])
+            batch = region.evaluate(axes, centre, q)
+            direct = evaluate_kernel(bins, (0, 0), centre[0], axes[0], q[0])
+            assert batch.n_pixels[0] == direct.n_pixels
+            assert batch.costs[0] == pytest.approx(direct.cost, abs=1e-12)
+            assert np.allclose(batch.mean_shift[0], direct.mean_shift, atol=1e-9)
 
 
 def test_default_epsilon_is_0_01_and_weighting_kl():
