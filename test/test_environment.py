@@ -233,9 +233,13 @@ def test_empty_detection_array_encodes_as_hand_computed_cdr():
     msg.header.frame_id = "x"
     expected = (b"\x00\x01\x00\x00"          # CDR little-endian encapsulation
                 + struct.pack("<iI", 7, 9)   # stamp
-                + struct.pack("<I", 2) + b"x\x00" + b"\x00\x00"  # frame_id + padding
+                + struct.pack("<I", 2) + b"x\x00" + b"??"  # frame_id + 2 padding bytes
                 + struct.pack("<I", 0))      # zero detections
-    assert serialize_message(msg) == expected
+    data = serialize_message(msg)
+    assert len(data) == len(expected)
+    # CDR leaves the value of alignment padding unspecified and Fast CDR does not clear it
+    # (seen: b"\xae\xe7" in one run, zeros in others), so bytes 18-19 are not compared
+    assert data[:18] == expected[:18] and data[20:] == expected[20:], data
 
 
 def test_rclpy_and_rosbags_produce_identical_bytes():
