@@ -3,7 +3,8 @@
 * :func:`run_node` is the body of a node's ``main()``: a SIGTERM handler that lets the node
   stop cleanly, ``rclpy.init``, construction (a bad parameter or a missing message package
   -> message on stderr and exit status 1), spinning until Ctrl-C / SIGTERM /
-  ``rclpy.shutdown``, then ``destroy_node`` and shutdown.
+  ``rclpy.shutdown`` (also when the shutdown lands while the executor builds its wait set,
+  where rclpy raises ``RCLError``), then ``destroy_node`` and shutdown.
 * :class:`ReportTimer` says when the next periodic report (every ``report_period``
   seconds of wall time) is due.
 * :func:`log_shutdown` logs the node's statistics at shutdown, also after Ctrl-C when the
@@ -21,6 +22,7 @@ from typing import Any, Callable, Sequence
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.node import Node
 
 from mk_tracker.parameters import ParameterError
@@ -86,6 +88,13 @@ def run_node(node_class: Callable[[], Node], name: str,
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except _rclpy_impl.RCLError:
+        # SIGTERM / Ctrl-C shut the context down between the executor's check of it and
+        # the creation of its next wait set: rclpy then raises RCLError ("the given context
+        # is not valid") instead of ExternalShutdownException.  After a shutdown that is
+        # the same clean stop; while the context is still up it is a real error.
+        if node.context.ok():
+            raise
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

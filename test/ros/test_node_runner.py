@@ -68,3 +68,42 @@ def test_node_is_spun_until_shutdown_then_destroyed_and_statistics_logged(keep_s
     # the context is gone, so the statistics go to stderr with the node's name
     assert "[runner_test_node] shutting down: {'frames': 3}" in capsys.readouterr().err
     assert not rclpy.ok()
+
+
+def _raising_spin(monkeypatch, shut_down_first: bool):
+    """rclpy.spin replaced by one that fails as rclpy's executor does when the context is
+    shut down while it builds its wait set (seen in a fresh-clone run: a SIGTERM at the end
+    of a demo made detector_node exit 1 with this error after its clean shutdown log)."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation as impl
+
+    def spin(node):
+        if shut_down_first:
+            rclpy.shutdown()
+        raise impl.RCLError("failed to initialize wait set: the given context is not valid")
+
+    monkeypatch.setattr(rclpy, "spin", spin)
+
+
+def test_context_invalid_error_after_shutdown_is_a_clean_stop(keep_sigterm, monkeypatch):
+    destroyed = []
+
+    class Plain(Node):
+        def __init__(self):
+            super().__init__("runner_race_node")
+
+        def destroy_node(self):
+            destroyed.append(True)
+            super().destroy_node()
+
+    _raising_spin(monkeypatch, shut_down_first=True)
+    assert run_node(Plain, "runner_race_node") == 0
+    assert destroyed == [True]
+
+
+def test_context_invalid_error_while_running_is_not_hidden(keep_sigterm, monkeypatch):
+    from rclpy.impl.implementation_singleton import rclpy_implementation as impl
+
+    _raising_spin(monkeypatch, shut_down_first=False)
+    with pytest.raises(impl.RCLError):
+        run_node(lambda: Node("runner_error_node"), "runner_error_node")
+    assert not rclpy.ok()                 # still shut down on the way out
