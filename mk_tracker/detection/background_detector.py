@@ -43,6 +43,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
+                                              people_in_width, split_columns)
 from mk_tracker.detection.thermal_image import ThermalInputError
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.stamps import checked_stamp
@@ -103,35 +105,6 @@ class ForegroundDetection:
     box: tuple[float, float, float, float]
     score: float
     pixel_count: int
-
-
-class PersonHeightModel:
-    """``h = a + b * y_bottom`` fitted online by least squares with exponential forgetting
-    (weights ``(1 - 1/memory)^age``); without enough spread in ``y`` it is the weighted mean
-    height."""
-
-    def __init__(self, memory: float) -> None:
-        self.decay = 1.0 - 1.0 / max(float(memory), 1.0)
-        self.sums = np.zeros(5)          # n, y, h, yy, yh
-
-    @property
-    def samples(self) -> float:
-        return float(self.sums[0])
-
-    def add(self, y_bottom: float, height: float) -> None:
-        self.sums *= self.decay
-        self.sums += (1.0, y_bottom, height, y_bottom * y_bottom, y_bottom * height)
-
-    def height_at(self, y_bottom: float) -> float | None:
-        n, sy, sh, syy, syh = self.sums
-        if n < 2.5:                      # fewer than about 3 samples
-            return None
-        var = syy / n - (sy / n) ** 2
-        mean_h = sh / n
-        if var < 1.0:                    # all samples on (nearly) one row
-            return float(mean_h)
-        b = (syh / n - (sy / n) * mean_h) / var
-        return float(mean_h + b * (y_bottom - sy / n))
 
 
 class BackgroundDetector:
@@ -290,9 +263,8 @@ class BackgroundDetector:
 
     def _learn(self, box: tuple[float, float, float, float], scale: float) -> None:
         x, y, w, h = box
-        aspect = w / max(h, 1e-9)
-        a = self.config.person_aspect
-        if (0.6 * a <= aspect <= 1.5 * a and h / scale >= self.config.min_person_height):
+        if is_person_shaped(w, h, self.config.person_aspect) and \
+                h / scale >= self.config.min_person_height:
             # one upright person (not a fragment): a size sample
             self.heights.add((y + h) / scale, h / scale)
 
@@ -327,38 +299,22 @@ class BackgroundDetector:
         return boxes
 
     def _split(self, mask: np.ndarray, box: tuple, scale: float) -> list:
-        """Cut a blob wider than ``split_ratio`` expected widths at projection minima."""
+        """Cut a blob wider than ``split_ratio`` expected widths at projection minima
+        (:mod:`mk_tracker.detection.person_size`); each part's box is tightened to its own
+        foreground rows."""
         x, y, w, h = box
         expected_h = self._expected_height(y + h, scale)
         if expected_h is None:
             return [box]
-        expected_w = self.config.person_aspect * expected_h
-        if w <= self.config.split_ratio * expected_w:
+        people = people_in_width(w, self.config.person_aspect * expected_h,
+                                 self.config.split_ratio)
+        if people == 1:
             return [box]
-        people = max(2, int(round(w / expected_w)))
         x0, y0, x1, y1 = int(x), int(y), int(x + w), int(y + h)
-        columns = mask[y0:y1, x0:x1].sum(axis=0).astype(np.float64)
-        step = (x1 - x0) / people
-        window = max(1, int(step / 3))
-        cuts = [x0]
-        for k in range(1, people):
-            centre = int(round(k * step))
-            lo, hi = max(1, centre - window), min(len(columns) - 1, centre + window)
-            if hi <= lo:
-                continue
-            # the emptiest column; among equals the one nearest the even spacing
-            candidates = np.arange(lo, hi)
-            best = np.lexsort((np.abs(candidates - centre), columns[lo:hi]))[0]
-            cuts.append(x0 + int(candidates[best]))
-        cuts.append(x1)
         parts = []
-        for left, right in zip(cuts[:-1], cuts[1:]):
-            if right - left < 1:
-                continue
-            rows = np.flatnonzero(mask[y0:y1, left:right].any(axis=1))
-            if rows.size == 0:
-                continue
+        for left, right in split_columns(mask[y0:y1, x0:x1], people):
+            rows = np.flatnonzero(mask[y0:y1, x0 + left:x0 + right].any(axis=1))
             top, bottom = y0 + int(rows[0]), y0 + int(rows[-1]) + 1
-            parts.append((float(left), float(top), float(right - left), float(bottom - top)))
+            parts.append((float(x0 + left), float(top), float(right - left),
+                          float(bottom - top)))
         return parts or [box]
-

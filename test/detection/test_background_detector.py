@@ -9,8 +9,8 @@ import pytest
 
 from mk_tracker.boxes import iou
 from mk_tracker.detection.background_detector import (BackgroundDetector,
-                                                      BackgroundDetectorConfig,
-                                                      PersonHeightModel)
+                                                      BackgroundDetectorConfig)
+from mk_tracker.detection.person_size import PersonHeightModel
 from mk_tracker.parameters import ParameterError
 
 H, W = 240, 320
