@@ -49,6 +49,14 @@ Where the paper is silent, and what we add (each switchable):
   every footprint; in a tracking pass an object whose box grew by ``valley_grow_ratio``
   over its last box or its box at the last full-frame pass (it fused with someone it
   touches) keeps the part nearest its prediction.
+* **Person-size split** (``split_by_person_size``).  The expected person height at each
+  image row is learnt online from the person-shaped detections
+  (:mod:`mk_tracker.detection.person_size`, a least-squares line in the row of the feet);
+  in full-frame passes a footprint wider than ``split_ratio`` expected widths is cut into
+  ``round(width / expected width)`` people at the emptiest columns of its mask.  When a
+  tracking pass reports such a wide footprint (two people met), the next full-frame pass
+  is brought forward to ``group_recheck_frames`` after the last one.  The valley split and
+  the size split live in :mod:`mk_tracker.detection.footprint_split`.
 * The (5.2) window is the object's box plus ``window_margin`` pixels plus the distance the
   Kalman velocity covers in the window's time span on each side, snapped to the ``rho``
   grid so that overlapping windows share blocks (their union is factored once).  Support
@@ -99,15 +107,16 @@ import numpy as np
 from mk_tracker.tracking.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.detection.block_support import SupportResult, _support, support_in_frame
-from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell, _median,
+from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell,
                                             _object_kernel, _owned_support,
                                             _similarity_radius, footprint_mask,
                                             footprint_stats)
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
 from mk_tracker.parameters import parameter, validate_config
+from mk_tracker.detection.footprint_split import FootprintSplitting, _Candidate
+from mk_tracker.detection.person_size import PersonHeightModel
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
-                                         describe_parts, link_groups, merge_linked,
-                                         valley_split)
+                                                   link_groups, merge_linked)
 from mk_tracker.stamps import checked_stamp
 from mk_tracker.detection.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
                                       normalization_map, robust_range, thermal_view)
@@ -181,6 +190,29 @@ class ThermalDetectorConfig:
                                          "times its last box, or its box at the last "
                                          "full-frame pass, is split and keeps the part "
                                          "nearest its prediction", minimum=1.0, maximum=100.0)
+    split_by_person_size: bool = parameter(
+        False, "split a footprint wider than split_ratio expected person widths at its row "
+        "into round(width / expected width) people, cut at the emptiest columns (the person "
+        "height per row is learnt online from isolated detections, "
+        "mk_tracker.detection.person_size); in full-frame passes; not in the paper; needs "
+        "current_frame_refinement")
+    person_aspect: float = parameter(0.27, "width / height of one upright person's "
+                                     "footprint (split_by_person_size)", minimum=0.1,
+                                     maximum=2.0)
+    split_ratio: float = parameter(1.5, "split_by_person_size: a footprint wider than this "
+                                   "many expected person widths is a group", minimum=1.0,
+                                   maximum=10.0)
+    min_part_fraction: float = parameter(
+        0.6, "split_by_person_size: a part narrower than this fraction of the expected "
+        "person width is not a person (a limb): the footprint is cut into one person fewer",
+        minimum=0.0, maximum=1.0)
+    group_recheck_frames: int = parameter(
+        5, "split_by_person_size: when a tracking pass finds a footprint as wide as several "
+        "people, the next full-frame pass (which splits it) runs this many frames after the "
+        "last one instead of reconfigure_period", minimum=1, maximum=100000)
+    size_memory: float = parameter(500.0, "split_by_person_size: person-size samples "
+                                   "remembered (exponential forgetting)", minimum=1.0,
+                                   maximum=1e6)
     min_valid_fraction: float = parameter(0.5, "frames with fewer finite pixels are skipped",
                                           minimum=0.0, maximum=1.0)
     kalman: KalmanConfig = parameter(KalmanConfig(), "per-object Kalman filter (Sec. 4)")
@@ -218,14 +250,6 @@ class _Track:
     size: tuple[float, float] = (math.inf, math.inf)   # box size at its last full pass
 
 
-@dataclass
-class _Candidate:
-    centroid: tuple[float, float]
-    box: tuple[float, float, float, float]
-    score: float
-    pixel_count: int
-
-
 def _overlap(a: tuple, b: tuple) -> bool:
     """Whether boxes ``(x, y, w, h)`` share area: the test of
     :func:`mk_tracker.boxes.intersection_area` (False there means an IoU of 0)."""
@@ -233,7 +257,7 @@ def _overlap(a: tuple, b: tuple) -> bool:
             and min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]) > 0)
 
 
-class ThermalDetector:
+class ThermalDetector(FootprintSplitting):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
@@ -277,6 +301,8 @@ class ThermalDetector:
         self._integer = False
         self._ring: np.ndarray | None = None
         self._frames_seen = 0
+        self.heights = PersonHeightModel(self.config.size_memory)
+        self._group_seen = False        # a tracking pass saw a footprint of several people
 
     def reset(self) -> None:
         """Forget every frame and object (counters are kept)."""
@@ -344,13 +370,14 @@ class ThermalDetector:
                 self.last_mode = "warming_up"
                 return []
             self.last_mode = "startup"
-            return self._full_pass()
+            return self._learn_sizes(self._full_pass())
         self._since_full += 1
-        if self._since_full >= c.reconfigure_period:
+        if self._since_full >= c.reconfigure_period or (
+                self._group_seen and self._since_full >= c.group_recheck_frames):
             self.last_mode = "reconfiguration"
-            return self._full_pass()
+            return self._learn_sizes(self._full_pass())
         self.last_mode = "tracking"
-        return self._tracking_pass()
+        return self._learn_sizes(self._tracking_pass())
 
     # -- normalisation ---------------------------------------------------------------------
     def _update_map(self, frames: list[np.ndarray]) -> None:
@@ -410,93 +437,14 @@ class ThermalDetector:
                     candidates.extend(self._valley_candidates(frame, result, rows[g], cols[g],
                                                               bounds, fp))
                     continue
+                if c.current_frame_refinement and c.split_by_person_size:
+                    candidates.extend(self._size_candidates(frame, result, rows[g], cols[g],
+                                                            bounds, fp))
+                    continue
                 cand = self._candidate(frame, result, rows[g], cols[g], bounds, footprint=fp)
                 if cand is not None:
                     candidates.append(cand)
         return self._reassociate(candidates)
-
-    def _valley_candidates(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
-                           cols: np.ndarray, bounds: tuple[int, int, int, int],
-                           footprint: Any) -> list[_Candidate]:
-        """Detections of one group's footprint split along its intensity valleys
-        (:meth:`_valley_parts`): touching people whose footprints fused are one part each; a
-        footprint with one peak is one detection, as :meth:`_candidate` gives it."""
-        c = self.config
-        fp = footprint
-        if fp is _UNSET:
-            fp = self._footprint(frame, result.support, rows, cols, bounds)
-        if fp is None:
-            return []
-        score = float(min(1.0, result.variance[rows, cols].mean() / 0.5))
-        parts = self._valley_parts(frame, fp)
-        if parts is None:
-            (y0, x0), mask = fp
-            fr, fc = np.nonzero(mask)
-            if fr.size < c.min_object_pixels:
-                return []
-            now = describe_pixels(fc + x0, fr + y0)
-            parts = [(now.centroid, now.box, now.pixel_count)]
-        return [_Candidate(centroid, box, score, n) for centroid, box, n in parts]
-
-    def _valley_parts(self, frame: np.ndarray, footprint: tuple[tuple[int, int], np.ndarray]
-                      ) -> list[tuple[tuple[float, float], tuple[float, float, float, float],
-                                      int]] | None:
-        """``(centroid, box, pixel_count)`` of each part of a footprint split along its
-        intensity valleys (:func:`mk_tracker.detection.pixel_clustering.valley_split` with depth = the
-        kernel's similarity radius, so each part is dissimilar, k < 1/2, to the valley that
-        separates it); parts smaller than ``min_object_pixels`` are left out.  ``None``
-        when the footprint has one peak (it does not split)."""
-        c = self.config
-        (y0, x0), mask = footprint
-        h, w = mask.shape
-        patch = frame[y0:y0 + h, x0:x0 + w]
-        # the side of the background the footprint is on (all of it is on one side): its
-        # mean against the median of the patch's border pixels off the footprint
-        ring = np.concatenate([patch[0], patch[-1], patch[1:-1, 0], patch[1:-1, -1]])
-        off = ring[~np.concatenate([mask[0], mask[-1], mask[1:-1, 0], mask[1:-1, -1]])]
-        polarity = 1.0
-        if off.size:
-            polarity = 1.0 if float(patch[mask].mean()) >= float(_median(off)) else -1.0
-        depth = _similarity_radius(c.sigma2) / self._map[1]          # window units
-        n, labels = valley_split(patch * np.float32(polarity), mask, depth,
-                                 min_area=c.min_object_pixels,
-                                 min_peak_fraction=c.valley_min_peak_fraction)
-        if n <= 1:
-            return None
-        out = []
-        for cnt, sx, sy, xmin, xmax, ymin, ymax in describe_parts(labels, n).tolist():
-            if cnt < c.min_object_pixels:
-                continue
-            out.append(((sx / cnt + 0.5 + x0, sy / cnt + 0.5 + y0),
-                        (float(xmin + x0), float(ymin + y0), float(xmax + 1 - xmin),
-                         float(ymax + 1 - ymin)), int(cnt)))
-        return out
-
-    def _split_grown(self, frame: np.ndarray, result: SupportResult, regions: list,
-                     centres: np.ndarray, k: int, cand: _Candidate,
-                     owned: tuple[int, np.ndarray, np.ndarray] | None = None) -> _Candidate:
-        """Tracking pass: object ``k``'s footprint grew past ``valley_grow_ratio`` times its
-        last box or its box at the last full-frame pass (it fused with someone it touches):
-        the part of the footprint, split along its valleys, nearest its prediction
-        (``cand`` when it does not split).  ``owned``: object ``k``'s entry of
-        :func:`_owned_support` when the caller has it (the numpy path); the compiled path
-        does not keep the owned pixels, so they are found again here."""
-        if owned is None:
-            only = [r if j == k else None for j, r in enumerate(regions)]
-            owned = _owned_support(result.support, only, centres)[k]
-        _, rows, cols = owned
-        if rows.size < self.config.min_object_pixels:
-            return cand
-        cell = _VoronoiCell(centres, k) if len(centres) > 1 else None
-        fp = self._footprint(frame, result.support, rows, cols, regions[k], cell)
-        if fp is None:
-            return cand
-        parts = self._valley_parts(frame, fp)
-        if not parts:
-            return cand
-        px, py = centres[k]
-        centroid, box, n = min(parts, key=lambda q: math.dist(q[0], (px, py)))
-        return _Candidate(centroid, box, cand.score, n)
 
     def _merge_by_footprint(self, frame: np.ndarray, support: np.ndarray, rows: np.ndarray,
                             cols: np.ndarray, groups: list[np.ndarray],
