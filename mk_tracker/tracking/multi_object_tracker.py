@@ -30,7 +30,7 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    measurement noise (:func:`mk_tracker.tracking.track.measurement_sigma`) and, below
    ``lifecycle.occlusion_similarity``, marks the track occluded (coasting).  Tracks started
    by hand (:meth:`MultiObjectTracker.start_track`) use the settings of
-   :class:`ManualTrackConfig` instead (their own refiner, Kalman prior and visibility), and
+   :class:`~mk_tracker.tracking.manual_track.ManualTrackConfig` instead (their own refiner, Kalman prior and visibility), and
    a result of theirs that sees the target with one kernel column only is searched again
    half a box width towards the seeing column (``MultiObjectTracker._refine``).
 6. **Update and lifecycle** (:mod:`mk_tracker.tracking.track`).
@@ -52,108 +52,26 @@ from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
 
-from mk_tracker.tracking.association import (AssociationConfig, assign, association_cost,
-                                    mahalanobis_matrix)
+from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
-from mk_tracker.tracking.manual_track import (ManualTrackConfig, columns_cover,
-                                              manual_track_kalman, manual_track_lifecycle,
+from mk_tracker.tracking.group_measurement import (constrain_inside, explained_fraction,
+                                                   find_groups)
+from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectTrackerConfig
+from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
+                                              manual_track_lifecycle,
                                               manual_track_multi_kernel, recentre_shift)
-from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker,
-                                              visibility_similarity)
-from mk_tracker.parameters import ParameterError, parameter, validate_config
+from mk_tracker.tracking.multi_kernel import MultiKernelTracker, visibility_similarity
+from mk_tracker.parameters import ParameterError, validate_config
 from mk_tracker.stamps import checked_stamp
 from mk_tracker.tracking.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
                               next_state)
 
-IDENTITY_HOMOGRAPHY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 PLANES = ("rgb", "thermal")
 
 
 class TrackerInputError(ValueError):
     """An input the tracker cannot use at all (not an image, singular homography, ...)."""
-
-
-@dataclass(frozen=True)
-class MultiObjectTrackerConfig:
-    """Every constant of the multi-object tracker (nested configs flatten with dots)."""
-
-    kalman: KalmanConfig = parameter(KalmanConfig(), "Constant-velocity Kalman filter")
-    association: AssociationConfig = parameter(AssociationConfig(),
-                                               "Detection-to-track assignment")
-    lifecycle: LifecycleConfig = parameter(LifecycleConfig(), "Track states and smoothing")
-    multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
-                                                "Multiple-kernel refinement (Chu et al. 2013)")
-    manual_track: ManualTrackConfig = parameter(
-        ManualTrackConfig(), "Tracks started by hand (initial_box, ~/start_track): their own "
-        "Kalman, visibility and kernel settings")
-    use_multi_kernel: bool = parameter(
-        True, "Refine every confirmed/occluded track with the multiple-kernel tracker "
-        "(Sec. IV-D); false = detections and Kalman prediction only")
-    homography: tuple = parameter(
-        IDENTITY_HOMOGRAPHY, "Row-major 3x3 homography mapping thermal pixels to RGB pixels")
-    stale_tolerance: float = parameter(
-        0.5, "Detections whose stamp differs from the frame's by more than this many seconds "
-        "are dropped", minimum=0.0, maximum=1e4)
-    backwards_tolerance: float = parameter(
-        1e-6, "A frame stamp earlier than the previous one by more than this (s) resets the "
-        "tracker", minimum=0.0, maximum=1e4)
-    min_detection_score: float = parameter(
-        -1e9, "Detections with a lower score are ignored", minimum=-1e12, maximum=1e12)
-    new_track_score: float = parameter(
-        0.0, "A detection needs at least this score to start a track", minimum=-1e12,
-        maximum=1e12)
-    new_track_max_iou: float = parameter(
-        0.6, "An unassigned detection overlapping a live track by more than this IoU does "
-        "not start a new track (duplicate)", minimum=0.0, maximum=1.0)
-    refine_consistency_iou: float = parameter(
-        0.3, "A refinement is fused with the assigned detection only if their boxes overlap "
-        "by at least this IoU", minimum=0.0, maximum=1.0)
-    reacquire_gate: float = parameter(
-        13.8, "Chi-square gate (2 dof) for a detection to re-acquire a lost track",
-        minimum=0.1, maximum=1e4)
-    reacquire_similarity: float = parameter(
-        0.4, "Appearance similarity a detection needs to re-acquire a lost track",
-        minimum=0.0, maximum=1.0)
-    reacquire_distance_weight: float = parameter(
-        0.5, "Weight of the gated distance (d2 / gate) next to 1 - appearance similarity in "
-        "the re-acquisition cost", minimum=0.0, maximum=100.0)
-    reacquire_hold_time: float = parameter(
-        0.6, "A new track on a detection inside a lost track's gate stays tentative for up "
-        "to this many seconds, so the lost person can take its id back once its appearance "
-        "matches (it may come back part-occluded)", minimum=0.0, maximum=1e4)
-    reacquire_max_size_ratio: float = parameter(
-        1.6, "Largest height ratio between a lost track and a re-acquiring detection",
-        minimum=1.0, maximum=100.0)
-    refinement_similarity_range: tuple = parameter(
-        (0.5, 0.95), "Multiple-kernel similarities (low, high) mapped linearly to match "
-        "quality 0..1; the quality sets the refinement's measurement noise")
-    refine_when_detected: bool = parameter(
-        False, "Also run the multiple-kernel refinement for tracks with an assigned detection "
-        "(slower; fused with the detection at fused_quality_factor)")
-    fused_quality_factor: float = parameter(
-        0.25, "Factor on a refinement's quality when it is fused with an assigned detection "
-        "(the detection sees the whole person; the kernels may see only its visible part)",
-        minimum=0.0, maximum=1.0)
-    undetected_quality_factor: float = parameter(
-        0.5, "Factor on a refinement's quality in frames where no detection confirms the "
-        "track (a part-occluded target still matches its visible kernels well)",
-        minimum=0.0, maximum=1.0)
-    appearance_update_interval: float = parameter(
-        1.0, "Seconds between refreshes of a track's appearance model from an isolated "
-        "detection (0 = every frame)", minimum=0.0, maximum=1e4)
-    appearance_update_similarity: float = parameter(
-        0.8, "Multiple-kernel similarity a track needs for its appearance model to be "
-        "refreshed from its detection", minimum=0.0, maximum=1.0)
-    isolation_iou: float = parameter(
-        0.05, "A detection overlapping another track by more than this IoU is not used to "
-        "refresh an appearance model", minimum=0.0, maximum=1.0)
-    max_reported_coast_time: float = parameter(
-        0.2, "FrameResult.reported() includes an occluded (coasting) track for at most this "
-        "many seconds after its last detection; it stays tracked (and in tracks) for longer",
-        minimum=0.0, maximum=1e4)
-    max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
-                                "not started", minimum=1, maximum=100000)
 
 
 @dataclass(frozen=True)
@@ -321,7 +239,7 @@ class MultiObjectTracker:
         self._frame_interval = 0.0       # seconds between the last two frames
         self.frame_size: tuple[int, int] | None = None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
-                       "resets": 0, "size_resets": 0}
+                       "resets": 0, "size_resets": 0, "group_measurements": 0}
 
     # -- public API -----------------------------------------------------------------------
     def reset(self) -> None:
@@ -390,20 +308,28 @@ class MultiObjectTracker:
         for t in live:
             t.predict(stamp)
 
-        # 4a. detections vs tentative / confirmed / occluded tracks
+        # 4a. detections around several confirmed tracks are group measurements
+        # (mk_tracker.tracking.group_measurement): assigned to none of them
         active = [t for t in live if t.state is not TrackState.LOST]
+        pool = [t for t in active if t.state in (TrackState.CONFIRMED, TrackState.OCCLUDED)]
+        groups = find_groups([t.box for t in pool], [d.box for d in dets], self.config.group)
+        group_of = {pool[i].id: k for k, members in groups.items() for i in members}
+        self.totals["group_measurements"] += len(groups)
+        # 4b. the other detections vs tentative / confirmed / occluded tracks
         matched_track: dict[int, int] = {}          # detection index -> track id
-        if active and dets:
-            a = self._match(active, dets, self.config.association.gate)
+        single = [k for k in range(len(dets)) if k not in groups]
+        free = [t for t in active if t.id not in group_of]
+        if free and single:
+            a = self._match(free, [dets[k] for k in single], self.config.association.gate)
             for r, k in a.matches:
-                matched_track[k] = active[r].id
-        # 4b. remaining detections vs lost tracks (re-acquisition)
+                matched_track[single[k]] = free[r].id
+        # 4c. remaining detections vs lost tracks (re-acquisition)
         # A person reappearing part-occluded may first be seen by a new tentative track (its
         # appearance does not match yet); its detections stay candidates until it is
         # confirmed, and when one re-acquires a lost track the tentative track is dropped.
         lost = [t for t in live if t.state is TrackState.LOST]
         tentative = {t.id: t for t in live if t.state is TrackState.TENTATIVE}
-        remaining = [k for k in range(len(dets))
+        remaining = [k for k in single
                      if k not in matched_track or matched_track[k] in tentative]
         held: set[int] = set()             # tentative tracks not confirmed this frame
         if lost and remaining:
@@ -457,14 +383,28 @@ class MultiObjectTracker:
         blockers.update({t.id: t.box for t in live
                          if t.id not in blockers and t.state in OUTPUT_STATES})
         for t in live:
+            if t.id in group_of:
+                # a member of a group: its refined (else predicted) box, moved inside the
+                # group's box, is its detection, at a lower quality
+                g = dets[group_of[t.id]]
+                found = refined.get(t.id)
+                base = found[0] if found is not None and found[2] else t.box
+                box = constrain_inside(base, self._at_frame_time(t, g))
+                member = _Prepared(box=box, score=_quality(g.score)
+                                   * self.config.group.quality_factor, lag=0.0)
+                self._update_track(t, stamp, image_bgr, box, member, None, width, height,
+                                   blockers, group=True)
+                continue
             self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
                                detected.get(t.id), refined.get(t.id), width, height,
                                blockers, hold=t.id in held)
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
                                and t.state is not TrackState.LOST]).reshape(-1, 4)
-        candidates = [k for k, d in enumerate(dets)
-                      if k not in matched_track and d.score >= self.config.new_track_score]
+        candidates = [k for k in single if k not in matched_track
+                      and dets[k].score >= self.config.new_track_score
+                      and explained_fraction(dets[k].box, live_boxes)
+                      < self.config.group.explained_coverage]
         overlap = iou_matrix(np.array([dets[k].box for k in candidates]).reshape(-1, 4),
                              live_boxes)
         started: list[np.ndarray] = []
@@ -724,7 +664,10 @@ class MultiObjectTracker:
     def _update_track(self, t: Track, stamp: float, image: np.ndarray,
                       det_box: np.ndarray | None, det: _Prepared | None,
                       refined: tuple[np.ndarray, float, bool] | None, width: int, height: int,
-                      blockers: dict[int, np.ndarray], hold: bool = False) -> None:
+                      blockers: dict[int, np.ndarray], hold: bool = False,
+                      group: bool = False) -> None:
+        """Kalman update and lifecycle of one track; ``group``: its detection is its place
+        inside a group measurement (no OC-SORT re-update, no appearance refresh)."""
         cfg = t.config            # the tracker's lifecycle, or manual_track's for hand-started
         was = t.state
         sim = refined[1] if refined is not None else None
@@ -739,7 +682,7 @@ class MultiObjectTracker:
                 t.kf.update(det_box[:2] + det_box[2:] / 2.0, sigma_w=cfg.min_noise_px)
                 t.size = det_box[2:].copy()
             else:
-                if cfg.observation_centric_reupdate and not t.manual \
+                if cfg.observation_centric_reupdate and not t.manual and not group \
                         and was is not TrackState.TENTATIVE:
                     t.reupdate_from_last_seen(det_box, stamp, self._frame_interval)
                 t.correct(det_box, _quality(det.score))
@@ -781,7 +724,7 @@ class MultiObjectTracker:
         if new is not TrackState.LOST:
             t.lost_since = None
         t.state = new
-        if det_box is not None and new is TrackState.CONFIRMED and \
+        if det_box is not None and new is TrackState.CONFIRMED and not group and \
                 self._refiner_for(t) is not None:
             # refresh only from a clean view: not next to another person, and (when the
             # refiner ran) a good match, so an occluder's pixels never enter the model; a

@@ -1,0 +1,104 @@
+"""Every constant of the multi-object tracker (:mod:`mk_tracker.tracking.multi_object_tracker`)
+in one frozen dataclass; nested configurations flatten to dotted ROS parameter names
+(``lifecycle.min_hits``, ``group.enabled``, ...).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mk_tracker.kalman import KalmanConfig
+from mk_tracker.parameters import parameter
+from mk_tracker.tracking.association import AssociationConfig
+from mk_tracker.tracking.group_measurement import GroupConfig
+from mk_tracker.tracking.manual_track import ManualTrackConfig
+from mk_tracker.tracking.multi_kernel import MultiKernelConfig
+from mk_tracker.tracking.track import LifecycleConfig
+
+__all__ = ["IDENTITY_HOMOGRAPHY", "MultiObjectTrackerConfig"]
+
+IDENTITY_HOMOGRAPHY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class MultiObjectTrackerConfig:
+    """Every constant of the multi-object tracker (nested configs flatten with dots)."""
+
+    kalman: KalmanConfig = parameter(KalmanConfig(), "Constant-velocity Kalman filter")
+    association: AssociationConfig = parameter(AssociationConfig(),
+                                               "Detection-to-track assignment")
+    lifecycle: LifecycleConfig = parameter(LifecycleConfig(), "Track states and smoothing")
+    group: GroupConfig = parameter(GroupConfig(), "Detections around several tracks "
+                                   "(group measurements)")
+    multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
+                                                "Multiple-kernel refinement (Chu et al. 2013)")
+    manual_track: ManualTrackConfig = parameter(
+        ManualTrackConfig(), "Tracks started by hand (initial_box, ~/start_track): their own "
+        "Kalman, visibility and kernel settings")
+    use_multi_kernel: bool = parameter(
+        True, "Refine every confirmed/occluded track with the multiple-kernel tracker "
+        "(Sec. IV-D); false = detections and Kalman prediction only")
+    homography: tuple = parameter(
+        IDENTITY_HOMOGRAPHY, "Row-major 3x3 homography mapping thermal pixels to RGB pixels")
+    stale_tolerance: float = parameter(
+        0.5, "Detections whose stamp differs from the frame's by more than this many seconds "
+        "are dropped", minimum=0.0, maximum=1e4)
+    backwards_tolerance: float = parameter(
+        1e-6, "A frame stamp earlier than the previous one by more than this (s) resets the "
+        "tracker", minimum=0.0, maximum=1e4)
+    min_detection_score: float = parameter(
+        -1e9, "Detections with a lower score are ignored", minimum=-1e12, maximum=1e12)
+    new_track_score: float = parameter(
+        0.0, "A detection needs at least this score to start a track", minimum=-1e12,
+        maximum=1e12)
+    new_track_max_iou: float = parameter(
+        0.6, "An unassigned detection overlapping a live track by more than this IoU does "
+        "not start a new track (duplicate)", minimum=0.0, maximum=1.0)
+    refine_consistency_iou: float = parameter(
+        0.3, "A refinement is fused with the assigned detection only if their boxes overlap "
+        "by at least this IoU", minimum=0.0, maximum=1.0)
+    reacquire_gate: float = parameter(
+        13.8, "Chi-square gate (2 dof) for a detection to re-acquire a lost track",
+        minimum=0.1, maximum=1e4)
+    reacquire_similarity: float = parameter(
+        0.4, "Appearance similarity a detection needs to re-acquire a lost track",
+        minimum=0.0, maximum=1.0)
+    reacquire_distance_weight: float = parameter(
+        0.5, "Weight of the gated distance (d2 / gate) next to 1 - appearance similarity in "
+        "the re-acquisition cost", minimum=0.0, maximum=100.0)
+    reacquire_hold_time: float = parameter(
+        0.6, "A new track on a detection inside a lost track's gate stays tentative for up "
+        "to this many seconds, so the lost person can take its id back once its appearance "
+        "matches (it may come back part-occluded)", minimum=0.0, maximum=1e4)
+    reacquire_max_size_ratio: float = parameter(
+        1.6, "Largest height ratio between a lost track and a re-acquiring detection",
+        minimum=1.0, maximum=100.0)
+    refinement_similarity_range: tuple = parameter(
+        (0.5, 0.95), "Multiple-kernel similarities (low, high) mapped linearly to match "
+        "quality 0..1; the quality sets the refinement's measurement noise")
+    refine_when_detected: bool = parameter(
+        False, "Also run the multiple-kernel refinement for tracks with an assigned detection "
+        "(slower; fused with the detection at fused_quality_factor)")
+    fused_quality_factor: float = parameter(
+        0.25, "Factor on a refinement's quality when it is fused with an assigned detection "
+        "(the detection sees the whole person; the kernels may see only its visible part)",
+        minimum=0.0, maximum=1.0)
+    undetected_quality_factor: float = parameter(
+        0.5, "Factor on a refinement's quality in frames where no detection confirms the "
+        "track (a part-occluded target still matches its visible kernels well)",
+        minimum=0.0, maximum=1.0)
+    appearance_update_interval: float = parameter(
+        1.0, "Seconds between refreshes of a track's appearance model from an isolated "
+        "detection (0 = every frame)", minimum=0.0, maximum=1e4)
+    appearance_update_similarity: float = parameter(
+        0.8, "Multiple-kernel similarity a track needs for its appearance model to be "
+        "refreshed from its detection", minimum=0.0, maximum=1.0)
+    isolation_iou: float = parameter(
+        0.05, "A detection overlapping another track by more than this IoU is not used to "
+        "refresh an appearance model", minimum=0.0, maximum=1.0)
+    max_reported_coast_time: float = parameter(
+        0.2, "FrameResult.reported() includes an occluded (coasting) track for at most this "
+        "many seconds after its last detection; it stays tracked (and in tracks) for longer",
+        minimum=0.0, maximum=1e4)
+    max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
+                                "not started", minimum=1, maximum=100000)
