@@ -75,11 +75,12 @@ def detector_ms(bag: Path, regions: tuple) -> float:
     return 1000.0 * float(np.median(times[10:] or times))
 
 
-def run_pipeline(bag: Path, out: Path, regions: tuple) -> tuple[list, list, list[int]]:
+def run_pipeline(bag: Path, out: Path, regions: tuple, extra: tuple = ()
+                 ) -> tuple[list, list, list[int]]:
     params = out.parent / f"{out.name}.yaml"
     flat = ", ".join(str(v) for v in regions) if regions else "0.0, 0.0, 0.0, 0.0"
     params.write_text(f"detector_node:\n  ros__parameters:\n    ignore_regions: [{flat}]\n")
-    result = process_bag(bag, out, config=load_pipeline_config([params]),
+    result = process_bag(bag, out, config=load_pipeline_config([*extra, params]),
                          options=PipelineOptions(progress=False, write_video=False,
                                                  write_plots=False))
     stamps = sorted(result.frame_stamps) or sorted(result.tracks)
@@ -135,6 +136,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--clip", type=Path, default=DEFAULT_CLIP)
     parser.add_argument("--out", type=Path, default=None, help="markdown report to write")
+    parser.add_argument("--params", type=Path, nargs="*", default=[],
+                        help="parameter files applied over the defaults (ablations)")
     args = parser.parse_args(argv)
     if not args.clip.exists():
         print(f"{args.clip} not found", file=sys.stderr)
@@ -148,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
         masked = None
         for label, regions in (("as it is", ()), ("counter masked", COUNTER_REGION)):
             t0 = time.perf_counter()
-            tracks, dets, stamps = run_pipeline(bag, tmp / label.replace(" ", "_"), regions)
+            tracks, dets, stamps = run_pipeline(bag, tmp / label.replace(" ", "_"), regions,
+                                                tuple(args.params))
             wall = time.perf_counter() - t0
             f = figures(tracks, dets)
             f["detector_ms"] = detector_ms(bag, regions)
@@ -162,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
             rows.append((f"kernel covariance (counter masked) -> {name}",
                          figures(peer_tracks, dets), float("nan")))
             print(rows[-1], file=sys.stderr)
-        strip(bag, tracks, stamps, ROOT / "docs" / "images" / "real_thermal_frames.png")
+        if args.out is not None:
+            strip(bag, tracks, stamps, ROOT / "docs" / "images" / "real_thermal_frames.png")
     lines = ["| detections -> tracker | detections / frame | tracks / frame | distinct ids "
              "(~7 people) | duplicate pairs (IoU > 0.5) / frame | detector CPU ms / frame |",
              "|---|---|---|---|---|---|"]
