@@ -177,9 +177,11 @@ def test_type_hashes_equal_the_real_vision_msgs(ros_graph_node):
 
 def test_installed_type_descriptions_carry_the_same_hashes():
     import json
-    share = Path(sys.prefix) / "share" / "vision_msgs" / "msg"
-    if not share.is_dir():
-        pytest.skip(f"{share} absent (vision_msgs not installed into this prefix)")
+    # the prefix vision_msgs was installed into: <prefix>/lib/pythonX.Y/site-packages/
+    # vision_msgs (under make test-oldest that is .venv, not sys.prefix = .venv-oldest)
+    module = Path(importlib.import_module("vision_msgs").__file__).resolve()
+    share = module.parents[4] / "share" / "vision_msgs" / "msg"
+    assert share.is_dir(), f"{share} absent: vision_msgs was installed without its share files"
     for name, expected in REFERENCE_HASHES.items():
         data = json.loads((share / f"{name}.json").read_text())
         hashes = {h["type_name"]: h["hash_string"] for h in data["type_hashes"]}
