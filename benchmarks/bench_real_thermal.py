@@ -30,8 +30,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from mk_tracker.bags.bag_io import open_bag  # noqa: E402
 from mk_tracker.bags.recording_import import import_recording, open_recording  # noqa: E402
-from mk_tracker.boxes import iou  # noqa: E402
 from mk_tracker.drawing.debug_image import TrackDrawing, draw_tracks  # noqa: E402
+from mk_tracker.evaluation.identity_figures import identity_figures as figures  # noqa: E402
 from mk_tracker.frame_processing import build_detector  # noqa: E402
 from mk_tracker.messages.detection_messages import read_detection_array  # noqa: E402
 from mk_tracker.messages.image_conversion import image_to_numpy  # noqa: E402
@@ -43,21 +43,6 @@ DEFAULT_CLIP = ROOT.parent / "shared" / "data" / "thermal" / "BU-TIV-lab" / "BU-
 #: the burned-in counter (about 90x40 px at the top left, README of the data) with a margin
 COUNTER_REGION = (0.0, 0.0, 110.0, 50.0)
 STRIP_FRAMES = (150, 420, 540)
-
-
-def duplicate_pairs(boxes: list) -> int:
-    """Pairs of boxes of one frame overlapping at IoU > 0.5."""
-    return sum(1 for i in range(len(boxes)) for j in range(i + 1, len(boxes))
-               if iou(boxes[i], boxes[j]) > 0.5)
-
-
-def figures(tracks_by_frame: list[list], detections_by_frame: list[list]) -> dict:
-    n = max(len(tracks_by_frame), 1)
-    ids = {tid for frame in tracks_by_frame for tid, _ in frame}
-    return {"detections": sum(map(len, detections_by_frame)) / n,
-            "tracks": sum(map(len, tracks_by_frame)) / n,
-            "ids": len(ids),
-            "duplicates": sum(duplicate_pairs([b for _, b in f]) for f in tracks_by_frame) / n}
 
 
 def detector_ms(bag: Path, regions: tuple) -> float:
