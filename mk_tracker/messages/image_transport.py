@@ -11,11 +11,28 @@ looking at the ROS graph: the topic exists with another type, or a ``/compressed
 
 from __future__ import annotations
 
-from typing import Iterable, Mapping
+from typing import Any, Iterable, Mapping
 
 from mk_tracker.messages.compressed_image import COMPRESSED_TYPE, IMAGE_TYPE
+from mk_tracker.parameters import parameter
 
 TRANSPORTS = ("raw", "compressed")
+
+
+def image_transport_parameter() -> Any:
+    """The ``image_transport`` parameter both nodes declare (a dataclass field)."""
+    return parameter(
+        "raw", "raw: sensor_msgs/Image on image_topic; compressed: sensor_msgs/CompressedImage "
+        "(JPEG or PNG, 16-bit PNG for mono16) on <image_topic>/compressed, as image_transport "
+        "publishes it", choices=TRANSPORTS, read_only=True)
+
+
+def no_image_warning_parameter() -> Any:
+    """The ``no_image_warning`` parameter both nodes declare (a dataclass field)."""
+    return parameter(
+        5.0, "Seconds without an image after which the node looks at the ROS graph once and "
+        "warns if image_topic has another type or a /compressed (or raw) sibling exists; "
+        "0 = never", minimum=0.0, maximum=3600.0, read_only=True)
 SUFFIX = "/compressed"
 
 

@@ -38,7 +38,8 @@ from mk_tracker.frame_processing import (METHODS, build_detector, detector_debug
                                          detector_event, detector_outputs, skipped_reason,
                                          detector_input)
 from mk_tracker.messages.compressed_image import as_image
-from mk_tracker.messages.image_transport import TRANSPORTS
+from mk_tracker.messages.image_transport import (image_transport_parameter,
+                                                 no_image_warning_parameter)
 from mk_tracker.ros.image_subscription import ImageSubscription
 from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
@@ -63,14 +64,8 @@ class DetectorNodeConfig:
         "thermal/detections", "Output topic (vision_msgs/Detection2DArray)", read_only=True)
     image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
                                                  "QoS of the image subscription")
-    image_transport: str = parameter(
-        "raw", "raw: sensor_msgs/Image on image_topic; compressed: sensor_msgs/CompressedImage "
-        "(JPEG or PNG, 16-bit PNG for mono16) on <image_topic>/compressed, as image_transport "
-        "publishes it", choices=TRANSPORTS, read_only=True)
-    no_image_warning: float = parameter(
-        5.0, "Seconds without an image after which the node looks at the ROS graph once and "
-        "warns if image_topic has another type or a /compressed (or raw) sibling exists; "
-        "0 = never", minimum=0.0, maximum=3600.0, read_only=True)
+    image_transport: str = image_transport_parameter()
+    no_image_warning: float = no_image_warning_parameter()
     method: str = parameter(
         "kernel_covariance", "Detection method: sparse kernel covariance factorization "
         "(Schizas et al. 2018) or the threshold baseline", choices=METHODS)

@@ -53,7 +53,8 @@ from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, detect
                                          kernel_drawings, tracker_debug_image, tracker_input,
                                          tracker_inputs, tracks_to_detections)
 from mk_tracker.messages.compressed_image import as_image
-from mk_tracker.messages.image_transport import TRANSPORTS
+from mk_tracker.messages.image_transport import (image_transport_parameter,
+                                                 no_image_warning_parameter)
 from mk_tracker.ros.image_subscription import ImageSubscription
 from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
@@ -80,14 +81,8 @@ class TrackerNodeConfig:
     detections_topic: str = parameter(
         "thermal/detections", "Detections topic (vision_msgs/Detection2DArray)", read_only=True)
     tracks_topic: str = parameter("tracks", "Output topic of tracked boxes", read_only=True)
-    image_transport: str = parameter(
-        "raw", "raw: sensor_msgs/Image on image_topic; compressed: sensor_msgs/CompressedImage "
-        "(JPEG or PNG, 16-bit PNG for mono16) on <image_topic>/compressed, as image_transport "
-        "publishes it", choices=TRANSPORTS, read_only=True)
-    no_image_warning: float = parameter(
-        5.0, "Seconds without an image after which the node looks at the ROS graph once and "
-        "warns if image_topic has another type or a /compressed (or raw) sibling exists; "
-        "0 = never", minimum=0.0, maximum=3600.0, read_only=True)
+    image_transport: str = image_transport_parameter()
+    no_image_warning: float = no_image_warning_parameter()
     image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
                                                  "QoS of the image subscription")
     detections_qos: SubscriptionQosConfig = parameter(
