@@ -43,7 +43,8 @@ from quiet_domain import quiet_domain  # noqa: E402
 TYPES = ros_message_types()
 OVERLOAD = 3.0          # input rate / measured processing rate
 MAX_RATE_HZ = 300.0     # what the test's publisher is asked for at most
-LOAD_SECONDS = 10.0     # length of the overloaded run
+LOAD_SECONDS = 10.0     # shortest overloaded run
+QUEUE_SIGNAL_MIB = 60.0  # what a frame queue must add over the run to stand out of RSS noise
 MEASURE_FRAMES = 60     # stop-and-wait frames (> 2 reconfiguration periods of 25 frames)
 
 
@@ -130,7 +131,12 @@ def test_overloaded_detector_stays_current_reports_drops_and_keeps_memory_flat(d
         capacity = len(trips) / trips.sum()           # frames per second, stop-and-wait
         service = float(np.median(trips))
         rate_hz = min(OVERLOAD * capacity, MAX_RATE_HZ)
-        n = int(rate_hz * LOAD_SECONDS)
+        # long enough that a queue of the excess frames would add twice QUEUE_SIGNAL_MIB
+        # (a slow machine processes fewer frames, so it runs longer)
+        frame_mib = frames[0].nbytes / 2 ** 20
+        excess_mib_s = max(rate_hz - capacity, 0.1 * capacity) * frame_mib
+        load_seconds = max(LOAD_SECONDS, 1.0 + 2.0 * QUEUE_SIGNAL_MIB / excess_mib_s)
+        n = int(rate_hz * load_seconds)
         first_load_stamp = max(stream.sent) + 1.0
         t0 = time.monotonic()
         for i in range(n):
@@ -190,15 +196,21 @@ def test_overloaded_detector_stays_current_reports_drops_and_keeps_memory_flat(d
     # up -- grows by the excess input rate times 300 KiB per frame: 2/3 of the input, tens
     # of MiB per second at any overload, far past both bounds.  Slow leaks are the soak
     # benchmark's job (docs/soak.md).
+    # The bound is relative to this run: a queue of the frames it did not process would have
+    # added (sent - processed rate) x frame size x the settled time; the run is long enough
+    # (load_seconds) that this is at least QUEUE_SIGNAL_MIB, above the noise, and the peak
+    # may grow by at most half of it.  (A fixed 16 MiB bound on late vs middle peaks was
+    # exceeded by 0.02 MiB once under a CPU burner: the noise itself.)
     settled = [(t, m) for t, m in memory if t >= 1.0]
-    cut = 1.0 + (LOAD_SECONDS - 1.0) * 2 / 3
+    cut = 1.0 + (load_seconds - 1.0) * 2 / 3
     middle_peak = max(m for t, m in settled if t < cut)
     late_peak = max(m for t, m in settled if t >= cut)
-    assert late_peak <= middle_peak + 16.0, memory
     early_peak = max(m for t, m in settled if t < 4.0)
-    assert late_peak - early_peak < 25.0, memory
+    queue_mib = (sent_rate - rate) * frame_mib * (elapsed - 1.0)
+    assert queue_mib >= QUEUE_SIGNAL_MIB, f"a queue would not show: {queue_mib:.0f} MiB"
+    assert late_peak - early_peak < 0.5 * queue_mib, (queue_mib, memory)
     print(f"load: {context}; {len(load)} sent, {len(processed)} processed, latency median "
           f"early {early * 1000:.0f} ms late {late * 1000:.0f} ms, dropped (node's report) "
           f"{dropped[-1]} of {unprocessed} unprocessed, RSS MiB {settled[0][1]:.0f} -> "
           f"{settled[-1][1]:.0f} (peaks early {early_peak:.0f} middle {middle_peak:.0f} "
-          f"late {late_peak:.0f})")
+          f"late {late_peak:.0f}; a queue would have added {queue_mib:.0f})")
