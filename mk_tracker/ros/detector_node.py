@@ -241,18 +241,20 @@ class DetectorNode(Node):
         c = self._counters
         if not c.report_timer.due(self.node_config.report_period):
             return
-        dropped = self._worker.dropped
+        received, _, dropped = self._worker.counts()
         if dropped > c.reported_drops or c.bad_images or c.rejected_frames:
             self.get_logger().info(
                 f"{c.frames} frames, {c.detections} detections, {dropped} frames dropped "
-                f"(newer frame arrived first), {c.bad_images} bad images, "
+                f"(newer frame arrived first), {received} frames received, "
+                f"{c.bad_images} bad images, "
                 f"{c.rejected_frames} frames rejected by the detector")
         c.reported_drops = dropped
 
     def statistics(self) -> dict[str, int]:
         c = self._counters
-        return {"frames": c.frames, "detections": c.detections,
-                "dropped": self._worker.dropped, "bad_images": c.bad_images,
+        received, _, dropped = self._worker.counts()
+        return {"frames": c.frames, "detections": c.detections, "received": received,
+                "dropped": dropped, "bad_images": c.bad_images,
                 "rejected_frames": c.rejected_frames}
 
     def destroy_node(self) -> None:

@@ -51,6 +51,12 @@ class LatestFrameWorker:
             self._cond.notify()
         return replaced
 
+    def counts(self) -> tuple[int, int, int]:
+        """``(submitted, processed, dropped)`` read together, so that they add up:
+        submitted = processed + dropped + (item in progress) + (item waiting)."""
+        with self._cond:
+            return self.submitted, self.processed, self.dropped
+
     def idle(self) -> bool:
         """True when nothing is waiting and nothing is being processed."""
         with self._cond:

@@ -350,11 +350,12 @@ class TrackerNode(Node):
         c = self._counters
         if not c.report_timer.due(self.node_config.report_period):
             return
-        dropped = self._worker.dropped
+        received, _, dropped = self._worker.counts()
         totals = self.tracker.totals
         if dropped > c.reported_drops or c.bad_images or c.unknown_frame:
             self.get_logger().info(
                 f"{c.frames} frames tracked, {dropped} dropped (newer frame arrived first), "
+                f"{received} received, "
                 f"{c.bad_images} bad images, {c.bad_detection_messages} bad detection "
                 f"messages, {c.bad_detections} bad detections, {c.unknown_frame} detection "
                 f"messages in unknown frames, {c.overflowed_detection_messages} overflowed, "
@@ -365,7 +366,8 @@ class TrackerNode(Node):
     # -- shutdown ------------------------------------------------------------------------
     def statistics(self) -> dict[str, int]:
         c = self._counters
-        return {"frames": c.frames, "dropped": self._worker.dropped,
+        received, _, dropped = self._worker.counts()
+        return {"frames": c.frames, "received": received, "dropped": dropped,
                 "bad_images": c.bad_images, "unknown_frame": c.unknown_frame,
                 "bad_detection_messages": c.bad_detection_messages,
                 "bad_detections": c.bad_detections,

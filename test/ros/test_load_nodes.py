@@ -178,17 +178,29 @@ def test_overloaded_detector_stays_current_reports_drops_and_keeps_memory_flat(d
     gap_bound = 4.0 * float(trips.max()) + 0.2
     assert gaps.max() < gap_bound, (f"a {gaps.max():.2f} s stretch of input was never "
                                     f"processed (bound {gap_bound:.2f} s); {context}")
-    # reports its dropped frames.  Frames it never processed were either replaced in its
+    # reports its dropped frames.  A frame it never processed was either replaced in its
     # newest-frame slot, which it counts, or overwritten inside DDS by the depth-1
-    # best-effort reader before its callback ran, which it cannot see (the compiled loops
-    # release the GIL, so the callback runs while a frame is processed: 95-98 % reach the
-    # slot).  The count is a lower bound: never more than the frames really skipped.
+    # best-effort reader before its callback ran, which no subscriber can see.  How many
+    # reach the callback depends on how fast this machine runs the executor against the
+    # publisher (95-98 % at 60 Hz; about 70 % at 190 Hz on an idle fast machine, issue #12),
+    # so the test does not assume a share: it checks that every frame the node received is
+    # accounted for (received = processed + dropped + at most the one waiting in the slot,
+    # the counters read together), that the node itself was overloaded, and that the count
+    # is a lower bound, never more than the frames really skipped.
     log = detector.output()
-    dropped = [int(line.split(" frames dropped")[0].rsplit(" ", 1)[-1])
-               for line in log.splitlines() if " frames dropped" in line]
+    reports = [line for line in log.splitlines() if " frames dropped" in line]
+    assert reports, f"the node never reported dropped frames; {context}\n{log[-2000:]}"
+    last = reports[-1]
+    frames = int(last.split(" frames, ")[0].rsplit(" ", 1)[-1])
+    dropped = int(last.split(" frames dropped")[0].rsplit(" ", 1)[-1])
+    received = int(last.split(" frames received")[0].rsplit(" ", 1)[-1])
+    assert "0 bad images" in last and "0 frames rejected" in last, last
+    assert 0 <= received - frames - dropped <= 1, (
+        f"frames the node received but neither processed nor counted as dropped: {last}")
+    assert received > 1.5 * frames, f"the node itself was not overloaded: {last}; {context}"
     unprocessed = len(stream.sent) - sum(s in stream.answered for s in stream.sent)
-    assert dropped and 0.5 * unprocessed < dropped[-1] <= unprocessed, (
-        unprocessed, dropped[-1:], context, log[-2000:])
+    assert 0 < dropped <= unprocessed and received <= len(stream.sent), (
+        unprocessed, len(stream.sent), last, context)
     # memory flat: after the first seconds the peak stops rising.  RSS is not a smooth
     # curve: sampled 4 times a second it jumps between two levels ~35 MiB apart every 1-3 s
     # (the allocator taking and returning large temporary buffers) and its peaks differ by
@@ -211,6 +223,6 @@ def test_overloaded_detector_stays_current_reports_drops_and_keeps_memory_flat(d
     assert late_peak - early_peak < 0.5 * queue_mib, (queue_mib, memory)
     print(f"load: {context}; {len(load)} sent, {len(processed)} processed, latency median "
           f"early {early * 1000:.0f} ms late {late * 1000:.0f} ms, dropped (node's report) "
-          f"{dropped[-1]} of {unprocessed} unprocessed, RSS MiB {settled[0][1]:.0f} -> "
+          f"{dropped} of {unprocessed} unprocessed, {received} received, RSS MiB {settled[0][1]:.0f} -> "
           f"{settled[-1][1]:.0f} (peaks early {early_peak:.0f} middle {middle_peak:.0f} "
           f"late {late_peak:.0f}; a queue would have added {queue_mib:.0f})")

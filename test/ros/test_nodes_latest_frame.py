@@ -25,10 +25,13 @@ def test_slow_consumer_sees_the_newest_frame_and_counts_the_overwritten_ones():
         assert started.wait(30.0), "the worker never took the first item"
         replaced = [worker.submit(i) for i in range(1, 6)]   # 1..4 are overwritten by 5
         assert replaced == [False, True, True, True, True]
+        # item 0 in progress, item 5 waiting: submitted = processed + dropped + 2
+        assert worker.counts() == (6, 0, 4)
         gate.set()
         assert worker.wait_idle(5.0)
         assert processed == [0, 5]
         assert worker.dropped == 4 and worker.processed == 2 and worker.submitted == 6
+        assert worker.counts() == (6, 2, 4)
     finally:
         gate.set()
         worker.stop()
