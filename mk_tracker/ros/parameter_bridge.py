@@ -9,8 +9,9 @@ Every config is declared under a *prefix*, and nested config fields keep their d
 * ``detector.*``  -- the sparse kernel covariance detector (``ThermalDetectorConfig``),
 * ``threshold.*`` -- the threshold baseline detector,
 * ``tracker.*``   -- the multi-object tracker, e.g. ``tracker.kalman.sigma_u``;
-* node parameters (topics, QoS, debug image, homography ...) use the empty prefix and are
-  flat or grouped by a nested dataclass, e.g. ``image_topic``, ``image_qos.depth``.
+* node parameters (QoS, debug image, detection wait ...) use the empty prefix and are
+  flat or grouped by a nested dataclass, e.g. ``detection_wait``, ``image_qos.depth``.
+  Topic names are not parameters: they are remapped (``-r image_raw:=/camera/image_raw``).
 
 In a ``--params-file`` YAML file the dotted names can be written flat
 (``tracker.kalman.sigma_u: 2.0``) or nested; :func:`config_yaml` writes them nested.
@@ -330,9 +331,10 @@ def config_yaml(node_name: str, configs: Mapping[str, Any]) -> str:
 
     ``configs`` maps prefix -> config instance.  Each parameter is preceded by its
     description and range as a comment, so the shipped config/*.yaml files document
-    themselves.
+    themselves.  The section is keyed ``/**/<node_name>``: it applies to the node in any
+    namespace (several camera pairs side by side), not only at the root.
     """
-    lines = [f"{node_name}:", "  ros__parameters:"]
+    lines = [f"/**/{node_name}:", "  ros__parameters:"]
     tree: dict = {}
     for prefix, config in configs.items():
         for spec in parameter_specs(config):

@@ -246,22 +246,25 @@ def test_flat_prefix_and_two_groups(context):
 def test_generated_yaml_loads_as_a_params_file(tmp_path):
     text = config_yaml("toy", {"toy": ToyConfig()})
     data = yaml.safe_load(text)
-    params = data["toy"]["ros__parameters"]["toy"]
+    assert list(data) == ["/**/toy"]           # the node in any namespace
+    params = data["/**/toy"]["ros__parameters"]["toy"]
     assert params["inner"]["sigma"] == 1.5 and params["mode"] == "fast"
     assert params["weights"] == [1.0, 2.0, 3.0] and params["enabled"] is True
     assert "# Noise std [0.0, 10.0]" in text
-    # change a value in the file and load it through rcl's own parser
+    # change a value in the file and load it through rcl's own parser, into a node at the
+    # root and into one in a namespace (the /** wildcard)
     path = tmp_path / "toy.yaml"
     path.write_text(text.replace("sigma: 1.5", "sigma: 7.25"))
     ctx = Context()
     rclpy.init(context=ctx, args=["--ros-args", "--params-file", str(path)])
     try:
-        node = Node("toy", context=ctx)
-        try:
-            cfg = ParameterBridge(node).add_config("toy", ToyConfig())
-            assert cfg.inner.sigma == 7.25 and cfg.weights == (1.0, 2.0, 3.0)
-        finally:
-            node.destroy_node()
+        for namespace in ("", "/cam1", "/robot/cam2"):
+            node = Node("toy", namespace=namespace, context=ctx)
+            try:
+                cfg = ParameterBridge(node).add_config("toy", ToyConfig())
+                assert cfg.inner.sigma == 7.25 and cfg.weights == (1.0, 2.0, 3.0), namespace
+            finally:
+                node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
 
@@ -281,7 +284,7 @@ def test_shipped_params_files_set_every_parameter_to_a_valid_value(node_name, mo
 
     module = importlib.import_module(module_name)     # an ImportError is a failure, not a skip
     shipped = yaml.safe_load((Path(__file__).resolve().parents[2] / path).read_text())
-    params = shipped[node_name]["ros__parameters"]
+    params = shipped[f"/**/{node_name}"]["ros__parameters"]
 
     def flat(tree, prefix=""):
         for key, value in tree.items():
