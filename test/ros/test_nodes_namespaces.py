@@ -3,7 +3,8 @@
 Both pairs (detector_node + tracker_node under ``/cam1`` and under ``/cam2``) load the
 shipped config/*.yaml, whose sections are keyed ``/**/<node>``, plus a parameters file with
 whole numbers where doubles are declared (``tracker.kalman.sigma_u: 25``, an integer
-homography ``[2, 0, 0, 0, 2, 0, 0, 0, 1]``, the detector's ``report_period: 7``): before
+homography ``[2, 0, 0, 0, 2, 0, 0, 0, 1]``, the detector's ``report_period: 7``; and
+``-p detection_wait:=1`` on /cam2's tracker's command line): before
 issue #14 such a file stopped the node ("... of type 'INTEGER', expecting type 'DOUBLE'").
 
 Checked:
@@ -106,9 +107,12 @@ def pairs(node_group, tmp_path):
     for cam in ("cam1", "cam2"):
         for module, shipped in (("detector_node", "detector.yaml"),
                                 ("tracker_node", "tracker.yaml")):
+            # a whole number on the command line too (/cam2's tracker)
+            extra = (["-p", "detection_wait:=1"] if (cam, module) == ("cam2", "tracker_node")
+                     else [])
             started[cam, module] = node_group.start(
                 f"mk_tracker.ros.{module}", "--params-file", str(REPO / "config" / shipped),
-                "--params-file", str(params), "-r", f"__ns:=/{cam}",
+                "--params-file", str(params), "-r", f"__ns:=/{cam}", *extra,
                 ready=READY_LINES[module])
     return started
 
@@ -131,7 +135,8 @@ def test_two_namespaced_pairs_each_follow_their_own_camera(peer, pairs):
         assert sigma.type == Parameter.Type.DOUBLE.value and sigma.double_value == 25.0
         assert homography.type == Parameter.Type.DOUBLE_ARRAY.value
         assert list(homography.double_array_value) == [2.0, 0, 0, 0, 2.0, 0, 0, 0, 1.0]
-        assert wait.type == Parameter.Type.DOUBLE.value and wait.double_value == 2.0
+        assert wait.type == Parameter.Type.DOUBLE.value
+        assert wait.double_value == {"cam1": 2.0, "cam2": 1.0}[cam]
         (period,) = get_values(peer, f"/{cam}/detector_node", ["report_period"])
         assert period.type == Parameter.Type.DOUBLE.value and period.double_value == 7.0
 
