@@ -45,7 +45,8 @@ from launch_ros.substitutions import FindPackageShare
 
 PACKAGE = "mk_tracker"
 
-# node default topic (relative, as declared in the nodes' configs) -> launch argument
+# node topic (relative, as the nodes name them: IMAGE_TOPIC ... in mk_tracker/ros/*_node.py;
+# they are not parameters) -> launch argument it is remapped to
 DETECTOR_REMAPS = {"thermal/image_raw": "thermal_image_topic",
                    "thermal/detections": "detections_topic"}
 TRACKER_REMAPS = {"image_raw": "image_topic", "thermal/detections": "detections_topic",
@@ -145,11 +146,13 @@ def generate_launch_description():
     namespace = LaunchConfiguration("namespace")
     detector = Node(
         package=PACKAGE, executable="detector_node", name="detector_node", output="screen",
-        namespace=namespace, parameters=[LaunchConfiguration("detector_params"), {"use_sim_time": use_sim_time}],
+        namespace=namespace,
+        parameters=[LaunchConfiguration("detector_params"), {"use_sim_time": use_sim_time}],
         remappings=[(src, LaunchConfiguration(arg)) for src, arg in DETECTOR_REMAPS.items()])
     tracker = Node(
         package=PACKAGE, executable="tracker_node", name="tracker_node", output="screen",
-        namespace=namespace, parameters=[LaunchConfiguration("tracker_params"), {"use_sim_time": use_sim_time}],
+        namespace=namespace,
+        parameters=[LaunchConfiguration("tracker_params"), {"use_sim_time": use_sim_time}],
         remappings=[(src, LaunchConfiguration(arg)) for src, arg in TRACKER_REMAPS.items()])
     player = ExecuteProcess(
         cmd=["ros2", "bag", "play", LaunchConfiguration("bag"), "--rate",
