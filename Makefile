@@ -12,12 +12,15 @@ env:
 test: env
 	$(PYTHON) -m pytest -q -rR test
 
-# The suite's library tests (no DDS processes) with the oldest supported libraries, those of
+# test-compat (issue #14's name): the suite's library tests (no DDS processes) with the oldest supported libraries, those of
 # Ubuntu 24.04 + ROS 2 Jazzy from apt: numpy 1.26.4, OpenCV 4.6.0, SciPy 1.11.4, numba
 # 0.58.1, pandas 2.1.4 (requirements/oldest.txt, in .venv-oldest; scripts/test_oldest.sh).
-.PHONY: test-oldest
-test-oldest: env
+.PHONY: test-compat test-oldest
+test-compat: env
 	bash scripts/test_oldest.sh -q -rR test --ignore=test/ros
+
+# The former name of test-compat (.ci/run calls it).
+test-oldest: test-compat
 
 demo: env
 	.venv/bin/mk_tracker demo

@@ -318,14 +318,15 @@ class NodeGroup:
         self.log_dir = log_dir
         self.started: list[NodeProcess] = []
 
-    def start(self, module: str, *ros_args: str,
-              timeout: float = READY_TIMEOUT_S) -> NodeProcess:
-        """Start ``module`` with ``--ros-args ros_args`` and wait for its ready line."""
+    def start(self, module: str, *ros_args: str, timeout: float = READY_TIMEOUT_S,
+              ready: str | None = None) -> NodeProcess:
+        """Start ``module`` with ``--ros-args ros_args`` and wait for its ready line
+        (``ready``, by default :data:`READY`'s, which names the root namespace's topic)."""
         name = module.rsplit(".", 1)[-1]
         node = NodeProcess(module, list(ros_args), ros_env(self.domain),
                            self.log_dir / f"{name}_{len(self.started)}.log")
         self.started.append(node)
-        assert node.wait_for_output(READY[module], timeout), node.output()
+        assert node.wait_for_output(ready or READY[module], timeout), node.output()
         return node
 
     def starter(self, module: str) -> Callable[..., NodeProcess]:

@@ -332,13 +332,22 @@ EXEC_DEPENDS = {
     "geometry_msgs": ("geometry_msgs.msg", "ros-jazzy-geometry-msgs"),
     "vision_msgs": ("vision_msgs.msg", None),  # built by scripts/setup_env.sh
     "rosgraph_msgs": ("rosgraph_msgs.msg", "ros-jazzy-rosgraph-msgs"),
+    "rcl_interfaces": ("rcl_interfaces.msg", None),  # installed with ros-jazzy-rclpy
     "python3-numpy": ("numpy", "numpy"),
+    "python3-numba": ("numba", "numba"),
     "python3-opencv": ("cv2", "opencv-python-headless"),
     "python3-scipy": ("scipy", "scipy"),
     "python3-yaml": ("yaml", "pyyaml"),
     "python3-tqdm": ("tqdm", "tqdm"),
     "python3-matplotlib": ("matplotlib", "matplotlib"),
 }
+
+
+# rosdep keys only a ROS 2 install has (no PyPI wheels): what launch/mk_tracker.launch.py
+# uses -> a text of the launch file that shows the use
+LAUNCH_DEPENDS = {"launch": "from launch import", "launch_ros": "from launch_ros.actions import",
+                  "ros2bag": '"ros2", "bag", "play"',
+                  "rosbag2_storage_default_plugins": '"ros2", "bag", "record"'}
 
 
 def _runtime_pins() -> dict[str, str]:
@@ -357,7 +366,10 @@ def test_package_xml_dependencies_are_pinned_and_importable():
     root, deps = _package_xml()
     assert root.get("format") == "3"
     assert root.find("export/build_type").text == "ament_python"
-    assert sorted(deps["exec_depend"]) == sorted(EXEC_DEPENDS)
+    assert sorted(deps["exec_depend"]) == sorted([*EXEC_DEPENDS, *LAUNCH_DEPENDS])
+    launch_file = (REPO / "launch" / "mk_tracker.launch.py").read_text()
+    for key, use in LAUNCH_DEPENDS.items():
+        assert use in launch_file, f"{key} is declared but the launch file does not use it"
     assert sorted(deps["test_depend"]) == sorted(
         ["ament_copyright", "ament_flake8", "ament_pep257", "python3-pytest"])
     pins = _runtime_pins()

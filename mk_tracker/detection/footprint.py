@@ -25,12 +25,12 @@ this module, so numba's disk cache (keyed on this file) is never stale.
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import cv2
 import numpy as np
 
+from mk_tracker.numba_support import import_numba
 from mk_tracker.detection.pixel_clustering import PixelObject
 
 #: "not computed yet" marker for a footprint (``None`` means "computed: nothing there")
@@ -111,9 +111,7 @@ def _owner_kernel():
     ``MK_TRACKER_NO_NUMBA`` set)."""
     if not _OWNER:
         try:
-            if os.environ.get("MK_TRACKER_NO_NUMBA"):
-                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-            import numba
+            numba = import_numba()
             _OWNER.append(numba.njit(cache=True, nogil=True)(_owned_loops))
         except ImportError:
             _OWNER.append(None)
@@ -447,9 +445,7 @@ def _footprint_kernel():
     ``MK_TRACKER_NO_NUMBA`` set)."""
     if not _FOOTPRINT:
         try:
-            if os.environ.get("MK_TRACKER_NO_NUMBA"):
-                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-            import numba
+            numba = import_numba()
             global _in_footprint, _footprint_loops, _background_level, _sample_median
             _sample_median = numba.njit(cache=True, nogil=True)(_sample_median)
             _in_footprint = numba.njit(cache=True, nogil=True)(_in_footprint)

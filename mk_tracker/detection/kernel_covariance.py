@@ -41,9 +41,10 @@ with one ``exp`` per unordered frame pair ``tau <= tau'`` and pixel pair, using 
 
 from __future__ import annotations
 
-import os
 
 import numpy as np
+
+from mk_tracker.numba_support import import_numba
 
 
 class KernelCovarianceError(ValueError):
@@ -266,9 +267,7 @@ def compiled_level_kernels() -> dict | None:
     if _LEVEL_KERNELS:
         return _LEVEL_KERNELS[0]
     try:
-        if os.environ.get("MK_TRACKER_NO_NUMBA"):
-            raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-        import numba
+        numba = import_numba()
     except ImportError:
         _LEVEL_KERNELS.append(None)
         return None

@@ -13,11 +13,12 @@ always gives the same objects.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from mk_tracker.numba_support import import_numba
 
 
 class ClusteringError(ValueError):
@@ -535,9 +536,7 @@ def _valley_kernels():
     ``MK_TRACKER_NO_NUMBA`` set)."""
     if not _VALLEY:
         try:
-            if os.environ.get("MK_TRACKER_NO_NUMBA"):
-                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-            import numba
+            numba = import_numba()
             _VALLEY.append((numba.njit(cache=True, nogil=True)(_valley_peaks_loops),
                             numba.njit(cache=True, nogil=True)(_valley_flood_loops),
                             numba.njit(cache=True, nogil=True)(_describe_parts_loops)))

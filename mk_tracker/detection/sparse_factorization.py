@@ -28,10 +28,11 @@ updating that coordinate in all blocks at once.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
+
+from mk_tracker.numba_support import import_numba
 
 
 class FactorizationError(ValueError):
@@ -421,9 +422,7 @@ def _compiled_kernel():
     if _COMPILED:
         return _COMPILED[0]
     try:
-        if os.environ.get("MK_TRACKER_NO_NUMBA"):
-            raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-        import numba
+        numba = import_numba()
     except ImportError:
         _COMPILED.append(None)
         return None

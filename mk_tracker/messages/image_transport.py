@@ -22,16 +22,16 @@ TRANSPORTS = ("raw", "compressed")
 def image_transport_parameter() -> Any:
     """The ``image_transport`` parameter both nodes declare (a dataclass field)."""
     return parameter(
-        "raw", "raw: sensor_msgs/Image on image_topic; compressed: sensor_msgs/CompressedImage "
-        "(JPEG or PNG, 16-bit PNG for mono16) on <image_topic>/compressed, as image_transport "
-        "publishes it", choices=TRANSPORTS, read_only=True)
+        "raw", "raw: sensor_msgs/Image on the image topic; compressed: "
+        "sensor_msgs/CompressedImage (JPEG or PNG, 16-bit PNG for mono16) on <image topic>/"
+        "compressed, as image_transport publishes it (remapping the image topic moves both)", choices=TRANSPORTS, read_only=True)
 
 
 def no_image_warning_parameter() -> Any:
     """The ``no_image_warning`` parameter both nodes declare (a dataclass field)."""
     return parameter(
         5.0, "Seconds without an image after which the node looks at the ROS graph once and "
-        "warns if image_topic has another type or a /compressed (or raw) sibling exists; "
+        "warns if the image topic has another type or a /compressed (or raw) sibling exists; "
         "0 = never", minimum=0.0, maximum=3600.0, read_only=True)
 SUFFIX = "/compressed"
 
@@ -59,9 +59,9 @@ def silence_advice(subscribed: str, transport: str,
     here = types.get(subscribed, set())
     if here and wanted not in here:
         other = sorted(here)
-        fix = (" set image_transport:=compressed and image_topic to the topic without "
-               "/compressed" if COMPRESSED_TYPE in here else
-               " point image_topic at an Image topic")
+        fix = (" set image_transport:=compressed and remap the image topic to the topic "
+               "without /compressed" if COMPRESSED_TYPE in here else
+               " remap the image topic to an Image topic")
         return (f"nothing received on {subscribed}: it carries {', '.join(other)}, this "
                 f"node subscribes {wanted};{fix}")
     if transport == "raw" and COMPRESSED_TYPE in types.get(subscribed + SUFFIX, set()):

@@ -32,9 +32,8 @@ from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 import yaml
-from rosbags.typesys import Stores, get_typestore
 
-from mk_tracker.bags import bag_io
+from mk_tracker.bags.bag_errors import RosbagsMissing, require_bag_io
 from mk_tracker.bags.playback import (DEFAULT_DEPTH, RELIABLE, TRANSIENT_LOCAL, PlaybackError,
                                  PlaybackOptions, PlaybackPlan, TopicQos,
                                  offered_qos_from_metadata, parse_qos_override, parse_remaps,
@@ -254,6 +253,11 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # rosbags is imported here, not with the module: without it the player says so
+    # (RosbagsMissing, reported by main) and everything else of the package still imports
+    bag_io = require_bag_io("bag_player")
+    from rosbags.typesys import Stores, get_typestore
+
     # signals first: a Ctrl-C while the bag opens or rclpy loads ends quietly too
     stop = StopFlag()
     signal.signal(signal.SIGINT, stop.set)
@@ -367,7 +371,12 @@ def run(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bag_player", description=__doc__.splitlines()[0])
     configure_parser(parser)
-    return run(parser.parse_args(argv))
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except RosbagsMissing as exc:
+        _log(f"error: {exc}")
+        return 2
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ import threading
 import time
 from typing import Any, Sequence
 
-from mk_tracker.bags import bag_io
+from mk_tracker.bags.bag_errors import BagError, RosbagsMissing, require_bag_io
 from mk_tracker.ros.bag_player import message_class
 
 
@@ -95,7 +95,7 @@ class Recorder:
             try:
                 self.writer.add_topic(topic, msgtype,
                                       offered_qos_profiles=offered_qos_records(profiles))
-            except bag_io.BagError as exc:
+            except BagError as exc:
                 if topic not in self.warned:
                     _log(f"cannot record {topic} [{msgtype}]: {exc}")
                     self.warned.add(topic)
@@ -124,6 +124,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    bag_io = require_bag_io("bag_recorder")     # rosbags on first use (main reports it)
     stop = threading.Event()
 
     def on_signal(*_: Any) -> None:
@@ -135,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         writer = bag_io.BagWriter(args.output, storage=args.storage)
         writer.open()  # the bag exists (and is finalised) even if no topic ever appears
-    except (bag_io.BagError, ValueError, OSError) as exc:
+    except (BagError, ValueError, OSError) as exc:
         _log(f"error: cannot create bag {args.output!r}: {exc}")
         return 2
     import rclpy
@@ -172,7 +173,12 @@ def run(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bag_recorder", description=__doc__.splitlines()[0])
     configure_parser(parser)
-    return run(parser.parse_args(argv))
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except RosbagsMissing as exc:
+        _log(f"error: {exc}")
+        return 2
 
 
 if __name__ == "__main__":

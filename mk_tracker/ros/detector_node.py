@@ -4,7 +4,8 @@ A thin adapter around :class:`mk_tracker.detection.thermal_detector.ThermalDetec
 covariance factorization, Schizas, Maroulas & Ren 2018) and the threshold baseline
 :mod:`mk_tracker.detection.threshold_detector`; the ``method`` parameter selects one.
 
-Topics (names are parameters):
+Topics (relative names, resolved in the node's namespace; change them by remapping, e.g.
+``--ros-args -r thermal/image_raw:=/flir/image_raw``):
 
 * subscribes ``thermal/image_raw`` (sensor_msgs/Image: mono8, mono16, 16UC1, 32FC1, yuv422
   luma; or, with ``image_transport: compressed``, sensor_msgs/CompressedImage PNG/JPEG on
@@ -54,14 +55,15 @@ from mk_tracker.detection.threshold_detector import ThresholdDetector, Threshold
 from mk_tracker.detection.background_detector import BackgroundDetector, BackgroundDetectorConfig
 from mk_tracker.warm_up import warm_up_detector
 
+#: Input and output topics (remap them; they are not parameters).
+IMAGE_TOPIC = "thermal/image_raw"
+DETECTIONS_TOPIC = "thermal/detections"
+
+
 @dataclass(frozen=True)
 class DetectorNodeConfig:
     """The node's own parameters (flat names; QoS grouped as ``image_qos.*``)."""
 
-    image_topic: str = parameter("thermal/image_raw", "Thermal image topic (sensor_msgs/Image)",
-                                 read_only=True)
-    detections_topic: str = parameter(
-        "thermal/detections", "Output topic (vision_msgs/Detection2DArray)", read_only=True)
     image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
                                                  "QoS of the image subscription")
     image_transport: str = image_transport_parameter()
@@ -149,7 +151,7 @@ class DetectorNode(Node):
 
         from vision_msgs.msg import Detection2DArray
         cfg = self.node_config
-        self._detections_pub = self.create_publisher(Detection2DArray, cfg.detections_topic,
+        self._detections_pub = self.create_publisher(Detection2DArray, DETECTIONS_TOPIC,
                                                      publisher_qos(10))
         self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
         if cfg.warm_up and cfg.method == "kernel_covariance":
@@ -157,12 +159,12 @@ class DetectorNode(Node):
                            lambda: warm_up_detector(kernel_cfg))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="detector_node-frames").start()
-        self._images = ImageSubscription(self, cfg.image_topic, cfg.image_transport,
+        self._images = ImageSubscription(self, IMAGE_TOPIC, cfg.image_transport,
                                          self._worker.submit, subscription_qos(cfg.image_qos),
                                          cfg.no_image_warning)
         self.get_logger().info(
             f"detecting people ({cfg.method}) in {self._images.topic} -> "
-            f"{self.resolve_topic_name(cfg.detections_topic)}")
+            f"{self.resolve_topic_name(DETECTIONS_TOPIC)}")
 
     # -- parameters ----------------------------------------------------------------------
     def _on_node_config(self, config: DetectorNodeConfig) -> None:

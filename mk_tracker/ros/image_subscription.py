@@ -25,8 +25,11 @@ class ImageSubscription:
         from sensor_msgs.msg import CompressedImage, Image
 
         self.node, self.transport, self._callback = node, transport, callback
-        name = subscription_topic(topic, transport)
-        self.topic = node.resolve_topic_name(name)
+        self._base = topic
+        # image_transport's rule: the base topic is resolved (namespace, remapping) first
+        # and /compressed appended, so remapping image_raw also moves image_raw/compressed
+        name = subscription_topic(node.resolve_topic_name(topic), transport)
+        self.topic = name
         self.received = False
         self.warned = False
         msg_type = CompressedImage if transport == "compressed" else Image
@@ -46,7 +49,7 @@ class ImageSubscription:
             advice = silence_advice(self.topic, self.transport, graph)
             if advice is None:
                 return                        # nothing to say yet; look again later
-            self.node.get_logger().warning(f"{advice} (parameters image_topic, "
+            self.node.get_logger().warning(f"{advice} (remap {self._base}, parameter "
                                            f"image_transport)")
             self.warned = True
         if self._timer is not None:

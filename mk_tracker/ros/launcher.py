@@ -2,7 +2,9 @@
 not available (the pip-installed rclpy wheels).
 
 It does what ``launch/mk_tracker.launch.py`` describes for a real ROS 2 install: every
-process gets the same parameters file and remappings, their output is printed line by line
+process gets the same parameters file and remappings, ``--namespace`` puts both nodes (and
+the topics the player plays to them) into a namespace, so that several camera pairs run side
+by side, their output is printed line by line
 with a ``[name]`` prefix, and Ctrl-C (or SIGTERM) stops them all cleanly -- SIGINT to each,
 a grace period, then SIGTERM, then SIGKILL.  When the bag has been played (and ``--linger``
 seconds have passed so that the last frames are processed) everything is stopped the same
@@ -15,6 +17,14 @@ Fast DDS: every process gets the shared-memory profile ``config/fastdds_shm.xml`
 transports 640x480 frames at 30 Hz lose most best-effort samples between processes, see
 docs/fastdds_transport.md) unless either variable is already set in the environment, which
 then wins, or ``--no-fastdds-shm`` is given.
+
+Start-up order (issue #14): the nodes warm up their numba kernels before they subscribe
+(about 1 s with a warm cache, 8-35 s on a first run).  Both nodes start at once; the recorder
+starts once both have printed their ready line (:data:`READY_LINES`, logged after their
+subscriptions exist), and the player once the recorder, if any, has subscribed; the player
+then also waits until the nodes' input topics have matched subscribers
+(``--wait-topics``), so no frame of the bag is played to nobody.  The launch file applies the
+same rule with launch's ``OnProcessIO`` events.
 
 This module does not import rclpy: it only manages processes.
 """
@@ -33,6 +43,8 @@ from pathlib import Path
 from typing import Mapping, Sequence, TextIO
 
 GRACE_S = 5.0
+#: Longest wait for a process's ready lines before the next one starts anyway.
+READY_TIMEOUT_S = 120.0
 #: Environment variables naming Fast DDS's XML profiles file (Fast DDS 2.x reads the first,
 #: 3.x the second).
 FASTDDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
@@ -55,6 +67,9 @@ class ProcessSpec:
     # texts that must each appear in this process's output before later processes start
     # (the recorder announces "recording /topic [type]" once it is subscribed)
     ready_lines: tuple[str, ...] = ()
+    # False: start right after the previous process, without waiting for the ready lines
+    # of the processes before (the two nodes warm up side by side)
+    waits: bool = True
 
 
 def shm_profile_path() -> str | None:
@@ -86,20 +101,40 @@ def module_command(module: str, args: Sequence[str] = ()) -> tuple[str, ...]:
 
 # Inputs of the nodes as they declare them (relative names resolve to /image_raw ...).
 NODE_INPUTS = {"detector_node": ("thermal/image_raw",), "tracker_node": ("image_raw",)}
+#: What each node logs once it has warmed up and subscribed (the detector's
+#: "detecting people (<method>) in ...", the tracker's "tracking <topic> with detections
+#: from ..."); the launch file waits for the same texts.
+READY_LINES = {"detector_node": "detecting people (", "tracker_node": " with detections from "}
 
 
-def remapped(topic: str, remaps: Sequence[str]) -> str:
-    """Absolute name of node topic ``topic`` after ``from:=to`` remappings (root namespace)."""
-    absolute = "/" + topic.lstrip("/")
+def normalize_namespace(namespace: str) -> str:
+    """``cam1``, ``/cam1/`` -> ``/cam1``; empty -> ``""`` (the root)."""
+    parts = [p for p in namespace.strip().split("/") if p]
+    for part in parts:
+        if not part.replace("_", "a").isalnum() or part[0].isdigit():
+            raise LaunchError(f"namespace {namespace!r}: {part!r} is not a valid name "
+                              "(letters, digits and _, not starting with a digit)")
+    return "/" + "/".join(parts) if parts else ""
+
+
+def remapped(topic: str, remaps: Sequence[str], namespace: str = "") -> str:
+    """Absolute name of node topic ``topic`` after ``from:=to`` remappings, for a node in
+    ``namespace`` (relative names, on either side of a rule, resolve inside it)."""
+    def resolve(name: str) -> str:
+        name = name.strip()
+        return name if name.startswith("/") else f"{namespace}/{name}"
+
+    absolute = resolve(topic)
     for remap in remaps:
         source, _, target = remap.partition(":=")
-        if "/" + source.strip().lstrip("/") == absolute:
-            absolute = "/" + target.strip().lstrip("/")
+        if resolve(source) == absolute:
+            absolute = resolve(target)
     return absolute
 
 
 def ros_args(params_files: Sequence[str] = (), remaps: Sequence[str] = (),
-             node_name: str | None = None, use_sim_time: bool = False) -> list[str]:
+             node_name: str | None = None, use_sim_time: bool = False,
+             namespace: str = "") -> list[str]:
     """``--ros-args`` tail with the params files and ``from:=to`` remappings."""
     tail: list[str] = []
     for params_file in params_files:
@@ -108,6 +143,8 @@ def ros_args(params_files: Sequence[str] = (), remaps: Sequence[str] = (),
         tail += ["-p", "use_sim_time:=true"]
     if node_name:
         tail += ["-r", f"__node:={node_name}"]
+    if namespace:
+        tail += ["-r", f"__ns:={namespace}"]
     for remap in remaps:
         if ":=" not in remap:
             raise LaunchError(f"remap {remap!r} is not of the form FROM:=TO")
@@ -118,9 +155,12 @@ def ros_args(params_files: Sequence[str] = (), remaps: Sequence[str] = (),
 def _bag_topics(bag: str) -> set[str]:
     """Absolute names of the topics of ``bag`` (empty if it cannot be read: the player
     will report that itself)."""
-    from rosbags.typesys import Stores, get_typestore
+    try:
+        from rosbags.typesys import Stores, get_typestore
 
-    from mk_tracker.bags import bag_io
+        from mk_tracker.bags import bag_io
+    except ImportError:
+        return set()       # the player says that rosbags is missing
     try:
         with bag_io.open_bag(bag, on_error="skip",
                              typestore=get_typestore(Stores.EMPTY)) as reader:
@@ -136,15 +176,15 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
             raise LaunchError(f"parameters file {params_file!r} does not exist")
     if args.bag and not os.path.exists(args.bag):
         raise LaunchError(f"bag {args.bag!r} does not exist")
+    namespace = normalize_namespace(args.namespace)
     specs: list[ProcessSpec] = []
-    if not args.no_detector:
-        specs.append(ProcessSpec("detector_node", module_command(
-            "mk_tracker.ros.detector_node",
-            ros_args(args.params_file, args.remap, use_sim_time=args.clock))))
-    if not args.no_tracker:
-        specs.append(ProcessSpec("tracker_node", module_command(
-            "mk_tracker.ros.tracker_node",
-            ros_args(args.params_file, args.remap, use_sim_time=args.clock))))
+    for name, skip in (("detector_node", args.no_detector), ("tracker_node", args.no_tracker)):
+        if not skip:       # both warm up at once; what follows waits for their ready lines
+            specs.append(ProcessSpec(name, module_command(
+                f"mk_tracker.ros.{name}", ros_args(args.params_file, args.remap,
+                                                   use_sim_time=args.clock,
+                                                   namespace=namespace)),
+                ready_lines=(READY_LINES[name],), waits=False))
     if args.record:
         if not args.record_topics:
             raise LaunchError("--record needs --record-topics")
@@ -154,13 +194,13 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
         played = _bag_topics(args.bag) if args.bag else set()
         awaited = ["/" + t.lstrip("/") for t in args.record_topics]
         ready = tuple(f"recording {t} [" for t in awaited
-                      if remapped(t, args.remap) not in played and t not in played)
+                      if remapped(t, args.remap, namespace) not in played and t not in played)
         specs.append(ProcessSpec("bag_recorder", module_command(
             "mk_tracker.ros.bag_recorder", rec), ready_lines=("recording into",) + ready))
     if args.bag:
         play = [args.bag, "--rate", str(args.rate), "--wait-for-subscribers",
                 str(args.wait_for_subscribers)]
-        inputs = [remapped(topic, args.remap) for spec in specs
+        inputs = [remapped(topic, args.remap, namespace) for spec in specs
                   for topic in NODE_INPUTS.get(spec.name, ())]
         if inputs:  # start playing once the nodes listen (not for topics nobody reads)
             play += ["--wait-topics", *inputs]
@@ -168,6 +208,13 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
             play += ["--clock"]
         for remap in args.remap:
             play += ["--remap", remap]
+        if namespace:   # the bag's topics at the root go to the nodes in the namespace
+            for spec in specs:
+                for topic in NODE_INPUTS.get(spec.name, ()):
+                    root, inside = remapped(topic, args.remap), remapped(
+                        topic, args.remap, namespace)
+                    if root != inside:
+                        play += ["--remap", f"{root}:={inside}"]
         specs.append(ProcessSpec("bag_player", module_command(
             "mk_tracker.ros.bag_player", play), essential=False))
     if not specs:
@@ -270,11 +317,12 @@ def _wait_ready(procs: list[_Running], timeout_s: float, stop_event: threading.E
 def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
                   linger_s: float = 0.0, timeout_s: float | None = None,
                   out: TextIO | None = None, stop_event: threading.Event | None = None,
-                  start_delay_s: float = 0.0, ready_timeout_s: float = 20.0) -> int:
+                  start_delay_s: float = 0.0,
+                  ready_timeout_s: float = READY_TIMEOUT_S) -> int:
     """Start ``specs`` in order, relay their output, and stop them all; return 0 or 1.
 
     A spec starts only once every earlier process has printed its ``ready_lines`` (or
-    exited), at most ``ready_timeout_s`` later.
+    exited), at most ``ready_timeout_s`` later; one with ``waits=False`` starts at once.
 
     The launch ends when ``stop_event`` is set (SIGINT/SIGTERM of ``mk_launch``), when an
     essential process exits, when every non-essential process has finished and
@@ -292,7 +340,8 @@ def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
     procs: list[_Running] = []
     try:
         for spec in specs:
-            _wait_ready(procs, ready_timeout_s, stop_event, log)
+            if spec.waits:
+                _wait_ready(procs, ready_timeout_s, stop_event, log)
             procs.append(_Running(spec, out, lock))
             log(f"started {spec.name} (pid {procs[-1].proc.pid})")
             if start_delay_s and spec is not specs[-1]:
@@ -340,6 +389,10 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                              "is keyed by node name, e.g. config/tracker.yaml)")
     parser.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
                         help="topic remapping applied to the nodes and the player")
+    parser.add_argument("--namespace", default="", metavar="NS",
+                        help="run both nodes in namespace NS (their relative topics then "
+                             "resolve inside it, e.g. /NS/image_raw); the player plays the "
+                             "bag's root-level input topics into it")
     parser.add_argument("--rate", type=float, default=1.0, help="playback rate factor")
     parser.add_argument("--clock", action="store_true",
                         help="player publishes /clock and the nodes run on it (use_sim_time)")
@@ -359,9 +412,12 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="after the bag is played, keep running S seconds (default 2)")
     parser.add_argument("--timeout", type=float, default=None, metavar="S",
                         help="stop everything after S seconds")
-    parser.add_argument("--ready-timeout", type=float, default=20.0, metavar="S",
-                        help="the player starts when the recorder has subscribed to the "
-                             "nodes' topics, or after S seconds")
+    parser.add_argument("--ready-timeout", type=float, default=READY_TIMEOUT_S, metavar="S",
+                        help="the recorder and the player start when the nodes have warmed "
+                             "up and subscribed (and the player when the recorder has "
+                             "subscribed to the nodes' topics), or after S seconds "
+                             f"(default {READY_TIMEOUT_S:g}: a first run compiles the numba "
+                             "kernels, 8-35 s)")
     parser.add_argument("--grace", type=float, default=GRACE_S, metavar="S",
                         help="seconds between SIGINT, SIGTERM and SIGKILL on shutdown")
 

@@ -25,6 +25,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.node import Node
 
+from mk_tracker.numba_support import fallback_warning
 from mk_tracker.parameters import ParameterError
 
 
@@ -84,6 +85,9 @@ def run_node(node_class: Callable[[], Node], name: str,
         print(f"{name}: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 1
+    fallback = fallback_warning()       # one line when numba's compiled paths are off
+    if fallback:
+        node.get_logger().warning(fallback)
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

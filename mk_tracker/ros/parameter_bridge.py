@@ -9,8 +9,9 @@ Every config is declared under a *prefix*, and nested config fields keep their d
 * ``detector.*``  -- the sparse kernel covariance detector (``ThermalDetectorConfig``),
 * ``threshold.*`` -- the threshold baseline detector,
 * ``tracker.*``   -- the multi-object tracker, e.g. ``tracker.kalman.sigma_u``;
-* node parameters (topics, QoS, debug image, homography ...) use the empty prefix and are
-  flat or grouped by a nested dataclass, e.g. ``image_topic``, ``image_qos.depth``.
+* node parameters (QoS, debug image, detection wait ...) use the empty prefix and are
+  flat or grouped by a nested dataclass, e.g. ``detection_wait``, ``image_qos.depth``.
+  Topic names are not parameters: they are remapped (``-r image_raw:=/camera/image_raw``).
 
 In a ``--params-file`` YAML file the dotted names can be written flat
 (``tracker.kalman.sigma_u: 2.0``) or nested; :func:`config_yaml` writes them nested.
@@ -19,6 +20,16 @@ Each declared parameter carries a ``ParameterDescriptor`` with the description, 
 ``FloatingPointRange``/``IntegerRange`` built from the declared minimum/maximum (an open side
 becomes +-inf or the int64 limit), the admissible choices in ``additional_constraints``, and
 ``read_only`` where the field is declared read-only (start-up only).
+
+Whole numbers are accepted where a double is declared: ``sigma_u: 30`` in a parameters file,
+``-p tracker.kalman.sigma_u:=30`` or a run-time ``set_parameters`` with the integer 30 all
+store the double 30.0, and an integer list is stored as a double array (``homography: [1,
+0, 0, 0, 1, 0, 0, 0, 1]``).  The descriptors stay statically typed with their ranges:
+a start-up integer is declared once with ``dynamic_typing`` to read it, then the parameter is
+declared again as the double it stands for (:meth:`ParameterBridge.add_config`); at run time a
+pre-set callback (:func:`as_declared_type`) turns the integer into a double before rclpy
+checks the type.  A YAML list mixing integers and doubles (``[1, 0.5]``) is refused by the
+ROS parameters-file parser itself, before the node starts.
 
 Run-time changes are checked by an on-set-parameters callback with
 :func:`mk_tracker.parameters.updated` (plus an optional extra check per config, e.g. that a
@@ -35,6 +46,7 @@ from typing import Any, Callable, Iterable, Mapping
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
+from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -71,6 +83,34 @@ def from_ros_value(spec: ParameterSpec, value: Any) -> Any:
             return tuple(value)
         except TypeError:
             return value
+    return value
+
+
+def _is_whole(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def declared_as_double(spec: ParameterSpec) -> bool:
+    """Whether ``spec`` is declared as a double or a double array."""
+    default = to_ros_value(spec, spec.default)
+    return spec.type is float or (isinstance(default, list) and bool(default)
+                                  and all(isinstance(v, float) for v in default))
+
+
+def as_double(spec: ParameterSpec, value: Any) -> Any:
+    """``value`` with whole numbers turned into doubles where ``spec`` is declared as a double
+    (array); any other value is returned unchanged for the usual checks to judge."""
+    if not declared_as_double(spec):
+        return value
+    if spec.type is float:
+        return float(value) if _is_whole(value) else value
+    if not isinstance(value, (str, bytes)):
+        try:
+            items = list(value)
+        except TypeError:
+            return value
+        if items and all(_is_whole(v) for v in items):
+            return [float(v) for v in items]
     return value
 
 
@@ -149,8 +189,9 @@ class ParameterBridge:
         for spec in specs.values():
             name = ros_name(prefix, spec.name)
             try:
-                param = self._node.declare_parameter(
-                    name, to_ros_value(spec, spec.default), descriptor_for(spec, name))
+                param = self._declare(spec, name)
+            except ParameterError:
+                raise
             except Exception as exc:  # rclpy raises several exception types here
                 raise ParameterError(f"parameter {name}: {exc}") from exc
             self._owner[name] = (prefix, spec.name)
@@ -167,10 +208,36 @@ class ParameterBridge:
         self._groups[prefix] = _Group(prefix, effective, specs, on_change, extra_check)
         return effective
 
+    def _declare(self, spec: ParameterSpec, name: str) -> Parameter:
+        """Declare one parameter, taking a start-up override that is a whole number (or a
+        list of them) for a double (array) as that double."""
+        default = to_ros_value(spec, spec.default)
+        try:
+            return self._node.declare_parameter(name, default, descriptor_for(spec, name))
+        except InvalidParameterTypeException:
+            if not declared_as_double(spec):
+                raise
+        # read the override with a dynamically typed declaration, then declare the
+        # parameter again, statically typed, with the override as a double
+        loose = descriptor_for(spec, name)
+        loose.dynamic_typing = True
+        loose.read_only = False           # so that it can be undeclared
+        given = self._node.declare_parameter(name, default, loose).value
+        self._node.undeclare_parameter(name)
+        value = as_double(spec, given)
+        if value is given:
+            wanted = "a number" if spec.type is float else "a list of numbers"
+            raise ParameterError(f"parameter {name}: expected {wanted}, got "
+                                 f"{type(given).__name__} {given!r}")
+        return self._node.declare_parameter(name, value, descriptor_for(spec, name),
+                                            ignore_override=True)
+
     def activate(self) -> None:
-        """Register the validating on-set and the applying post-set callbacks."""
+        """Register the converting pre-set, the validating on-set and the applying post-set
+        callbacks."""
         if self._active:
             return
+        self._node.add_pre_set_parameters_callback(self._pre_set)
         self._node.add_on_set_parameters_callback(self._on_set)
         self._node.add_post_set_parameters_callback(self._post_set)
         self._active = True
@@ -210,6 +277,18 @@ class ParameterBridge:
             result[prefix] = candidate
         return result, None
 
+    def _pre_set(self, parameters: list[Parameter]) -> list[Parameter]:
+        """Whole numbers given for a declared double (array) become doubles (before rclpy
+        compares the type with the descriptor)."""
+        return [as_declared_type(self._spec_of(p.name), p) for p in parameters]
+
+    def _spec_of(self, name: str) -> ParameterSpec | None:
+        owner = self._owner.get(name)
+        if owner is None:
+            return None
+        prefix, spec_name = owner
+        return self._groups[prefix].specs[spec_name] if prefix in self._groups else None
+
     def _on_set(self, parameters: list[Parameter]) -> SetParametersResult:
         candidates, reason = self.check(parameters)
         if reason is not None:
@@ -230,6 +309,19 @@ class ParameterBridge:
             self._node.get_logger().info(f"parameters changed: {changed}")
 
 
+def as_declared_type(spec: ParameterSpec | None, param: Parameter) -> Parameter:
+    """``param`` as a double (array) when it holds whole numbers for a double (array) spec;
+    otherwise ``param`` itself (None: a parameter the bridge does not own)."""
+    if spec is None or param.type_ not in (Parameter.Type.INTEGER,
+                                           Parameter.Type.INTEGER_ARRAY):
+        return param
+    value = as_double(spec, param.value)
+    if value is param.value:
+        return param
+    kind = Parameter.Type.DOUBLE if spec.type is float else Parameter.Type.DOUBLE_ARRAY
+    return Parameter(param.name, kind, value)
+
+
 def _with_prefix(prefix: str, message: str) -> str:
     return f"{prefix}.{message}" if prefix and not message.startswith("unknown") else message
 
@@ -239,9 +331,10 @@ def config_yaml(node_name: str, configs: Mapping[str, Any]) -> str:
 
     ``configs`` maps prefix -> config instance.  Each parameter is preceded by its
     description and range as a comment, so the shipped config/*.yaml files document
-    themselves.
+    themselves.  The section is keyed ``/**/<node_name>``: it applies to the node in any
+    namespace (several camera pairs side by side), not only at the root.
     """
-    lines = [f"{node_name}:", "  ros__parameters:"]
+    lines = [f"/**/{node_name}:", "  ros__parameters:"]
     tree: dict = {}
     for prefix, config in configs.items():
         for spec in parameter_specs(config):

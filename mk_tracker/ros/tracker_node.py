@@ -6,7 +6,8 @@ projected-gradient multiple-kernel refiner (:mod:`mk_tracker.tracking.multi_kern
 going backwards, lifecycle) is the library's, the per-frame glue is
 :mod:`mk_tracker.frame_processing` (shared with the offline pipeline).
 
-Topics (names are parameters):
+Topics (relative names, resolved in the node's namespace; change them by remapping, e.g.
+``--ros-args -r image_raw:=/camera/image_raw``):
 
 * subscribes ``image_raw`` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, mono8, yuv422,
   yuv422_yuy2, 8-bit Bayer; or, with ``image_transport: compressed``, sensor_msgs/
@@ -72,15 +73,16 @@ from mk_tracker.warm_up import warm_up_tracker
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
 
 
+#: Input and output topics (remap them; they are not parameters).
+IMAGE_TOPIC = "image_raw"
+DETECTIONS_TOPIC = "thermal/detections"
+TRACKS_TOPIC = "tracks"
+
+
 @dataclass(frozen=True)
 class TrackerNodeConfig:
     """The node's own parameters (flat names; QoS grouped as ``image_qos.*`` ...)."""
 
-    image_topic: str = parameter("image_raw", "RGB image topic (sensor_msgs/Image)",
-                                 read_only=True)
-    detections_topic: str = parameter(
-        "thermal/detections", "Detections topic (vision_msgs/Detection2DArray)", read_only=True)
-    tracks_topic: str = parameter("tracks", "Output topic of tracked boxes", read_only=True)
     image_transport: str = image_transport_parameter()
     no_image_warning: float = no_image_warning_parameter()
     image_qos: SubscriptionQosConfig = parameter(SubscriptionQosConfig(),
@@ -177,7 +179,7 @@ class TrackerNode(Node):
         self._last_stamp: float | None = None
 
         from vision_msgs.msg import Detection2D, Detection2DArray
-        self._tracks_pub = self.create_publisher(Detection2DArray, cfg.tracks_topic,
+        self._tracks_pub = self.create_publisher(Detection2DArray, TRACKS_TOPIC,
                                                  publisher_qos(10))
         self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
         if cfg.warm_up and tracker_cfg.use_multi_kernel:
@@ -186,20 +188,20 @@ class TrackerNode(Node):
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="tracker_node-frames").start()
         log = self.get_logger().info
-        self._images = ImageSubscription(self, cfg.image_topic, cfg.image_transport,
+        self._images = ImageSubscription(self, IMAGE_TOPIC, cfg.image_transport,
                                          self._worker.submit, subscription_qos(cfg.image_qos),
                                          cfg.no_image_warning)
         self.create_subscription(
-            Detection2DArray, cfg.detections_topic, self._on_detections,
+            Detection2DArray, DETECTIONS_TOPIC, self._on_detections,
             subscription_qos(cfg.detections_qos),
-            event_callbacks=log_matches(log, self.resolve_topic_name(cfg.detections_topic)))
+            event_callbacks=log_matches(log, self.resolve_topic_name(DETECTIONS_TOPIC)))
         # reliable, like ``ros2 topic pub``: a hand-made command should not be lost
         self.create_subscription(Detection2D, "~/start_track", self._on_start_track,
                                  subscription_qos(SubscriptionQosConfig("reliable", 10)))
         self.get_logger().info(
             f"tracking {self._images.topic} with detections from "
-            f"{self.resolve_topic_name(cfg.detections_topic)} -> "
-            f"{self.resolve_topic_name(cfg.tracks_topic)}; "
+            f"{self.resolve_topic_name(DETECTIONS_TOPIC)} -> "
+            f"{self.resolve_topic_name(TRACKS_TOPIC)}; "
             f"{tracker_cfg.multi_kernel.num_kernels} kernels per target")
 
     # -- parameters ----------------------------------------------------------------------

@@ -59,7 +59,8 @@ def _flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 def read_node_parameters(paths: Iterable[str | Path], node_name: str) -> dict[str, Any]:
     """Dotted parameters of ``node_name`` from ROS 2 parameter files (later files win).
 
-    Sections ``node_name``, ``/node_name`` and the wildcard ``/**`` are read.
+    Sections ``/**``, ``node_name``, ``/node_name`` and ``/**/node_name`` (the shipped
+    files' key: the node in any namespace) are read, in that order.
     """
     import yaml
 
@@ -72,7 +73,7 @@ def read_node_parameters(paths: Iterable[str | Path], node_name: str) -> dict[st
             raise PipelineError(f"cannot read parameters file {p}: {exc}") from exc
         if not isinstance(data, Mapping):
             raise PipelineError(f"{p}: not a ROS 2 parameters file (top level is not a map)")
-        for section in ("/**", node_name, f"/{node_name}"):
+        for section in ("/**", node_name, f"/{node_name}", f"/**/{node_name}"):
             node = data.get(section)
             if isinstance(node, Mapping) and isinstance(node.get("ros__parameters"), Mapping):
                 params.update(_flatten(node["ros__parameters"]))

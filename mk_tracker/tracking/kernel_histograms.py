@@ -44,11 +44,12 @@ missing numba) selects the numpy path; ``backend="numpy"`` selects it per object
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from mk_tracker.numba_support import import_numba
 
 COLOUR_SPACES = ("hsv", "bgr")
 PROFILES = ("roof", "gaussian")
@@ -720,9 +721,7 @@ def compiled_kernels():
     set."""
     if not _COMPILED:
         try:
-            if os.environ.get("MK_TRACKER_NO_NUMBA"):
-                raise ImportError("disabled by MK_TRACKER_NO_NUMBA")
-            import numba
+            numba = import_numba()
         except ImportError:
             _COMPILED.append(None)
         else:

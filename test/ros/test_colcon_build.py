@@ -181,8 +181,7 @@ def test_launch_file_compiles_and_defines_the_launch_description():
 def test_launch_file_starts_both_nodes_with_params_and_the_nodes_default_topics():
     """The Node actions name installed executables, load a params file, and remap exactly
     the topics the nodes declare as defaults (so a renamed default breaks this test)."""
-    from mk_tracker.ros.detector_node import DetectorNodeConfig
-    from mk_tracker.ros.tracker_node import TrackerNodeConfig
+    from mk_tracker.ros import detector_node, tracker_node
 
     tree = _launch_tree()
     nodes = [n for n in ast.walk(tree) if isinstance(n, ast.Call)
@@ -198,10 +197,11 @@ def test_launch_file_starts_both_nodes_with_params_and_the_nodes_default_topics(
     constants = {t.id: ast.literal_eval(n.value) for n in tree.body
                  if isinstance(n, ast.Assign) for t in n.targets if isinstance(t, ast.Name)
                  and isinstance(n.value, ast.Dict)}
-    det, trk = DetectorNodeConfig(), TrackerNodeConfig()
-    assert set(constants["DETECTOR_REMAPS"]) == {det.image_topic, det.detections_topic}
-    assert set(constants["TRACKER_REMAPS"]) == {trk.image_topic, trk.detections_topic,
-                                                trk.tracks_topic}
+    assert set(constants["DETECTOR_REMAPS"]) == {detector_node.IMAGE_TOPIC,
+                                                 detector_node.DETECTIONS_TOPIC}
+    assert set(constants["TRACKER_REMAPS"]) == {tracker_node.IMAGE_TOPIC,
+                                                tracker_node.DETECTIONS_TOPIC,
+                                                tracker_node.TRACKS_TOPIC}
     defaults = constants["TOPIC_DEFAULTS"]
     for src, arg in {**constants["DETECTOR_REMAPS"], **constants["TRACKER_REMAPS"]}.items():
         assert defaults[arg] == src  # launching without arguments remaps nothing

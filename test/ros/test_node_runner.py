@@ -107,3 +107,31 @@ def test_context_invalid_error_while_running_is_not_hidden(keep_sigterm, monkeyp
     with pytest.raises(impl.RCLError):
         run_node(lambda: Node("runner_error_node"), "runner_error_node")
     assert not rclpy.ok()                 # still shut down on the way out
+
+
+class _StopsAtOnce(Node):
+    def __init__(self):
+        super().__init__("numba_warning_node")
+        self.create_timer(0.01, rclpy.shutdown)
+
+
+@pytest.mark.parametrize("disabled", [True, False])
+def test_one_warning_line_when_the_numpy_fallback_is_used(keep_sigterm, monkeypatch, capfd,
+                                                          disabled):
+    """Issue #14: a node says once, at start-up, that numba's compiled paths are off (here
+    switched off as the library allows, MK_TRACKER_NO_NUMBA) and that it runs the slower
+    numpy fallback; with numba available (this venv has it) it says nothing."""
+    pytest.importorskip("numba")
+    if disabled:
+        monkeypatch.setenv("MK_TRACKER_NO_NUMBA", "1")
+    else:
+        monkeypatch.delenv("MK_TRACKER_NO_NUMBA", raising=False)
+    assert run_node(_StopsAtOnce, "numba_warning_node", []) == 0
+    err = capfd.readouterr().err
+    lines = [line for line in err.splitlines() if "numpy fallback" in line]
+    if disabled:
+        assert len(lines) == 1, err
+        assert "WARN" in lines[0] and "MK_TRACKER_NO_NUMBA" in lines[0]
+        assert "slower" in lines[0] and "python3-numba" in lines[0]
+    else:
+        assert lines == [], err

@@ -51,7 +51,6 @@ DETECTION_WAIT_S = 2.0
 PARAMS = """\
 tracker_node:
   ros__parameters:
-    detections_topic: /detections
     thermal_frame_id: unused_thermal_frame
     detection_wait: {wait}
     image_qos:
@@ -82,7 +81,8 @@ def test_detection_wait_makes_the_node_pair_like_the_offline_pipeline(late_bag, 
                           options=PipelineOptions(progress=False, write_video=False,
                                                   write_plots=False))
 
-    tracker = node_group.start("mk_tracker.ros.tracker_node", "--params-file", str(params))
+    tracker = node_group.start("mk_tracker.ros.tracker_node", "--params-file", str(params),
+                               "-r", "thermal/detections:=/detections")
     image_pub = peer.publisher(Image, "/image_raw", reliable_qos(depth=10))
     det_pub = peer.publisher(Detection2DArray, "/detections", reliable_qos(depth=50))
     arrivals: dict[int, float] = {}

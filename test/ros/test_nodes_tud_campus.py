@@ -49,7 +49,6 @@ from nodes_harness import (domain, node_group, peer, reliable_qos,  # noqa: E402
 PARAMS = """\
 tracker_node:
   ros__parameters:
-    detections_topic: /detections
     image_qos:
       reliability: reliable
       depth: 10
@@ -145,7 +144,8 @@ def test_tracker_node_on_tud_campus_matches_the_offline_pipeline(tud_bag, node_g
     context = (f"offline {seconds_per_frame * 1000:.0f} ms/frame, played at {rate:.3f}x "
                f"(a frame every {1000 / sequence.frame_rate / rate:.0f} ms)")
 
-    tracker = node_group.start("mk_tracker.ros.tracker_node", "--params-file", str(params))
+    tracker = node_group.start("mk_tracker.ros.tracker_node", "--params-file", str(params),
+                               "-r", "thermal/detections:=/detections")
     tracks = peer.collect(Detection2DArray, "/tracks", reliable_qos(depth=100))
     assert peer.wait_matched(subscriptions=["/tracks"]), tracker.output()
 

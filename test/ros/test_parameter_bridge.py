@@ -98,6 +98,77 @@ def test_overrides_are_applied_and_validated(context):
         node.destroy_node()
 
 
+def test_whole_numbers_for_doubles_are_taken_as_doubles_at_start_up(context):
+    """Issue #14: ``sigma: 3`` in a parameters file (an INTEGER override) must not stop the
+    node; the stored value is the double, and the descriptor keeps its type and range."""
+    node = _node(context, [Parameter("toy.inner.sigma", value=3),
+                           Parameter("toy.weights", value=[1, 2])])
+    try:
+        cfg = ParameterBridge(node).add_config("toy", ToyConfig())
+        assert cfg.inner.sigma == 3.0 and isinstance(cfg.inner.sigma, float)
+        assert cfg.weights == (1.0, 2.0) and all(isinstance(v, float) for v in cfg.weights)
+        stored = node.get_parameter("toy.inner.sigma")
+        assert stored.type_ == Parameter.Type.DOUBLE and stored.value == 3.0
+        weights = node.get_parameter("toy.weights")
+        assert weights.type_ == Parameter.Type.DOUBLE_ARRAY and list(weights.value) == [1.0, 2.0]
+        desc = node.describe_parameter("toy.inner.sigma")
+        assert not desc.dynamic_typing and desc.type == Parameter.Type.DOUBLE.value
+        assert desc.floating_point_range[0].to_value == 10.0
+        assert desc.description == "Noise std"
+    finally:
+        node.destroy_node()
+    # a whole number out of range is still refused, naming the parameter
+    node = _node(context, [Parameter("toy.inner.sigma", value=30)], name="toy_range")
+    try:
+        with pytest.raises(ParameterError, match="sigma"):
+            ParameterBridge(node).add_config("toy", ToyConfig())
+    finally:
+        node.destroy_node()
+    # a string for a double is refused with a readable reason
+    node = _node(context, [Parameter("toy.inner.sigma", value="three")], name="toy_str")
+    try:
+        with pytest.raises(ParameterError, match="toy.inner.sigma: expected a number"):
+            ParameterBridge(node).add_config("toy", ToyConfig())
+    finally:
+        node.destroy_node()
+    # a double for an integer parameter is not rounded silently
+    node = _node(context, [Parameter("toy.inner.steps", value=2.5)], name="toy_int")
+    try:
+        with pytest.raises(ParameterError, match="toy.inner.steps"):
+            ParameterBridge(node).add_config("toy", ToyConfig())
+    finally:
+        node.destroy_node()
+
+
+def test_whole_numbers_for_doubles_are_taken_as_doubles_at_run_time(context):
+    node = _node(context)
+    try:
+        seen = []
+        bridge = ParameterBridge(node)
+        bridge.add_config("toy", ToyConfig(), on_change=seen.append)
+        bridge.activate()
+        result = node.set_parameters([Parameter("toy.inner.sigma", value=4)])[0]
+        assert result.successful, result.reason
+        stored = node.get_parameter("toy.inner.sigma")
+        assert stored.type_ == Parameter.Type.DOUBLE and stored.value == 4.0
+        assert isinstance(bridge.config("toy").inner.sigma, float)
+        assert len(seen) == 1
+        result = node.set_parameters_atomically([Parameter("toy.weights", value=[3, 4, 5])])
+        assert result.successful, result.reason
+        assert node.get_parameter("toy.weights").type_ == Parameter.Type.DOUBLE_ARRAY
+        assert bridge.config("toy").weights == (3.0, 4.0, 5.0)
+        # the range still applies to a whole number
+        result = node.set_parameters([Parameter("toy.inner.sigma", value=11)])[0]
+        assert not result.successful
+        assert node.get_parameter("toy.inner.sigma").value == 4.0
+        # integer parameters stay integers: a double is still refused
+        result = node.set_parameters([Parameter("toy.inner.steps", value=2.0)])[0]
+        assert not result.successful
+        assert node.get_parameter("toy.inner.steps").value == 3
+    finally:
+        node.destroy_node()
+
+
 def test_runtime_change_rejected_with_reason_keeps_old_value(context):
     node = _node(context)
     try:
@@ -175,22 +246,25 @@ def test_flat_prefix_and_two_groups(context):
 def test_generated_yaml_loads_as_a_params_file(tmp_path):
     text = config_yaml("toy", {"toy": ToyConfig()})
     data = yaml.safe_load(text)
-    params = data["toy"]["ros__parameters"]["toy"]
+    assert list(data) == ["/**/toy"]           # the node in any namespace
+    params = data["/**/toy"]["ros__parameters"]["toy"]
     assert params["inner"]["sigma"] == 1.5 and params["mode"] == "fast"
     assert params["weights"] == [1.0, 2.0, 3.0] and params["enabled"] is True
     assert "# Noise std [0.0, 10.0]" in text
-    # change a value in the file and load it through rcl's own parser
+    # change a value in the file and load it through rcl's own parser, into a node at the
+    # root and into one in a namespace (the /** wildcard)
     path = tmp_path / "toy.yaml"
     path.write_text(text.replace("sigma: 1.5", "sigma: 7.25"))
     ctx = Context()
     rclpy.init(context=ctx, args=["--ros-args", "--params-file", str(path)])
     try:
-        node = Node("toy", context=ctx)
-        try:
-            cfg = ParameterBridge(node).add_config("toy", ToyConfig())
-            assert cfg.inner.sigma == 7.25 and cfg.weights == (1.0, 2.0, 3.0)
-        finally:
-            node.destroy_node()
+        for namespace in ("", "/cam1", "/robot/cam2"):
+            node = Node("toy", namespace=namespace, context=ctx)
+            try:
+                cfg = ParameterBridge(node).add_config("toy", ToyConfig())
+                assert cfg.inner.sigma == 7.25 and cfg.weights == (1.0, 2.0, 3.0), namespace
+            finally:
+                node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
 
@@ -210,7 +284,7 @@ def test_shipped_params_files_set_every_parameter_to_a_valid_value(node_name, mo
 
     module = importlib.import_module(module_name)     # an ImportError is a failure, not a skip
     shipped = yaml.safe_load((Path(__file__).resolve().parents[2] / path).read_text())
-    params = shipped[node_name]["ros__parameters"]
+    params = shipped[f"/**/{node_name}"]["ros__parameters"]
 
     def flat(tree, prefix=""):
         for key, value in tree.items():

@@ -18,8 +18,9 @@ from mk_tracker.messages.detection_messages import Detection, make_detection_arr
 from mk_tracker.evaluation.metrics import mot_metrics, read_box_list, read_mot_file, single_target_metrics
 from mk_tracker.messages.message_types import bag_message_types
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag
-from mk_tracker.tools.pipeline_config import (DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS,
-                                              PipelineError, load_pipeline_config)
+from mk_tracker.tools.pipeline_config import (CONFIG_DIR, DETECTOR_NODE_DEFAULTS,
+                                              TRACKER_NODE_DEFAULTS, PipelineError,
+                                              load_pipeline_config)
 from mk_tracker.synthetic.scene_bag import build_preset, read_scene_info, write_scene_bag
 from mk_tracker.drawing.video_output import count_video_frames
 
@@ -267,6 +268,25 @@ def test_parameter_files_are_read_like_the_nodes(tmp_path):
                       "      new_track_max_iou: 7.0\n")
     with pytest.raises(PipelineError, match="new_track_max_iou"):
         load_pipeline_config([params])
+
+
+def test_namespace_wildcard_sections_are_read_like_the_nodes(tmp_path):
+    """The shipped files' key ``/**/tracker_node`` (any namespace, issue #14), and whole
+    numbers for doubles, as the nodes take them."""
+    params = tmp_path / "params.yaml"
+    params.write_text("/**/tracker_node:\n  ros__parameters:\n    detection_wait: 1\n"
+                      "    tracker:\n      kalman:\n        sigma_u: 25\n"
+                      "/**/detector_node:\n  ros__parameters:\n    method: threshold\n")
+    config = load_pipeline_config([params], include_defaults=False)
+    assert config.tracker.kalman.sigma_u == 25.0 and config.detection_wait == 1.0
+    assert isinstance(config.tracker.kalman.sigma_u, float)
+    assert config.method == "threshold"
+    # a copy of the shipped file, one value changed: read under its /** key
+    shipped = (CONFIG_DIR / "tracker.yaml").read_text()
+    assert shipped.startswith("/**/tracker_node:") and "        sigma_u: 30.0\n" in shipped
+    params.write_text(shipped.replace("        sigma_u: 30.0\n", "        sigma_u: 31.5\n"))
+    assert load_pipeline_config([params], include_defaults=False
+                                ).tracker.kalman.sigma_u == 31.5
 
 
 def test_node_level_defaults_match_the_nodes():
