@@ -18,6 +18,9 @@ benchmarks/bench_thermal_detector.py), and MOTA, IDF1, ID switches of the pipeli
 test: nothing is asserted.
 
     .venv/bin/python benchmarks/bench_groups.py --out docs/benchmark_groups.md
+
+``--set NAME=VALUE`` overrides a parameter of the tracker in every configuration (YAML value,
+e.g. ``duplicates.enabled=false``), for ablations on the held-out seed.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ import tempfile
 from dataclasses import replace
 from pathlib import Path
 
+import yaml
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -39,6 +44,7 @@ from bench_thermal_detector import run as run_detector  # noqa: E402
 from mk_tracker.detection.thermal_detector import ThermalDetector  # noqa: E402
 from mk_tracker.detection.threshold_detector import ThresholdDetector  # noqa: E402
 from mk_tracker.synthetic.scene_bag import build_preset, write_scene_bag  # noqa: E402
+from mk_tracker.parameters import updated  # noqa: E402
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 
@@ -69,9 +75,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--configs", nargs="+", default=None,
                         help="names of the configurations to run (default: all)")
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="override a parameter of the tracker (YAML value), e.g. "
+                             "duplicates.enabled=false")
     args = parser.parse_args(argv)
 
     base = load_pipeline_config()
+    if args.set:
+        changes = {}
+        for item in args.set:
+            name, _, value = item.partition("=")
+            changes[name] = yaml.safe_load(value)
+        base = replace(base, tracker=updated(base.tracker, changes))
     configs = [c for c in configurations(base) if args.configs is None or c[0] in args.configs]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -9,6 +9,8 @@ detections of :mod:`mk_tracker.detection`.  The Kalman filter itself is
 * :mod:`~mk_tracker.tracking.multi_object_tracker` -- one ``step`` per RGB frame: detections
   to the RGB plane and the frame time, prediction (4.2)-(4.3), association, refinement of
   tracks without a detection, Kalman update (4.4)-(4.5), lifecycle.
+* :mod:`~mk_tracker.tracking.duplicate_tracks` -- two tracks stacked on one person, never
+  detected as two, become the older one (track-level suppression of duplicates).
 * :mod:`~mk_tracker.tracking.association` -- Hungarian assignment on 1 - IoU and the
   Mahalanobis distance gated by the innovation covariance (the bracket of (4.5)).
 * :mod:`~mk_tracker.tracking.multi_kernel` -- one target as N kernels (Sec. IV-A):

@@ -33,7 +33,10 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    :class:`~mk_tracker.tracking.manual_track.ManualTrackConfig` instead (their own refiner, Kalman prior and visibility), and
    a result of theirs that sees the target with one kernel column only is searched again
    half a box width towards the seeing column (``MultiObjectTracker._refine``).
-6. **Update and lifecycle** (:mod:`mk_tracker.tracking.track`).
+6. **Update and lifecycle** (:mod:`mk_tracker.tracking.track`); then two reported tracks
+   stacked on one person for ``duplicates.min_time`` without being detected as two people
+   (and, with ``duplicates.min_similarity``, alike by their appearance models) are merged
+   into the older one (:mod:`mk_tracker.tracking.duplicate_tracks`).
 
 The refiner is any object with ``start(image, box) -> target``,
 ``refine(image, target, predicted_center=None) -> result`` (with ``box``, ``similarity``
@@ -55,6 +58,8 @@ import numpy as np
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
+from mk_tracker.tracking.duplicate_tracks import (due_pairs, merge_into, stacked_pairs,
+                                                  survivor, update_stacked_since)
 from mk_tracker.tracking.group_measurement import (constrain_inside, explained_fraction,
                                                    find_groups)
 from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectTrackerConfig
@@ -236,10 +241,13 @@ class MultiObjectTracker:
         self._next_id = 1
         self.tracks: list[Track] = []
         self.last_stamp: float | None = None
+        #: pairs of track ids stacked on one another since (stamp), duplicates.*
+        self._stacked_since: dict[tuple[int, int], float] = {}
         self._frame_interval = 0.0       # seconds between the last two frames
         self.frame_size: tuple[int, int] | None = None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
-                       "resets": 0, "size_resets": 0, "group_measurements": 0}
+                       "resets": 0, "size_resets": 0, "group_measurements": 0,
+                       "merged_duplicates": 0}
 
     # -- public API -----------------------------------------------------------------------
     def reset(self) -> None:
@@ -247,6 +255,7 @@ class MultiObjectTracker:
         self.tracks = []
         self.last_stamp = None
         self.frame_size = None
+        self._stacked_since = {}
 
     def start_track(self, image_bgr: np.ndarray, stamp: float, box: Sequence[float]) -> int:
         """Start a confirmed track on ``box`` by hand (single-target protocol); returns its id."""
@@ -398,6 +407,9 @@ class MultiObjectTracker:
             self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
                                detected.get(t.id), refined.get(t.id), width, height,
                                blockers, hold=t.id in held)
+        # 6b. two tracks stacked on one person become one (tracking/duplicate_tracks.py)
+        self._merge_duplicates(live, set(matched_track.values()), image_bgr, stamp, result)
+        live = [t for t in live if t.state is not TrackState.DELETED]
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
                                and t.state is not TrackState.LOST]).reshape(-1, 4)
@@ -436,6 +448,50 @@ class MultiObjectTracker:
         return result
 
     # -- internals ------------------------------------------------------------------------
+    def _merge_duplicates(self, live: list[Track], detected_ids: set[int], image: np.ndarray,
+                          stamp: float, result: FrameResult) -> None:
+        """Track-level suppression of duplicates (:mod:`~mk_tracker.tracking.duplicate_tracks`):
+        reported tracks stacked for ``duplicates.min_time`` without being detected as two
+        people, and (``duplicates.min_similarity`` > 0) each matching the other's box by its
+        appearance model, are merged into the older one; the other is deleted."""
+        cfg = self.config.duplicates
+        if not cfg.enabled:
+            self._stacked_since = {}
+            return
+        pool = [t for t in live if t.state in OUTPUT_STATES and not t.manual]
+        stacked = stacked_pairs([t.id for t in pool], [t.box for t in pool], cfg.min_iou)
+        apart = [p for p in stacked if p[0] in detected_ids and p[1] in detected_ids]
+        self._stacked_since = update_stacked_since(self._stacked_since, stacked, apart, stamp)
+        by_id = {t.id: t for t in pool}
+        for a_id, b_id in due_pairs(self._stacked_since, stamp, cfg.min_time):
+            a, b = by_id[a_id], by_id[b_id]
+            if a.state is TrackState.DELETED or b.state is TrackState.DELETED:
+                continue
+            if cfg.min_similarity > 0.0 and not self._look_alike(a, b, image,
+                                                                  cfg.min_similarity):
+                continue
+            keep, gone = (a, b) if survivor(a.created, a.id, b.created, b.id) == a.id \
+                else (b, a)
+            merge_into(keep, gone)
+            gone.state = TrackState.DELETED
+            self._stacked_since.pop((a_id, b_id), None)
+            self.totals["merged_duplicates"] += 1
+            result.events.append(f"track {gone.id} merged into track {keep.id} "
+                                 "(stacked on one person)")
+
+    def _look_alike(self, a: Track, b: Track, image: np.ndarray, floor: float) -> bool:
+        """Each track's appearance model matches the other's box with at least ``floor``
+        (:meth:`Refiner.appearance_similarity`); False when a model is missing."""
+        refiner = self.refiner
+        if refiner is None or a.target is None or b.target is None:
+            return False
+        try:
+            sims = (float(refiner.appearance_similarity(image, a.target, tuple(b.box))),
+                    float(refiner.appearance_similarity(image, b.target, tuple(a.box))))
+        except ValueError:
+            return False
+        return all(math.isfinite(v) and v >= floor for v in sims)
+
     def _refiner_for(self, t: Track) -> Refiner | None:
         """The refiner of a track: ``manual_refiner`` for tracks started by hand."""
         return self.manual_refiner if t.manual else self.refiner
@@ -716,7 +772,9 @@ class MultiObjectTracker:
                          unseen_time=0.0 if t.manual else stamp - t.last_seen,
                          lost_time=0.0 if t.lost_since is None else stamp - t.lost_since,
                          config=cfg,
-                         undetected_time=0.0 if t.manual else stamp - t.last_detection)
+                         undetected_time=0.0 if t.manual else stamp - t.last_detection,
+                         still=cfg.still_speed > 0 and float(np.hypot(*t.kf.velocity))
+                         < cfg.still_speed * float(t.size[1]))
         if hold and new is TrackState.CONFIRMED and was is TrackState.TENTATIVE:
             new = TrackState.TENTATIVE
         if new is TrackState.LOST and was is not TrackState.LOST:

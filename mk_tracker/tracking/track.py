@@ -13,6 +13,11 @@ States (:class:`TrackState`) and the rules of :func:`next_state`:
   a track started by hand that coasts until its prediction's position std exceeds its
   bound is ``held`` (:meth:`Track.hold_if_uncertain`): the prediction stops and the box
   stands where the target was last believed to be, still searched for;
+* a track seen only by its multiple-kernel refinement for longer than
+  ``max_undetected_time`` is ``lost`` (a refiner locked on background must not live on),
+  unless it moves slower than ``still_speed`` box heights per second: the kernel covariance
+  detector (Schizas et al. 2018) finds only what moves, so a person standing still gets no
+  detections, and the track stays while its appearance still matches (``visible``);
 * ``lost`` -- coasted for longer than ``max_coast_time`` (or the prediction left the image):
   no output box, but the track is kept for ``max_lost_time`` so that a detection near its
   predicted position that matches its appearance model takes its id back.  This answers the
@@ -82,6 +87,11 @@ class LifecycleConfig:
         0.5, "Seconds a track may go on by its multiple-kernel refinement alone, with no "
         "detection, before it is lost (a refiner locked on background must not live on); "
         "0 = no limit.  Tracks started by hand are exempt", minimum=0.0, maximum=1e5)
+    still_speed: float = parameter(
+        0.3, "A visible track moving slower than this many box heights per second is exempt "
+        "from max_undetected_time (the kernel covariance detector finds only what moves: a "
+        "person standing still gets no detections while the multiple-kernel appearance "
+        "still matches); 0 = no exemption", minimum=0.0, maximum=100.0)
     size_smoothing: float = parameter(
         0.6, "Weight of a new measured box size in the exponential size smoothing "
         "(scaled by match quality; 1 = no smoothing)", minimum=0.0, maximum=1.0)
@@ -122,7 +132,8 @@ def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig
 
 def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bool,
                hits: int, tentative_misses: int, unseen_time: float, lost_time: float,
-               config: LifecycleConfig, undetected_time: float = 0.0) -> TrackState:
+               config: LifecycleConfig, undetected_time: float = 0.0,
+               still: bool = False) -> TrackState:
     """The lifecycle transition of one track for one frame (pure function).
 
     ``detected``: a detection was assigned this frame.  ``visible``: the multiple-kernel
@@ -131,7 +142,9 @@ def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bo
     ``tentative_misses``: consecutive undetected frames (this one included).
     ``unseen_time``: seconds since the track was last detected or visible.  ``lost_time``:
     seconds since it became lost.  ``undetected_time``: seconds since the last detection
-    (pass 0 for tracks exempt from ``max_undetected_time``).
+    (pass 0 for tracks exempt from ``max_undetected_time``).  ``still``: the track moves
+    slower than ``still_speed`` (a visible still track is exempt from
+    ``max_undetected_time``).
     """
     if state is TrackState.DELETED:
         return state
@@ -147,7 +160,8 @@ def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bo
         return TrackState.DELETED if lost_time > config.max_lost_time else TrackState.LOST
     if not in_image:
         return TrackState.LOST
-    if config.max_undetected_time > 0 and undetected_time > config.max_undetected_time:
+    if config.max_undetected_time > 0 and undetected_time > config.max_undetected_time \
+            and not (still and visible):
         return TrackState.LOST
     if visible:
         return TrackState.CONFIRMED

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
 from mk_tracker.tracking.association import AssociationConfig
+from mk_tracker.tracking.duplicate_tracks import DuplicateConfig
 from mk_tracker.tracking.group_measurement import GroupConfig
 from mk_tracker.tracking.manual_track import ManualTrackConfig
 from mk_tracker.tracking.multi_kernel import MultiKernelConfig
@@ -30,6 +31,8 @@ class MultiObjectTrackerConfig:
     lifecycle: LifecycleConfig = parameter(LifecycleConfig(), "Track states and smoothing")
     group: GroupConfig = parameter(GroupConfig(), "Detections around several tracks "
                                    "(group measurements)")
+    duplicates: DuplicateConfig = parameter(
+        DuplicateConfig(), "Two tracks stacked on one person (track-level suppression)")
     multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
                                                 "Multiple-kernel refinement (Chu et al. 2013)")
     manual_track: ManualTrackConfig = parameter(

@@ -100,6 +100,26 @@ def test_refinement_alone_keeps_a_track_only_for_max_undetected_time():
         TrackState.CONFIRMED
 
 
+def test_a_visible_still_track_is_exempt_from_max_undetected_time():
+    cfg = LifecycleConfig(max_undetected_time=1.5, max_coast_time=1.0)
+    kw = dict(detected=False, in_image=True, hits=5, tentative_misses=0, lost_time=0.0,
+              config=cfg, undetected_time=9.0)
+    # standing still and still matched by the kernels: kept however long undetected
+    assert next_state(TrackState.CONFIRMED, visible=True, unseen_time=0.0, still=True,
+                      **kw) is TrackState.CONFIRMED
+    # moving and undetected: the limit applies
+    assert next_state(TrackState.CONFIRMED, visible=True, unseen_time=0.0, still=False,
+                      **kw) is TrackState.LOST
+    # still but the appearance says the person is gone: coasts, then lost by max_coast_time
+    assert next_state(TrackState.CONFIRMED, visible=False, unseen_time=0.5, still=True,
+                      **kw) is TrackState.LOST
+    kw["undetected_time"] = 0.5
+    assert next_state(TrackState.CONFIRMED, visible=False, unseen_time=0.5, still=True,
+                      **kw) is TrackState.OCCLUDED
+    assert next_state(TrackState.OCCLUDED, visible=False, unseen_time=1.2, still=True,
+                      **kw) is TrackState.LOST
+
+
 def test_an_unseen_track_holds_its_position_once_its_std_exceeds_the_bound():
     # box 20 px wide, centre (100, 100) at 50 px/s; initial position variance 4 (std 2 px)
     t = make_track()

@@ -1,0 +1,197 @@
+"""Duplicate tracks (issues #15, #19): two tracks stacked on one person, never detected as two,
+become one; the older id stays and takes the better-supported estimate."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mk_tracker.kalman import KalmanConfig
+from mk_tracker.parameters import ParameterError, updated, validate_config
+from mk_tracker.tracking.duplicate_tracks import (DuplicateConfig, due_pairs, merge_into,
+                                                  stacked_pairs, survivor,
+                                                  update_stacked_since)
+from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
+                                                      MultiObjectTrackerConfig)
+from mk_tracker.tracking.track import LifecycleConfig, Track
+
+IMG = np.zeros((480, 640, 3), np.uint8)
+DT = 1.0 / 25.0
+
+
+# -- pure functions ---------------------------------------------------------------------------
+
+def test_stacked_pairs_are_keyed_by_ordered_ids_with_their_iou():
+    # IoU by hand: (0,0,10,10)-(2,0,10,10): 80 / 120; (2,0)-(5,0): 70 / 130;
+    # (0,0)-(5,0): 50 / 150 = 1/3, below 0.5
+    pairs = stacked_pairs([7, 3, 9], [(0, 0, 10, 10), (2, 0, 10, 10), (5, 0, 10, 10)], 0.5)
+    assert pairs.keys() == {(3, 7), (3, 9)}
+    assert pairs[(3, 7)] == pytest.approx(80 / 120)
+    assert pairs[(3, 9)] == pytest.approx(70 / 130)
+    assert stacked_pairs([1], [(0, 0, 10, 10)], 0.0) == {}
+    with pytest.raises(ValueError, match="2 ids for 1 boxes"):
+        stacked_pairs([1, 2], [(0, 0, 10, 10)], 0.5)
+
+
+def test_the_clock_of_a_pair_runs_while_stacked_and_restarts_when_seen_apart():
+    since = {(1, 2): 1.0, (3, 4): 2.0, (7, 8): 0.5}
+    out = update_stacked_since(since, stacked=[(2, 1), (5, 6), (3, 4)], detected_apart=[(4, 3)],
+                               stamp=3.0)
+    # (1, 2) keeps its start; (5, 6) starts now; (3, 4) was seen as two people; (7, 8) is
+    # no longer stacked
+    assert out == {(1, 2): 1.0, (5, 6): 3.0}
+
+
+def test_due_pairs_are_those_stacked_long_enough_longest_first():
+    since = {(5, 6): 3.0, (1, 2): 1.0, (3, 4): 2.0}
+    assert due_pairs(since, 3.5, 0.5) == [(1, 2), (3, 4), (5, 6)]   # 2.5, 1.5, 0.5 s
+    assert due_pairs(since, 3.5, 0.75) == [(1, 2), (3, 4)]
+    assert due_pairs(since, 3.5, 3.0) == []
+    assert due_pairs({(4, 9): 1.0, (2, 3): 1.0}, 2.0, 0.5) == [(2, 3), (4, 9)]   # tie: ids
+
+
+def test_the_older_track_survives():
+    assert survivor(1.0, 5, 2.0, 3) == 5
+    assert survivor(2.0, 5, 1.0, 3) == 3
+    assert survivor(1.0, 5, 1.0, 3) == 3            # same age: the id given first
+
+
+def _track(tid, box, stamp):
+    return Track(tid, np.array(box, float), stamp, score=0.9, kalman=KalmanConfig(),
+                 config=LifecycleConfig())
+
+
+def test_merge_takes_the_estimate_of_the_more_recently_detected_track():
+    keep = _track(1, (100, 100, 30, 60), 0.0)        # centre (115, 130)
+    gone = _track(2, (110, 104, 20, 50), 0.5)        # centre (120, 129)
+    keep.hits, gone.hits = 12, 4
+    keep.last_detection, gone.last_detection = 1.0, 2.0
+    keep.last_seen, gone.last_seen = 1.5, 2.0
+    merge_into(keep, gone)
+    assert keep.id == 1 and keep.created == 0.0
+    assert tuple(keep.center) == pytest.approx((120.0, 129.0))
+    assert tuple(keep.size) == pytest.approx((20.0, 50.0))
+    assert keep.kf is not gone.kf                    # a copy: the gone track keeps its own
+    assert (keep.hits, keep.last_detection, keep.last_seen) == (12, 2.0, 2.0)
+
+    # the surviving track was detected last: its own estimate stays
+    keep = _track(1, (100, 100, 30, 60), 0.0)
+    gone = _track(2, (110, 104, 20, 50), 0.5)
+    keep.last_detection, gone.last_detection = 2.0, 1.0
+    keep.hits, gone.hits = 3, 9
+    merge_into(keep, gone)
+    assert tuple(keep.center) == pytest.approx((115.0, 130.0))
+    assert tuple(keep.size) == pytest.approx((30.0, 60.0))
+    assert keep.hits == 9
+
+
+def test_every_constant_is_a_validated_parameter():
+    cfg = MultiObjectTrackerConfig()
+    assert cfg.duplicates == DuplicateConfig()
+    with pytest.raises(ParameterError):
+        validate_config(updated(cfg, {"duplicates.min_iou": 1.5}))
+    with pytest.raises(ParameterError):
+        validate_config(updated(cfg, {"duplicates.min_time": -0.1}))
+
+
+# -- in the tracker ---------------------------------------------------------------------------
+
+def config(**changes) -> MultiObjectTrackerConfig:
+    """Defaults with ``changes``; a coasting track stays reported for 1 s (the default 0.2 s
+    would hide the undetected duplicate from ``reported()`` before the rule acts)."""
+    return updated(MultiObjectTrackerConfig(), {"max_reported_coast_time": 1.0, **changes})
+
+
+class LabelRefiner:
+    """Fake refiner: a target is the label of the nearest x position in ``labels_at``; a
+    refinement finds nothing (the undetected track coasts); appearance 0.9 for the same
+    label, else 0.05."""
+
+    def __init__(self, labels_at):
+        self.labels_at = labels_at
+
+    def _label(self, box):
+        return min(self.labels_at.items(), key=lambda kv: abs(kv[0] - box[0]))[1]
+
+    def start(self, image, box):
+        return self._label(box)
+
+    def refine(self, image, state, predicted_center=None):
+        return type("R", (), {"box": None, "similarity": 0.0, "lost": True})()
+
+    def appearance_similarity(self, image, state, box):
+        return 0.9 if self._label(box) == state else 0.05
+
+
+def _one_person_two_tracks(trk, frames_after=12):
+    """Person B walks in from x = 140 (track born first), stops at x = 104 next to person A
+    at x = 100 (born second); both are detected apart for 15 frames, stacked (IoU 26/34);
+    then the detector reports only A's box.  Returns (id of B, id of A, the results from
+    the frame B's detections stop)."""
+    a, b = (100, 100, 30, 60), lambda i: (max(140 - 2 * i, 104), 100, 30, 60)
+    for i in range(30):
+        dets = [FrameDetection(b(i), 0.9)] + ([FrameDetection(a, 0.9)] if i >= 2 else [])
+        r = trk.step(IMG, i * DT, dets)
+        if i >= 16:     # stacked and both detected: never merged
+            assert len(r.reported()) == 2, (i, r.events)
+    by_x = sorted(r.reported(), key=lambda t: t.box[0])
+    id_a, id_b = by_x[0].id, by_x[1].id
+    assert id_b < id_a
+    out = [trk.step(IMG, i * DT, [FrameDetection(a, 0.9)])
+           for i in range(30, 30 + frames_after)]
+    return id_b, id_a, out
+
+
+def test_two_tracks_stacked_on_one_detection_become_the_older_one():
+    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0})
+    id_b, id_a, out = _one_person_two_tracks(MultiObjectTracker(cfg))
+    # 0.3 s of stacking at 25 fps: still two tracks in the first 7 frames (0.28 s), one
+    # from the frame at 0.32 s on (the 9th: 8 intervals of 0.04 s after the first)
+    for r in out[:7]:
+        assert {t.id for t in r.reported()} == {id_a, id_b}
+    merged = [k for k, r in enumerate(out) if any("merged" in e for e in r.events)]
+    assert merged == [8], [r.events for r in out]
+    assert f"track {id_a} merged into track {id_b}" in out[8].events[0]
+    for r in out[8:]:
+        (t,) = r.reported()
+        assert t.id == id_b
+        # the survivor took the estimate of the detected track: on A's box
+        assert t.box[0] + t.box[2] / 2 == pytest.approx(115.0, abs=1.5)
+
+
+def test_without_the_rule_the_undetected_duplicate_stays():
+    cfg = config(**{"use_multi_kernel": False, "duplicates.enabled": False})
+    id_b, id_a, out = _one_person_two_tracks(MultiObjectTracker(cfg))
+    for r in out:
+        assert {t.id for t in r.reported()} == {id_a, id_b}
+
+
+@pytest.mark.parametrize("same_look", [True, False])
+def test_the_appearance_of_both_tracks_must_match_for_a_merge(same_look):
+    cfg = config(**{"duplicates.min_similarity": 0.3})
+    labels = {100.0: "grey"} if same_look else {100.0: "red", 104.0: "blue"}
+    trk = MultiObjectTracker(cfg, refiner=LabelRefiner(labels))
+    id_b, id_a, out = _one_person_two_tracks(trk)
+    ids = {t.id for t in out[-1].reported()}
+    # two people who look different and occlude each other keep both ids
+    assert ids == ({id_b} if same_look else {id_a, id_b})
+    assert trk.totals["merged_duplicates"] == (1 if same_look else 0)
+
+
+def test_no_refiner_and_an_appearance_test_merges_nothing():
+    cfg = config(use_multi_kernel=False)
+    assert cfg.duplicates.min_similarity > 0.0
+    id_b, id_a, out = _one_person_two_tracks(MultiObjectTracker(cfg))
+    assert {t.id for t in out[-1].reported()} == {id_a, id_b}
+
+
+def test_tracks_started_by_hand_are_never_merged():
+    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0})
+    trk = MultiObjectTracker(cfg)
+    manual = trk.start_track(IMG, 0.0, (104, 100, 30, 60))
+    for i in range(1, 60):          # a detected person walks onto the hand-started box
+        r = trk.step(IMG, i * DT, [FrameDetection((max(140 - 2 * i, 100), 100, 30, 60), 0.9)])
+    ids = {t.id for t in r.reported()}
+    assert manual in ids and len(ids) == 2
+    assert trk.totals["merged_duplicates"] == 0
+
