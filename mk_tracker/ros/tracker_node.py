@@ -51,11 +51,10 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
-from rclpy.node import Node
-from sensor_msgs.msg import Image
-
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
 from rclpy.task import Future
+from sensor_msgs.msg import Image
 
 from mk_tracker.boxes import InvalidBoxError, as_box, center_to_xywh, transform_box
 from mk_tracker.messages.detection_messages import (DetectionMessageError,

@@ -13,6 +13,8 @@ machine's speed; every wait is for an event, bounded 10-100x above the observed 
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -206,4 +208,35 @@ def test_start_track_service_answers_the_id_and_stop_track_removes_it(peer, node
         assert not answer.success and answer.message, unknown
     assert "no live track has id 999" in _call(peer, stop,
                                                  StopTrack.Request(track_id="999")).message
+    assert node.alive()
+
+
+def test_start_track_without_images_times_out_and_is_withdrawn(peer, node_group):
+    """No image within START_TRACK_TIMEOUT (10 s): the call answers why, the executor was
+    never blocked (the stop service answers meanwhile), and a later image starts nothing."""
+    from mk_tracker.ros.tracker_node import START_TRACK_TIMEOUT
+
+    node = node_group.start("mk_tracker.ros.tracker_node", "-p",
+                            "image_qos.reliability:=reliable")
+    scene = Scene(peer, node)
+    start = peer.node.create_client(StartTrack, "/tracker_node/start_track")
+    stop = peer.node.create_client(StopTrack, "/tracker_node/stop_track")
+    scene.connect()
+    assert start.wait_for_service(timeout_sec=30.0) and stop.wait_for_service(timeout_sec=30.0)
+    request = StartTrack.Request()
+    request.box.center.position.x, request.box.center.position.y = 100.0, 200.0
+    request.box.size_x, request.box.size_y = 40.0, 100.0
+    sent = time.monotonic()
+    future = start.call_async(request)
+    # while the start call waits, the node's executor still serves other requests
+    answer = _call(peer, stop, StopTrack.Request(track_id="5"))
+    assert not answer.success
+    if time.monotonic() - sent < START_TRACK_TIMEOUT:   # (always, unless the host stalls)
+        assert not future.done()
+    assert peer.spin_until(future.done, 6 * START_TRACK_TIMEOUT), node.output()
+    answer = future.result()
+    assert not answer.success and answer.track_id == ""
+    assert "no image was processed" in answer.message
+    detailed, tracks = scene.step(0, detected=False)
+    assert list(detailed.tracks) == [] and read_detection_array(tracks) == []
     assert node.alive()
