@@ -208,6 +208,20 @@ def test_start_track_service_answers_the_id_and_stop_track_removes_it(peer, node
         assert not answer.success and answer.message, unknown
     assert "no live track has id 999" in _call(peer, stop,
                                                  StopTrack.Request(track_id="999")).message
+
+    # a box in a frame the node does not know is refused by the next image, with the reason
+    request.frame_id = "nowhere"
+    future = start.call_async(request)
+    i += 2
+    while not future.done():
+        assert i < 20, f"~/start_track not answered:\n{node.output()}"
+        detailed, _ = scene.step(i, detected=False)
+        peer.spin_until(future.done, 1.0)
+        i += 1
+    answer = future.result()
+    assert not answer.success and answer.track_id == ""
+    assert "unknown frame 'nowhere'" in answer.message
+    assert list(scene.step(i, detected=False)[0].tracks) == []
     assert node.alive()
 
 
