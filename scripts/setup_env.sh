@@ -3,17 +3,18 @@
 #   1. installs the pinned requirements/ from a wheelhouse in the user's cache
 #      (downloaded once, when a pinned wheel is missing there),
 #   2. installs mk_tracker itself in editable mode,
-#   3. builds vision_msgs (interfaces/vision_msgs, definitions from
-#      mk_tracker/messages/definitions/vision_msgs) with the rosidl generators of the
-#      ros-jazzy-* wheels in a separate build environment, packs it as a wheel that is
-#      cached by the hash of its inputs, and installs that wheel into .venv.
+#   3. builds the interface packages of interfaces/ -- vision_msgs (definitions from
+#      mk_tracker/messages/definitions/vision_msgs), then mk_tracker_msgs (which uses
+#      vision_msgs) -- with the rosidl generators of the ros-jazzy-* wheels in a separate
+#      build environment, packs each as a wheel (scripts/interface_wheel.py) cached by
+#      the hash of its inputs, and installs the wheels into .venv.
 # Idempotent: a stamp holding the hash of every input makes a repeated run a no-op.
 #
 # Usage: bash scripts/setup_env.sh [--force]
 # Environment: MK_PYTHON (default python3.11), XDG_CACHE_HOME (cache in
 #   ${XDG_CACHE_HOME:-$HOME/.cache}/mk_tracker), MK_BUILD_JOBS (default: nproc).
 # Prerequisites: python3.11 with venv; cmake >= 3.21 and a C/C++ compiler (only when
-#   vision_msgs is not in the cache yet).
+#   an interface package is not in the cache yet).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -24,7 +25,9 @@ WHEELHOUSE="$CACHE/wheelhouse"
 BUILD_VENV="$CACHE/build-venv"
 REQ="$ROOT/requirements"
 MSG_DIR="$ROOT/mk_tracker/messages/definitions/vision_msgs"
-IFACE_DIR="$ROOT/interfaces/vision_msgs"
+VISION_DIR="$ROOT/interfaces/vision_msgs"
+MSGS_DIR="$ROOT/interfaces/mk_tracker_msgs"
+WHEEL_SCRIPT="$ROOT/scripts/interface_wheel.py"
 STAMP="$VENV/.mk_tracker_setup_stamp"
 VISION_MSGS_VERSION="4.1.1"
 FORCE=0
@@ -35,7 +38,7 @@ fail() { printf '[setup_env] ERROR: %s\n' "$*" >&2; exit 1; }
 for arg in "$@"; do
   case "$arg" in
     --force) FORCE=1 ;;
-    -h|--help) sed -n '2,18p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,17p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) fail "unknown argument '$arg' (usage: bash scripts/setup_env.sh [--force])" ;;
   esac
 done
@@ -82,29 +85,34 @@ fi
 shopt -s nullglob
 MSG_FILES=("$MSG_DIR"/*.msg)
 [ "${#MSG_FILES[@]}" -gt 0 ] || fail "no .msg files in $MSG_DIR"
+MSGS_FILES=("$MSGS_DIR"/msg/*.msg "$MSGS_DIR"/srv/*.srv)
+[ "${#MSGS_FILES[@]}" -gt 0 ] || fail "no .msg/.srv files in $MSGS_DIR"
 REQ_KEY="$(hash_inputs "$REQ/runtime.txt" "$REQ/build.txt" "$REQ/constraints.txt")"
-VISION_KEY="$(hash_inputs "${MSG_FILES[@]}" "$IFACE_DIR/CMakeLists.txt" "$IFACE_DIR/package.xml" \
-  "$REQ/build.txt" "$REQ/constraints.txt" "$ROOT/scripts/vision_msgs_wheel.py")"
+VISION_KEY="$(hash_inputs "${MSG_FILES[@]}" "$VISION_DIR/CMakeLists.txt" "$VISION_DIR/package.xml" \
+  "$REQ/build.txt" "$REQ/constraints.txt" "$WHEEL_SCRIPT")"
+# mk_tracker_msgs is built against this vision_msgs: its key includes vision_msgs' key
+MSGS_KEY="$(hash_inputs "${MSGS_FILES[@]}" "$MSGS_DIR/CMakeLists.txt" "$MSGS_DIR/package.xml" \
+  "$REQ/build.txt" "$REQ/constraints.txt" "$WHEEL_SCRIPT" | cut -c1-8)$(printf '%s' "$VISION_KEY" | cut -c1-8)"
 ENV_KEY="$(hash_inputs "$REQ/runtime.txt" "$REQ/constraints.txt" "$ROOT/setup.py" "$ROOT/setup.cfg" \
-  "$ROOT/package.xml" "$ROOT/scripts/setup_env.sh")-$VISION_KEY"
+  "$ROOT/package.xml" "$ROOT/scripts/setup_env.sh")-$VISION_KEY-$MSGS_KEY"
 
-# The build of vision_msgs (only when it is not cached) needs cmake and C/C++ compilers;
+# The build of an interface package (only when it is not cached) needs cmake and C/C++ compilers;
 # checked before anything is installed so that a missing tool is reported at once.
 check_build_tools() {
   command -v cmake >/dev/null 2>&1 \
-    || fail "cmake not found; it is needed once to build vision_msgs (Ubuntu: apt install cmake)."
+    || fail "cmake not found; it is needed once to build the interfaces (Ubuntu: apt install cmake)."
   "$PYTHON_BIN" - "$(cmake --version | head -n1)" <<'EOF' \
-    || fail "cmake >= 3.21 is needed to build vision_msgs (found: $(cmake --version | head -n1))."
+    || fail "cmake >= 3.21 is needed to build the interfaces (found: $(cmake --version | head -n1))."
 import re, sys
 found = tuple(int(x) for x in re.search(r"(\d+)\.(\d+)", sys.argv[1]).groups())
 sys.exit(found < (3, 21))
 EOF
   CXX_BIN="${CXX:-}"
   [ -n "$CXX_BIN" ] || CXX_BIN="$(command -v c++ || command -v g++ || command -v clang++ || true)"
-  [ -n "$CXX_BIN" ] || fail "no C++ compiler found; one is needed once to build vision_msgs (Ubuntu: apt install g++)."
+  [ -n "$CXX_BIN" ] || fail "no C++ compiler found; one is needed once to build the interfaces (Ubuntu: apt install g++)."
   CC_BIN="${CC:-}"
   [ -n "$CC_BIN" ] || CC_BIN="$(command -v cc || command -v gcc || command -v clang || true)"
-  [ -n "$CC_BIN" ] || fail "no C compiler found; one is needed once to build vision_msgs (Ubuntu: apt install gcc)."
+  [ -n "$CC_BIN" ] || fail "no C compiler found; one is needed once to build the interfaces (Ubuntu: apt install gcc)."
 }
 
 # ---- fast path -------------------------------------------------------------------
@@ -114,10 +122,29 @@ if [ "$FORCE" = 0 ] && [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$ENV_KEY" ] \
   exit 0
 fi
 
-VISION_CACHE="$CACHE/vision_msgs/$VISION_KEY"
-VISION_VERSION="$VISION_MSGS_VERSION+mk$VISION_KEY"
-VISION_WHEELS=("$VISION_CACHE"/mk_tracker_vision_msgs-*.whl)
-if [ "$FORCE" = 1 ] || [ "${#VISION_WHEELS[@]}" -eq 0 ]; then
+# The interface packages, in build order: name, source folder, version, cache key,
+# wheel distribution, extra cmake arguments.
+MSGS_VERSION="$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$MSGS_DIR/package.xml" | head -n1)"
+IFACE_NAMES=(vision_msgs mk_tracker_msgs)
+declare -A IFACE_SRC=([vision_msgs]="$VISION_DIR" [mk_tracker_msgs]="$MSGS_DIR")
+declare -A IFACE_VERSION=([vision_msgs]="$VISION_MSGS_VERSION+mk$VISION_KEY"
+                          [mk_tracker_msgs]="$MSGS_VERSION+mk$MSGS_KEY")
+declare -A IFACE_KEY=([vision_msgs]="$VISION_KEY" [mk_tracker_msgs]="$MSGS_KEY")
+declare -A IFACE_DIST=([vision_msgs]=mk_tracker_vision_msgs [mk_tracker_msgs]=mk_tracker_msgs)
+declare -A IFACE_CMAKE_ARGS=([vision_msgs]="-DMK_MESSAGE_DIR=$MSG_DIR"
+                             [mk_tracker_msgs]="-DMK_PIP_BUILD=ON")
+
+cached_wheel() {  # NAME -> path of the cached wheel, or nothing
+  local wheels=("$CACHE/$1/${IFACE_KEY[$1]}/${IFACE_DIST[$1]}"-*.whl)
+  [ "${#wheels[@]}" -eq 1 ] && printf '%s\n' "${wheels[0]}"
+  return 0
+}
+NEED_BUILD=0
+for name in "${IFACE_NAMES[@]}"; do
+  [ -n "$(cached_wheel "$name")" ] || NEED_BUILD=1
+done
+[ "$FORCE" = 1 ] && NEED_BUILD=1
+if [ "$NEED_BUILD" = 1 ]; then
   check_build_tools
 fi
 
@@ -165,61 +192,84 @@ pip_quiet "$VENV/bin/python" -m pip install --quiet "${OFFLINE_PIP[@]}" \
     --no-deps --no-build-isolation --editable "$ROOT" \
   || fail "installing mk_tracker in editable mode failed"
 
-# ---- 3. vision_msgs ---------------------------------------------------------------
-if [ "$FORCE" = 1 ] || [ "${#VISION_WHEELS[@]}" -eq 0 ]; then
-
-  BUILD_STAMP="$BUILD_VENV/.mk_tracker_build_stamp"
-  if [ ! -f "$BUILD_STAMP" ] || [ "$(cat "$BUILD_STAMP")" != "$REQ_KEY" ]; then
-    say "preparing the vision_msgs build environment $BUILD_VENV"
+# ---- 3. the interface packages ----------------------------------------------------
+prepare_build_venv() {
+  local build_stamp="$BUILD_VENV/.mk_tracker_build_stamp"
+  if [ ! -f "$build_stamp" ] || [ "$(cat "$build_stamp")" != "$REQ_KEY" ]; then
+    say "preparing the interface build environment $BUILD_VENV"
     [ -x "$BUILD_VENV/bin/python" ] || "$PYTHON_BIN" -m venv "$BUILD_VENV"
     install_pinned "$BUILD_VENV/bin/python" "$REQ/runtime.txt" "$REQ/build.txt" \
       || fail "installing requirements/build.txt into $BUILD_VENV failed"
-    echo "$REQ_KEY" > "$BUILD_STAMP"
+    echo "$REQ_KEY" > "$build_stamp"
   fi
+}
 
-  WORK="$(mktemp -d "$CACHE/vision_msgs-build.XXXXXX")"
-  LOG="$WORK/build.log"
-  JOBS="${MK_BUILD_JOBS:-$(nproc 2>/dev/null || echo 2)}"
-  say "building vision_msgs $VISION_MSGS_VERSION (cmake + rosidl, $JOBS jobs, about a minute; log: $LOG)"
+# build_interface NAME: cmake + rosidl build of interfaces/NAME into a wheel in the cache.
+# Packages built earlier in IFACE_NAMES are found in the build environment (their wheels
+# are installed there before, see below).
+build_interface() {
+  local name="$1" work log jobs start
+  local out="$CACHE/$name/${IFACE_KEY[$name]}"
+  work="$(mktemp -d "$CACHE/$name-build.XXXXXX")"
+  log="$work/build.log"
+  jobs="${MK_BUILD_JOBS:-$(nproc 2>/dev/null || echo 2)}"
+  say "building $name ${IFACE_VERSION[$name]%%+*} (cmake + rosidl, $jobs jobs, about a minute; log: $log)"
   start=$SECONDS
   if ! (
       export AMENT_PREFIX_PATH="$BUILD_VENV" CMAKE_PREFIX_PATH="$BUILD_VENV" \
              PATH="$BUILD_VENV/bin:$PATH" CC="$CC_BIN" CXX="$CXX_BIN"
-      cmake -S "$IFACE_DIR" -B "$WORK/build" \
+      cmake -S "${IFACE_SRC[$name]}" -B "$work/build" \
             -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
-            -DCMAKE_INSTALL_PREFIX="$WORK/stage" \
+            -DCMAKE_INSTALL_PREFIX="$work/stage" \
             -DPython3_EXECUTABLE="$BUILD_VENV/bin/python" \
-            -DMK_MESSAGE_DIR="$MSG_DIR" \
-        && cmake --build "$WORK/build" --parallel "$JOBS" \
-        && cmake --install "$WORK/build"
-    ) >"$LOG" 2>&1; then
-    tail -n 40 "$LOG" >&2
-    fail "building vision_msgs failed; full log: $LOG"
+            "${IFACE_CMAKE_ARGS[$name]}" \
+        && cmake --build "$work/build" --parallel "$jobs" \
+        && cmake --install "$work/build"
+    ) >"$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    fail "building $name failed; full log: $log"
   fi
-  mkdir -p "$VISION_CACHE"
-  "$BUILD_VENV/bin/python" "$ROOT/scripts/vision_msgs_wheel.py" \
-      --prefix "$WORK/stage" --out "$VISION_CACHE" --version "$VISION_VERSION" >/dev/null
-  rm -rf "$WORK"
-  say "built vision_msgs in $((SECONDS - start)) s; cached in $VISION_CACHE"
-  VISION_WHEELS=("$VISION_CACHE"/mk_tracker_vision_msgs-*.whl)
-else
-  say "vision_msgs found in the cache ($VISION_CACHE)"
-fi
-[ "${#VISION_WHEELS[@]}" -eq 1 ] || fail "expected one vision_msgs wheel in $VISION_CACHE"
+  mkdir -p "$out"
+  "$BUILD_VENV/bin/python" "$WHEEL_SCRIPT" --package "$name" --distribution "${IFACE_DIST[$name]}" \
+      --prefix "$work/stage" --out "$out" --version "${IFACE_VERSION[$name]}" >/dev/null
+  rm -rf "$work"
+  say "built $name in $((SECONDS - start)) s; cached in $out"
+}
 
-INSTALLED_VISION="$("$VENV/bin/python" -c \
-  'import importlib.metadata as m; print(m.version("mk_tracker_vision_msgs"))' 2>/dev/null || true)"
-if [ "$FORCE" = 0 ] && [ "$INSTALLED_VISION" = "$VISION_VERSION" ]; then
-  say "vision_msgs $VISION_VERSION already installed in $VENV"
-else
-  say "installing vision_msgs into $VENV"
-  pip_quiet "$VENV/bin/python" -m pip install --quiet "${OFFLINE_PIP[@]}" \
-      --no-deps --force-reinstall "${VISION_WHEELS[0]}" \
-    || fail "installing the vision_msgs wheel failed"
-fi
+# install_interface PYTHON NAME: install the cached wheel of NAME unless that version is in.
+install_interface() {
+  local python="$1" name="$2" wheel installed
+  wheel="$(cached_wheel "$name")"
+  [ -n "$wheel" ] || fail "expected one $name wheel in $CACHE/$name/${IFACE_KEY[$name]}"
+  installed="$("$python" -c 'import importlib.metadata as m, sys; print(m.version(sys.argv[1]))' \
+    "${IFACE_DIST[$name]}" 2>/dev/null || true)"
+  if [ "$FORCE" = 0 ] && [ "$installed" = "${IFACE_VERSION[$name]}" ]; then
+    return 0
+  fi
+  pip_quiet "$python" -m pip install --quiet "${OFFLINE_PIP[@]}" --no-deps --force-reinstall \
+      "$wheel" || fail "installing the $name wheel into $python's environment failed"
+}
+
+[ "$NEED_BUILD" = 1 ] && prepare_build_venv
+for name in "${IFACE_NAMES[@]}"; do
+  if [ "$FORCE" = 1 ] || [ -z "$(cached_wheel "$name")" ]; then
+    build_interface "$name"
+    [ -n "$(cached_wheel "$name")" ] || fail "expected one $name wheel after the build"
+  else
+    say "$name found in the cache ($CACHE/$name/${IFACE_KEY[$name]})"
+  fi
+  # a later package may build on this one (mk_tracker_msgs on vision_msgs): while
+  # anything is built, the build environment gets each package too
+  if [ "$NEED_BUILD" = 1 ]; then
+    install_interface "$BUILD_VENV/bin/python" "$name"
+  fi
+  say "installing $name ${IFACE_VERSION[$name]} into $VENV"
+  install_interface "$VENV/bin/python" "$name"
+done
 
 # ---- check and stamp ------------------------------------------------------------------
-(cd "$ROOT" && "$VENV/bin/python" -c 'import mk_tracker, rclpy; from vision_msgs.msg import Detection2DArray') \
-  || fail "the environment was installed but mk_tracker / rclpy / vision_msgs do not import"
+(cd "$ROOT" && "$VENV/bin/python" -c 'import mk_tracker, rclpy; from vision_msgs.msg import Detection2DArray
+from mk_tracker_msgs.msg import TrackedObjectArray; from mk_tracker_msgs.srv import StartTrack') \
+  || fail "the environment was installed but mk_tracker / rclpy / vision_msgs / mk_tracker_msgs do not import"
 echo "$ENV_KEY" > "$STAMP"
 say "environment ready: $VENV (run: .venv/bin/python -m pytest -q test)"

@@ -331,6 +331,7 @@ EXEC_DEPENDS = {
     "std_msgs": ("std_msgs.msg", "ros-jazzy-std-msgs"),
     "geometry_msgs": ("geometry_msgs.msg", "ros-jazzy-geometry-msgs"),
     "vision_msgs": ("vision_msgs.msg", None),  # built by scripts/setup_env.sh
+    "mk_tracker_msgs": ("mk_tracker_msgs.msg", None),  # interfaces/, built by setup_env.sh
     "rosgraph_msgs": ("rosgraph_msgs.msg", "ros-jazzy-rosgraph-msgs"),
     "rcl_interfaces": ("rcl_interfaces.msg", None),  # installed with ros-jazzy-rclpy
     "python3-numpy": ("numpy", "numpy"),

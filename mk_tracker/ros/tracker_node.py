@@ -24,8 +24,17 @@ Topics (relative names, resolved in the node's namespace; change them by remappi
   any other frame is logged and skipped;
 * subscribes ``~/start_track`` (vision_msgs/Detection2D): starts a track on its box by hand
   (box in the RGB plane, or in the thermal plane when its frame is ``thermal_frame_id``);
+* serves ``~/start_track`` (mk_tracker_msgs/StartTrack, the same request as a service: the
+  track is started on the next processed image and the answer carries its id) and
+  ``~/stop_track`` (mk_tracker_msgs/StopTrack: deletes a track by id at once; an unknown id
+  answers ``success`` false with the reason).  A topic and a service of the same name do not
+  collide (DDS names them ``rt/...`` and ``rq/...Request``);
 * publishes ``tracks`` (vision_msgs/Detection2DArray, header of the RGB image, ``id`` = the
-  track id, score = similarity) and, when ``publish_debug_image`` is true,
+  track id, score = similarity; confirmed tracks and briefly occluded ones), and
+  ``~/tracks_detailed`` (mk_tracker_msgs/TrackedObjectArray, same header: every live track
+  -- tentative, confirmed, occluded, lost -- with state, velocity and its covariance, age,
+  time since detected; :mod:`mk_tracker.messages.track_messages`) on every processed
+  image, and, when ``publish_debug_image`` is true,
   ``~/debug_image`` (bgr8) with boxes, ids, states and the kernels as ellipses.
 
 Parameters: ``tracker.*`` (MultiObjectTrackerConfig, e.g. ``tracker.kalman.sigma_u``,
@@ -40,14 +49,16 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.task import Future
 from sensor_msgs.msg import Image
 
-from mk_tracker.boxes import InvalidBoxError, transform_box
-from mk_tracker.messages.detection_messages import (Detection, DetectionMessageError,
+from mk_tracker.boxes import InvalidBoxError, as_box, center_to_xywh, transform_box
+from mk_tracker.messages.detection_messages import (DetectionMessageError,
                                            make_detection_array, read_detection,
                                            read_detection_array)
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, detection_plane,
@@ -59,6 +70,8 @@ from mk_tracker.messages.image_transport import (image_transport_parameter,
 from mk_tracker.ros.image_subscription import ImageSubscription
 from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
+from mk_tracker.messages.track_messages import (make_tracked_object_array,
+                                                ros_track_message_types, tracked_objects)
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.parameters import ParameterError, parameter
@@ -71,6 +84,37 @@ from mk_tracker.ros.subscription_events import log_matches
 from mk_tracker.warm_up import warm_up_tracker
 
 NO_BOX = (0.0, 0.0, 0.0, 0.0)
+#: Longest time (s) a ~/start_track service call waits for the image its track starts on.
+START_TRACK_TIMEOUT = 10.0
+#: Start requests (topic and service) waiting for the next processed image.
+MAX_PENDING_STARTS = 10
+
+
+@dataclass(eq=False)
+class _StartRequest:
+    """A start request waiting for the next image; ``reply(track_id, reason)`` answers a
+    service call (``None`` for the topic): the id on success, ``None`` and why otherwise.
+
+    Whoever :meth:`claim` s the request first decides it: the frame worker (which then
+    starts the track) or the service's timeout (after which the request is dropped)."""
+
+    frame_id: str
+    box: tuple[float, float, float, float]
+    source: str = "~/start_track"
+    reply: Callable[[int | None, str], None] | None = None
+    _claimed: bool = False
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def claim(self) -> bool:
+        with self._lock:
+            if self._claimed:
+                return False
+            self._claimed = True
+            return True
+
+    def answer(self, track_id: int | None, reason: str) -> None:
+        if self.reply is not None:
+            self.reply(track_id, reason)
 
 
 #: Input and output topics (remap them; they are not parameters).
@@ -173,14 +217,19 @@ class TrackerNode(Node):
 
         cfg = self.node_config
         self._detections = DetectionBuffer(cfg.detection_buffer, cfg.detection_wait)
-        self._start_requests: deque[tuple[str, Detection]] = deque(maxlen=10)
+        self._start_requests: deque[_StartRequest] = deque()
         self._initial_box_pending = tuple(float(v) for v in cfg.initial_box) != NO_BOX
         self._counters = _Counters()
         self._last_stamp: float | None = None
 
         from vision_msgs.msg import Detection2D, Detection2DArray
+        from mk_tracker_msgs.msg import TrackedObjectArray
+        from mk_tracker_msgs.srv import StartTrack, StopTrack
+        self._track_types = ros_track_message_types()
         self._tracks_pub = self.create_publisher(Detection2DArray, TRACKS_TOPIC,
                                                  publisher_qos(10))
+        self._detailed_pub = self.create_publisher(TrackedObjectArray, "~/tracks_detailed",
+                                                   publisher_qos(10))
         self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
         if cfg.warm_up and tracker_cfg.use_multi_kernel:
             logged_warm_up(self, "multiple-kernel tracker",
@@ -198,6 +247,13 @@ class TrackerNode(Node):
         # reliable, like ``ros2 topic pub``: a hand-made command should not be lost
         self.create_subscription(Detection2D, "~/start_track", self._on_start_track,
                                  subscription_qos(SubscriptionQosConfig("reliable", 10)))
+        # The start service awaits the next image: its coroutine and its timeout timer must
+        # not sit in the node's default (mutually exclusive) callback group, which would keep
+        # the image subscription from running until the call ends.
+        self._start_group = ReentrantCallbackGroup()
+        self.create_service(StartTrack, "~/start_track", self._on_start_track_service,
+                            callback_group=self._start_group)
+        self.create_service(StopTrack, "~/stop_track", self._on_stop_track_service)
         self.get_logger().info(
             f"tracking {self._images.topic} with detections from "
             f"{self.resolve_topic_name(DETECTIONS_TOPIC)} -> "
@@ -244,8 +300,76 @@ class TrackerNode(Node):
         except DetectionMessageError as exc:
             self.get_logger().warning(f"ignoring ~/start_track: {exc}")
             return
+        if not self._queue_start(_StartRequest(msg.header.frame_id, detection.box)):
+            self.get_logger().warning(
+                f"ignoring ~/start_track: {MAX_PENDING_STARTS} requests already wait for the "
+                "next image")
+
+    def _queue_start(self, request: _StartRequest) -> bool:
         with self._buffer_lock:
-            self._start_requests.append((msg.header.frame_id, detection))
+            if len(self._start_requests) >= MAX_PENDING_STARTS:
+                return False
+            self._start_requests.append(request)
+            return True
+
+    async def _on_start_track_service(self, request: Any, response: Any) -> Any:
+        """``~/start_track`` service: queue the box for the frame worker and wait (without
+        blocking the executor: this is a coroutine awaiting an rclpy Future) for the id the
+        next processed image gives it, at most :data:`START_TRACK_TIMEOUT` seconds."""
+        try:
+            b = request.box
+            box = tuple(float(v) for v in as_box(center_to_xywh(
+                float(b.center.position.x), float(b.center.position.y),
+                float(b.size_x), float(b.size_y))))
+        except (InvalidBoxError, AttributeError, TypeError, ValueError) as exc:
+            response.success, response.message = False, f"bad box: {exc}"
+            return response
+        future = Future(executor=self.executor)
+        # a done callback is scheduled on the executor, which wakes it up to resume us
+        future.add_done_callback(lambda _future: None)
+        pending = _StartRequest(request.frame_id, box,
+                                reply=lambda track_id, reason: future.set_result(
+                                    (track_id, reason)))
+        if not self._queue_start(pending):
+            response.success = False
+            response.message = (f"{MAX_PENDING_STARTS} start requests already wait for the "
+                                "next image; try again")
+            return response
+
+        def time_out() -> None:
+            if pending.claim():
+                pending.answer(None, f"no image was processed within {START_TRACK_TIMEOUT:g} "
+                               "s; request withdrawn")
+
+        timer = self.create_timer(START_TRACK_TIMEOUT, time_out,
+                                  callback_group=self._start_group)
+        try:
+            track_id, reason = await future
+        finally:
+            timer.cancel()
+            self.destroy_timer(timer)
+        response.success = track_id is not None
+        response.track_id = "" if track_id is None else str(track_id)
+        response.message = reason
+        return response
+
+    def _on_stop_track_service(self, request: Any, response: Any) -> Any:
+        """``~/stop_track`` service: delete the track at once (waits for a frame in
+        progress, whose output may still hold it)."""
+        text = str(request.track_id).strip()
+        try:
+            track_id = int(text)
+        except ValueError:
+            response.success = False
+            response.message = f"track_id {request.track_id!r} is not a track id (an integer)"
+            return response
+        with self._tracker_lock:
+            removed = self.tracker.stop_track(track_id)
+        response.success = removed
+        response.message = "" if removed else f"no live track has id {track_id}"
+        if removed:
+            self.get_logger().info(f"stopped track {track_id} (~/stop_track)")
+        return response
 
     # -- frame processing (worker thread) ------------------------------------------------
     def _on_worker_error(self, exc: BaseException) -> None:
@@ -308,37 +432,50 @@ class TrackerNode(Node):
         class_id = self.node_config.class_id
         out = tracks_to_detections(reported, class_id)
         self._tracks_pub.publish(make_detection_array(out, msg.header, self._types))
+        self._detailed_pub.publish(make_tracked_object_array(
+            tracked_objects(result.tracks, class_id), msg.header, self._types,
+            self._track_types))
         if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
             self._publish_debug(bgr, msg.header, reported, kernel_drawings(result), dets,
                                 tracker)
         self._report()
 
     def _start_tracks(self, tracker: MultiObjectTracker, bgr: np.ndarray, stamp: float,
-                      frame: str, starts: list[tuple[str, Detection]]) -> None:
-        requests: list[tuple[str, tuple]] = []
+                      frame: str, starts: list[_StartRequest]) -> None:
+        requests: list[_StartRequest] = []
         if self._initial_box_pending:
             self._initial_box_pending = False
-            requests.append(("initial_box", tuple(self.node_config.initial_box)))
-        for frame_id, det in starts:
+            requests.append(_StartRequest("", tuple(self.node_config.initial_box),
+                                          source="initial_box"))
+        for request in starts:
+            if not request.claim():
+                continue                    # its service call timed out: withdrawn
+            frame_id = request.frame_id
             plane = self._plane(frame_id, frame) if frame_id else "rgb"
             if plane is None:
-                self.get_logger().warning(f"~/start_track in unknown frame {frame_id!r} ignored")
+                self._refuse(request, f"~/start_track in unknown frame {frame_id!r} ignored")
                 continue
-            box = det.box
             if plane == "thermal":
                 try:
-                    box = transform_box(box, tracker.homography)
+                    request.box = tuple(transform_box(request.box, tracker.homography))
                 except InvalidBoxError as exc:
-                    self.get_logger().warning(f"~/start_track box cannot be mapped: {exc}")
+                    self._refuse(request, f"~/start_track box cannot be mapped: {exc}")
                     continue
-            requests.append(("~/start_track", box))
-        for source, box in requests:
+            requests.append(request)
+        for request in requests:
+            box = request.box
             try:
                 track_id = tracker.start_track(bgr, stamp, box)
             except ValueError as exc:
-                self.get_logger().warning(f"cannot start a track from {source} {box}: {exc}")
+                self._refuse(request, f"cannot start a track from {request.source} {box}: "
+                             f"{exc}")
                 continue
-            self.get_logger().info(f"started track {track_id} from {source} at {box}")
+            self.get_logger().info(f"started track {track_id} from {request.source} at {box}")
+            request.answer(track_id, "")
+
+    def _refuse(self, request: _StartRequest, reason: str) -> None:
+        self.get_logger().warning(reason)
+        request.answer(None, reason)
 
     def _publish_debug(self, bgr: np.ndarray, header: Any, reported: list, kernels: dict,
                        dets: list[FrameDetection], tracker: MultiObjectTracker) -> None:

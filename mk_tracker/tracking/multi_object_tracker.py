@@ -284,6 +284,18 @@ class MultiObjectTracker:
             self.frame_size = image_bgr.shape[:2]
         return track.id
 
+    def stop_track(self, track_id: int) -> bool:
+        """Delete the live track ``track_id`` (by hand); False when no live track has it.
+
+        It is gone at once: the next :meth:`step` neither updates nor reports it, and its
+        id is never reused; the other tracks are not touched."""
+        for t in self.tracks:
+            if t.id == track_id and t.state is not TrackState.DELETED:
+                t.state = TrackState.DELETED
+                self.tracks = [u for u in self.tracks if u is not t]
+                return True
+        return False
+
     def step(self, image_bgr: np.ndarray, stamp: float,
              detections: Iterable[Any] = ()) -> FrameResult:
         """Process one RGB frame at ``stamp`` (seconds) with its detections."""

@@ -179,6 +179,10 @@ class TrackOutput:
     coasting); ``velocity`` ``(vx, vy)`` in px/s; ``age`` seconds since the track started;
     ``time_since_detection`` seconds since a detection was last assigned; ``manual`` for a
     track started by hand (:meth:`MultiObjectTracker.start_track`).
+    ``velocity_covariance`` and ``position_covariance`` are the velocity ((px/s)^2) and
+    centre (px^2) blocks of the Kalman error covariance P(t|t) ((4.3), (4.5)), row-major
+    ``(xx, xy, yx, yy)``; the velocity's is that of the filter's own velocity estimate, of
+    which ``velocity`` is the exponentially smoothed value.
     """
 
     id: int
@@ -190,6 +194,8 @@ class TrackOutput:
     time_since_detection: float
     hits: int
     manual: bool = False
+    velocity_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    position_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
 
 class Track:
@@ -336,6 +342,7 @@ class Track:
 
     def output(self) -> TrackOutput:
         b = self.box
+        p = self.kf.covariance
         return TrackOutput(id=self.id, state=self.state.value,
                            box=(float(b[0]), float(b[1]), float(b[2]), float(b[3])),
                            score=float(self.score),
@@ -343,4 +350,8 @@ class Track:
                                      float(self.smoothed_velocity[1])),
                            age=self.stamp - self.created,
                            time_since_detection=self.stamp - self.last_detection,
-                           hits=self.hits, manual=self.manual)
+                           hits=self.hits, manual=self.manual,
+                           velocity_covariance=(float(p[2, 2]), float(p[2, 3]),
+                                                float(p[3, 2]), float(p[3, 3])),
+                           position_covariance=(float(p[0, 0]), float(p[0, 1]),
+                                                float(p[1, 0]), float(p[1, 1])))

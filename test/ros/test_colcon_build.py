@@ -1,7 +1,10 @@
 """`ros2 run` compatibility: the package builds with colcon (ament_python) into an install
 space, and the installed `lib/mk_tracker/tracker_node` executable runs from there, joins the
 ROS graph and publishes tracks.  Also checks that launch/mk_tracker.launch.py is valid
-Python whose nodes, executables and remappings match the package.
+Python whose nodes, executables and remappings match the package, and that colcon finds
+interfaces/mk_tracker_msgs (and orders it first) when it is given as a second base path
+(docs/colcon.md).  mk_tracker_msgs itself is not built with colcon here: the node takes it
+from the pip build in the venv, as it takes vision_msgs.
 
 The build needs colcon in the test's environment (requirements: colcon-core,
 colcon-ros, colcon-python-setup-py) and vision_msgs importable (the nodes need it); the test
@@ -205,3 +208,27 @@ def test_launch_file_starts_both_nodes_with_params_and_the_nodes_default_topics(
     defaults = constants["TOPIC_DEFAULTS"]
     for src, arg in {**constants["DETECTOR_REMAPS"], **constants["TRACKER_REMAPS"]}.items():
         assert defaults[arg] == src  # launching without arguments remaps nothing
+
+
+def test_colcon_finds_mk_tracker_msgs_only_through_the_second_base_path(tmp_path):
+    """docs/colcon.md: the repository cloned into src/mk_tracker.  colcon stops at the
+    mk_tracker package folder, so interfaces/mk_tracker_msgs is found only when
+    src/mk_tracker/interfaces is a base path too; then it is ordered before mk_tracker,
+    and the pip-side vision_msgs recipe stays ignored."""
+    colcon = _colcon()
+    src = tmp_path / "src" / "mk_tracker"
+    src.mkdir(parents=True)
+    shutil.copy2(REPO / "package.xml", src / "package.xml")
+    shutil.copy2(REPO / "setup.py", src / "setup.py")
+    shutil.copytree(REPO / "interfaces", src / "interfaces")
+
+    def listed(*base_paths: str) -> list[str]:
+        result = subprocess.run(
+            [str(colcon), "--log-base", str(tmp_path / "log"), "list", "--topological-order",
+             "--names-only", "--base-paths", *base_paths],
+            cwd=tmp_path, capture_output=True, text=True, timeout=120)
+        assert result.returncode == 0, result.stdout + result.stderr
+        return result.stdout.split()
+
+    assert listed("src") == ["mk_tracker"]
+    assert listed("src", "src/mk_tracker/interfaces") == ["mk_tracker_msgs", "mk_tracker"]

@@ -1,15 +1,16 @@
 """Pack an installed ROS interface package (a CMake install prefix) into a wheel.
 
-Used by ``scripts/setup_env.sh`` after ``cmake --install`` of ``interfaces/vision_msgs``:
-the files below ``<prefix>/lib/python3.X/site-packages`` become the wheel's importable
-content, every other file (``lib/*.so``, ``share/vision_msgs``, ``include``, the ament
-resource index) goes to the wheel's ``.data/data`` scheme, which pip installs relative
+Used by ``scripts/setup_env.sh`` after ``cmake --install`` of an interface package of
+``interfaces/`` (vision_msgs, mk_tracker_msgs): the files below
+``<prefix>/lib/python3.X/site-packages`` become the wheel's importable content, every other
+file (``lib/*.so``, ``share/<package>``, ``include``, the ament resource index) goes to the wheel's ``.data/data`` scheme, which pip installs relative
 to the environment's prefix -- the same layout the ros-jazzy-* wheels use.  Installing
 the wheel is then a plain ``pip install``, and pip can uninstall it again.
 
 Usage::
 
-    python scripts/vision_msgs_wheel.py --prefix STAGE --out DIR --version 4.1.1+abc
+    python scripts/interface_wheel.py --package vision_msgs \
+        --distribution mk_tracker_vision_msgs --prefix STAGE --out DIR --version 4.1.1+abc
 """
 
 from __future__ import annotations
@@ -22,8 +23,6 @@ import sys
 import sysconfig
 import zipfile
 from pathlib import Path
-
-DISTRIBUTION = "mk_tracker_vision_msgs"
 
 # Build by-products that must not be shipped: byte code (pip compiles on install) and
 # the egg-info that ament writes (pip would see a second distribution).
@@ -66,25 +65,27 @@ def wheel_entries(prefix: Path, data_dir: str) -> list[tuple[str, Path]]:
     return entries
 
 
-def build_wheel(prefix: Path, out_dir: Path, version: str) -> Path:
-    """Write the wheel for the install tree ``prefix`` into ``out_dir`` and return its path."""
-    if not (prefix / "share" / "vision_msgs" / "package.xml").is_file():
-        raise SystemExit(f"{prefix} does not look like a vision_msgs install prefix")
+def build_wheel(prefix: Path, out_dir: Path, version: str, package: str,
+                distribution: str) -> Path:
+    """Write the wheel ``distribution`` for the install tree ``prefix`` of the interface
+    package ``package`` into ``out_dir`` and return its path."""
+    if not (prefix / "share" / package / "package.xml").is_file():
+        raise SystemExit(f"{prefix} does not look like a {package} install prefix")
     tag = _wheel_tag()
-    dist_info = f"{DISTRIBUTION}-{version}.dist-info"
-    data_dir = f"{DISTRIBUTION}-{version}.data"
+    dist_info = f"{distribution}-{version}.dist-info"
+    data_dir = f"{distribution}-{version}.data"
     out_dir.mkdir(parents=True, exist_ok=True)
-    target = out_dir / f"{DISTRIBUTION}-{version}-{tag}.whl"
+    target = out_dir / f"{distribution}-{version}-{tag}.whl"
     metadata = (
         "Metadata-Version: 2.1\n"
-        f"Name: {DISTRIBUTION}\n"
+        f"Name: {distribution}\n"
         f"Version: {version}\n"
-        "Summary: vision_msgs 4.1 interfaces (C, C++, Python type support) built by mk_tracker\n"
+        f"Summary: {package} interfaces (C, C++, Python type support) built by mk_tracker\n"
         "License: Apache-2.0\n"
     )
     wheel_file = (
         "Wheel-Version: 1.0\n"
-        "Generator: mk_tracker scripts/vision_msgs_wheel.py\n"
+        "Generator: mk_tracker scripts/interface_wheel.py\n"
         "Root-Is-Purelib: false\n"
         f"Tag: {tag}\n"
     )
@@ -110,11 +111,15 @@ def build_wheel(prefix: Path, out_dir: Path, version: str) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--package", required=True, help="ROS package name, e.g. vision_msgs")
+    parser.add_argument("--distribution", required=True,
+                        help="wheel distribution name, e.g. mk_tracker_vision_msgs")
     parser.add_argument("--prefix", type=Path, required=True, help="cmake install prefix")
     parser.add_argument("--out", type=Path, required=True, help="folder for the wheel")
     parser.add_argument("--version", required=True, help="wheel version, e.g. 4.1.1+<key>")
     args = parser.parse_args(argv)
-    print(build_wheel(args.prefix.resolve(), args.out, args.version))
+    print(build_wheel(args.prefix.resolve(), args.out, args.version, args.package,
+                      args.distribution))
     return 0
 
 
