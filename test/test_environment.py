@@ -332,6 +332,7 @@ EXEC_DEPENDS = {
     "geometry_msgs": ("geometry_msgs.msg", "ros-jazzy-geometry-msgs"),
     "vision_msgs": ("vision_msgs.msg", None),  # built by scripts/setup_env.sh
     "rosgraph_msgs": ("rosgraph_msgs.msg", "ros-jazzy-rosgraph-msgs"),
+    "diagnostic_msgs": ("diagnostic_msgs.msg", "ros-jazzy-diagnostic-msgs"),
     "python3-numpy": ("numpy", "numpy"),
     "python3-opencv": ("cv2", "opencv-python-headless"),
     "python3-scipy": ("scipy", "scipy"),
