@@ -1,6 +1,8 @@
 """mk_tracker.ros.node_runner: the start/spin/stop scaffolding both node processes share."""
 
+import os
 import signal
+import time
 
 import pytest
 
@@ -8,7 +10,9 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) is not i
 from rclpy.node import Node  # noqa: E402
 
 from mk_tracker.parameters import ParameterError  # noqa: E402
-from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, run_node  # noqa: E402
+from mk_tracker.ros.node_runner import (ReportTimer, StartupInterrupted,  # noqa: E402
+                                        log_shutdown, logged_warm_up, run_node)
+from mk_tracker.warm_up import WarmUp  # noqa: E402
 
 
 @pytest.fixture
@@ -33,15 +37,21 @@ def test_report_timer_is_due_once_per_period():
 
 
 def test_construction_error_exits_1_with_the_message(keep_sigterm, capsys):
+    seen = {}
+
     def broken():
+        seen["handlers"] = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
         raise ParameterError("tracker.homography: singular")
 
+    before = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
     assert run_node(broken, "some_node", []) == 1
     assert "some_node: tracker.homography: singular" in capsys.readouterr().err
     assert not rclpy.ok()                 # the context was shut down again
-    # the SIGTERM handler lets the node stop cleanly instead of killing the process
-    handler = signal.getsignal(signal.SIGTERM)
-    assert callable(handler) and handler is not signal.SIG_DFL
+    # while the node ran, run_node's handler let it stop cleanly instead of the default
+    # (SIGTERM: the end of the process at once); afterwards the process's own are back
+    assert all(callable(h) and h not in (signal.SIG_DFL, signal.SIG_IGN)
+               and h not in before for h in seen["handlers"])
+    assert [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)] == before
 
 
 def test_node_is_spun_until_shutdown_then_destroyed_and_statistics_logged(keep_sigterm, capsys):
@@ -107,3 +117,67 @@ def test_context_invalid_error_while_running_is_not_hidden(keep_sigterm, monkeyp
     with pytest.raises(impl.RCLError):
         run_node(lambda: Node("runner_error_node"), "runner_error_node")
     assert not rclpy.ok()                 # still shut down on the way out
+
+
+def _busy(seconds: float) -> None:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        sum(range(100))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_node_is_constructed_ends_the_run_with_0(keep_sigterm, capsys, sig):
+    reached = []
+
+    class Slow(Node):
+        def __init__(self):
+            super().__init__("runner_slow_node")
+            os.kill(os.getpid(), sig)
+            _busy(5.0)                    # a start that would go on (a compile)
+            reached.append("end of construction")
+
+    t0 = time.monotonic()
+    assert run_node(Slow, "runner_slow_node") == 0
+    assert time.monotonic() - t0 < 5.0    # the construction was cut short
+    assert reached == []
+    assert capsys.readouterr().err.count("[runner_slow_node] interrupted while starting; "
+                                         "stopping") == 1
+    assert not rclpy.ok()
+
+
+def test_an_interrupted_warm_up_says_so_once_and_stops_the_start(keep_sigterm, capfd):
+    calls = []
+
+    def warm_up():
+        calls.append("warm-up")
+        os.kill(os.getpid(), signal.SIGINT)
+        _busy(5.0)
+        calls.append("finished")
+
+    class Warming(Node):
+        def __init__(self):
+            super().__init__("runner_warming_node")
+            logged_warm_up(self, "test kernels", warm_up)
+            calls.append("constructed")
+
+    assert run_node(Warming, "runner_warming_node") == 0
+    assert calls == ["warm-up"]
+    err = capfd.readouterr().err      # rclpy's logger writes to the file descriptor
+    assert "warm-up of the test kernels interrupted after" in err
+    assert "interrupted while starting" not in err     # one line, not two
+
+
+def test_a_warm_up_that_ends_after_a_shutdown_stops_the_start(keep_sigterm):
+    class Warming(Node):
+        def __init__(self):
+            super().__init__("runner_shutdown_node")
+            # as a SIGINT Python ignores: rclpy shuts the context down, no exception
+            logged_warm_up(self, "test kernels", lambda: rclpy.shutdown() or WarmUp(0.0, None))
+
+    with pytest.raises(StartupInterrupted) as info:
+        rclpy.init()
+        try:
+            Warming()
+        finally:
+            rclpy.try_shutdown()
+    assert info.value.logged
