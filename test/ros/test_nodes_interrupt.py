@@ -73,3 +73,24 @@ def test_a_signal_while_the_kernels_compile_stops_the_node_cleanly(module, inter
     lines = [line for line in out.splitlines() if "stopping" in line or "interrupted" in line]
     assert len(lines) == 1, out
     assert " ready (" not in out, out             # the warm-up never finished
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_after_the_start_stops_the_spin_with_the_statistics(sig, domain, tmp_path):
+    module = "mk_tracker.ros.tracker_node"
+    node = NodeProcess(module, ["-p", "warm_up:=false"], ros_env(domain),
+                       tmp_path / "node.log")
+    try:
+        assert node.wait_for_output(READY[module], COMPILE_TIMEOUT_S), node.output()
+        os.killpg(node.proc.pid, sig)
+        try:
+            status = node.proc.wait(EXIT_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"the node did not stop within {EXIT_TIMEOUT_S} s:\n{node.output()}")
+        out = node.output()
+    finally:
+        node.stop()
+    assert status == 0, out
+    assert "Traceback" not in out, out
+    assert out.count("shutting down: {'frames': 0") == 1, out
+    assert "interrupted" not in out, out
