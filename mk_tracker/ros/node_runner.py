@@ -16,7 +16,8 @@ A Ctrl-C or SIGTERM while the node is being constructed -- typically during the 
 which compiles numba kernels for tens of seconds on a machine's first run -- ends the
 process with status 0 and one line saying so, not a traceback.  While the node is
 constructed, :func:`run_node`'s handler of both signals raises :class:`StartupInterrupted`
-(after that the handler does nothing and rclpy's own handler stops the spin);
+(again, 20 ms later, when a ctypes callback swallowed it: :class:`_StartGuard`; after the
+construction the handler does nothing and rclpy's own handler stops the spin);
 :func:`logged_warm_up` turns it into "warm-up of the ... interrupted after N s; stopping",
 and :func:`run_node` says "interrupted while starting; stopping" when it came elsewhere.
 Not ``KeyboardInterrupt``: when one passes through code that ``exec`` runs from a string
@@ -105,35 +106,73 @@ def logged_warm_up(node: Node, what: str, warm_up: Callable[[], Any]) -> None:
     logger.info(f"{what} ready ({seconds:.1f} s)")
 
 
-def run_node(node_class: Callable[[], Node], name: str,
-             args: Sequence[str] | None = None) -> int:
-    """Run one node until shutdown; returns the process exit status (0, or 1 when the node
-    cannot be constructed).  The process's SIGINT / SIGTERM handlers are restored at the
-    end."""
-    # rclpy shuts the context down on SIGINT / SIGTERM and then calls the previous handler:
-    # by default a KeyboardInterrupt / the end of the process at once.  This one handler
-    # (installed before rclpy.init, which chains to it; replacing it later would remove
-    # rclpy's) stops a start at once and otherwise lets rclpy stop the spin, so the node
-    # stops cleanly (worker joined, statistics logged).
-    starting = [True]
+class _StartGuard:
+    """The signal handling of :func:`run_node` (see the module docstring).
 
-    def on_signal(signum: int, frame: Any) -> None:
-        if starting[0]:
+    rclpy shuts the context down on SIGINT / SIGTERM and then calls the previous handler:
+    by default a KeyboardInterrupt / the end of the process at once.  One handler for both
+    (installed before rclpy.init, which chains to it; replacing it later would remove
+    rclpy's) raises :class:`StartupInterrupted` while ``starting`` and otherwise lets rclpy
+    stop the spin, so the node stops cleanly (worker joined, statistics logged).
+
+    An exception raised in a signal handler surfaces in whatever Python code runs next; in
+    a ctypes callback (llvmlite calls one while numba compiles) Python prints it as
+    "Exception ignored" and goes on, which left a compile running for 15 s more in 1 of 10
+    runs.  The guard's ``sys.unraisablehook`` therefore keeps such a swallowed interrupt quiet
+    and raises it again 20 ms later (SIGALRM), until it lands in ordinary code.
+    """
+
+    RETRY_S = 0.02
+
+    def __init__(self) -> None:
+        self.starting = True
+        self._retry = hasattr(signal, "setitimer")
+        self._signals = [signal.SIGINT, signal.SIGTERM] + (
+            [signal.SIGALRM] if self._retry else [])
+        self._previous = {sig: signal.getsignal(sig) for sig in self._signals}
+        self._previous_hook = sys.unraisablehook
+        for sig in self._signals:
+            signal.signal(sig, self._on_signal)
+        sys.unraisablehook = self._on_unraisable
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        if self.starting:
             raise StartupInterrupted()
 
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    for sig in previous:
-        signal.signal(sig, on_signal)
-    try:
-        return _run(node_class, name, args, starting)
-    finally:
-        for sig, handler in previous.items():
+    def _on_unraisable(self, unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, StartupInterrupted) and self.starting:
+            if self._retry:
+                signal.setitimer(signal.ITIMER_REAL, self.RETRY_S)
+            return
+        self._previous_hook(unraisable)
+
+    def started(self) -> None:
+        """The node is constructed (or gave up): signals no longer raise."""
+        self.starting = False
+        if self._retry:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+
+    def restore(self) -> None:
+        self.started()
+        sys.unraisablehook = self._previous_hook
+        for sig, handler in self._previous.items():
             if handler is not None:
                 signal.signal(sig, handler)
 
 
+def run_node(node_class: Callable[[], Node], name: str,
+             args: Sequence[str] | None = None) -> int:
+    """Run one node until shutdown; returns the process exit status (0, or 1 when the node
+    cannot be constructed).  The process's signal handlers are restored at the end."""
+    guard = _StartGuard()
+    try:
+        return _run(node_class, name, args, guard)
+    finally:
+        guard.restore()
+
+
 def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,
-         starting: list[bool]) -> int:
+         guard: _StartGuard) -> int:
     rclpy.init(args=list(args) if args is not None else None)
     try:
         node = node_class()
@@ -152,7 +191,7 @@ def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,
         rclpy.try_shutdown()
         return 0
     finally:
-        starting[0] = False
+        guard.started()
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -181,3 +181,36 @@ def test_a_warm_up_that_ends_after_a_shutdown_stops_the_start(keep_sigterm):
         finally:
             rclpy.try_shutdown()
     assert info.value.logged
+
+
+def test_an_interrupt_swallowed_by_a_ctypes_callback_is_raised_again(keep_sigterm, capfd):
+    """llvmlite calls Python through ctypes while numba compiles; an exception raised there
+    (the signal handler's) is printed as "Exception ignored" and dropped.  run_node raises it
+    again once the callback returned, quietly."""
+    import ctypes
+
+    steps = []
+
+    def in_callback():
+        steps.append("in the callback")
+        os.kill(os.getpid(), signal.SIGTERM)
+        _busy(0.2)                        # the handler raises in here: swallowed
+        steps.append("callback went on")
+
+    callback = ctypes.CFUNCTYPE(None)(in_callback)
+
+    class Compiling(Node):
+        def __init__(self):
+            super().__init__("runner_ctypes_node")
+            callback()
+            _busy(5.0)                    # the rest of a compile
+            steps.append("constructed")
+
+    t0 = time.monotonic()
+    assert run_node(Compiling, "runner_ctypes_node") == 0
+    assert time.monotonic() - t0 < 5.0
+    # the callback was cut short and the construction did not go on to its end
+    assert steps == ["in the callback"]
+    err = capfd.readouterr().err
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert err.count("interrupted while starting") == 1, err
