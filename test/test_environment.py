@@ -334,6 +334,7 @@ EXEC_DEPENDS = {
     "mk_tracker_msgs": ("mk_tracker_msgs.msg", None),  # interfaces/, built by setup_env.sh
     "rosgraph_msgs": ("rosgraph_msgs.msg", "ros-jazzy-rosgraph-msgs"),
     "rcl_interfaces": ("rcl_interfaces.msg", None),  # installed with ros-jazzy-rclpy
+    "diagnostic_msgs": ("diagnostic_msgs.msg", "ros-jazzy-diagnostic-msgs"),
     "python3-numpy": ("numpy", "numpy"),
     "python3-numba": ("numba", "numba"),
     "python3-opencv": ("cv2", "opencv-python-headless"),

@@ -14,8 +14,12 @@ Topics (relative names, resolved in the node's namespace; change them by remappi
 * publishes ``thermal/detections`` (vision_msgs/Detection2DArray): header copied from the
   image, ``id`` empty, one result with ``class_id`` and the detector's score
   (conventions of :mod:`mk_tracker.messages.detection_messages`);
-* publishes ``~/debug_image`` (bgr8, colour-mapped thermal with the boxes) when
-  ``publish_debug_image`` is true.
+* publishes ``~/debug_image`` (bgr8, colour-mapped thermal with the boxes) and
+  ``~/debug_image/compressed`` (JPEG, ``debug_image_jpeg_quality``) when
+  ``publish_debug_image`` is true, each only while it has a subscriber
+  (:mod:`mk_tracker.ros.debug_image_publisher`);
+* publishes ``/diagnostics`` (diagnostic_msgs/DiagnosticArray) every ``diagnostics.period``
+  s: input and processed rate, dropped frames, latency (:mod:`mk_tracker.ros.node_diagnostics`).
 
 Parameters: ``detector.*`` (ThermalDetectorConfig), ``threshold.*`` (the baseline's
 config) and the node's own (:class:`DetectorNodeConfig`); see
@@ -42,10 +46,13 @@ from mk_tracker.messages.compressed_image import as_image
 from mk_tracker.messages.image_transport import (image_transport_parameter,
                                                  no_image_warning_parameter)
 from mk_tracker.ros.image_subscription import ImageSubscription
-from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
+from mk_tracker.messages.image_conversion import ImageConversionError
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.parameters import ParameterError, parameter
+from mk_tracker.node_health import DiagnosticsConfig
+from mk_tracker.ros.debug_image_publisher import DebugImagePublisher, jpeg_quality_parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
+from mk_tracker.ros.node_diagnostics import NodeDiagnostics
 from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up, run_node
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
@@ -75,7 +82,10 @@ class DetectorNodeConfig:
         (0.0, 0.0, 0.0, 0.0), "Image boxes where nothing is detected (burned-in overlays, "
         "heaters, screens): flat [x, y, w, h, x, y, w, h, ...] in pixels, top-left corner; a "
         "box with w or h = 0 is a placeholder (the default: no region)", minimum=0.0)
-    publish_debug_image: bool = parameter(False, "Publish ~/debug_image (bgr8)")
+    publish_debug_image: bool = parameter(
+        False, "Publish ~/debug_image (bgr8) and ~/debug_image/compressed (JPEG), each while "
+        "it has a subscriber")
+    debug_image_jpeg_quality: int = jpeg_quality_parameter()
     class_id: str = parameter("person", "class_id written into every detection's result")
     report_period: float = parameter(
         5.0, "Seconds between the logs of dropped frames and skipped input", minimum=0.1,
@@ -83,6 +93,8 @@ class DetectorNodeConfig:
     warm_up: bool = parameter(
         True, "Compile (first run) or load the detector's numba kernels before subscribing, "
         "so the first frames are not stalled", read_only=True)
+    diagnostics: DiagnosticsConfig = parameter(
+        DiagnosticsConfig(), "/diagnostics: input rate, processed rate, dropped frames, latency")
 
 
 def default_configs() -> dict[str, Any]:
@@ -153,12 +165,16 @@ class DetectorNode(Node):
         cfg = self.node_config
         self._detections_pub = self.create_publisher(Detection2DArray, DETECTIONS_TOPIC,
                                                      publisher_qos(10))
-        self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
+        self._debug = DebugImagePublisher(self, self._types)
         if cfg.warm_up and cfg.method == "kernel_covariance":
             logged_warm_up(self, "sparse kernel covariance detector",
                            lambda: warm_up_detector(kernel_cfg))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="detector_node-frames").start()
+        self._diagnostics = NodeDiagnostics(
+            self, lambda: self.node_config.diagnostics, self._worker,
+            lambda: self._counters.bad_images + self._counters.rejected_frames,
+            self.statistics)
         self._images = ImageSubscription(self, IMAGE_TOPIC, cfg.image_transport,
                                          self._worker.submit, subscription_qos(cfg.image_qos),
                                          cfg.no_image_warning)
@@ -233,10 +249,10 @@ class DetectorNode(Node):
         counters.frames += 1
         counters.detections += len(out)
         self._detections_pub.publish(make_detection_array(out, msg.header, self._types))
-        if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
+        self._diagnostics.published(msg.header)
+        if self.node_config.publish_debug_image and self._debug.wanted():
             canvas = detector_debug_image(frame, msg.encoding, out, self.node_config.method)
-            self._debug_pub.publish(numpy_to_image(canvas, "bgr8", msg.header,
-                                                   types=self._types))
+            self._debug.publish(canvas, msg.header, self.node_config.debug_image_jpeg_quality)
         self._report()
 
     def _report(self) -> None:

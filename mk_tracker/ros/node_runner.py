@@ -1,7 +1,7 @@
 """What every mk_tracker node process does around its node: start, spin, stop, report.
 
-* :func:`run_node` is the body of a node's ``main()``: a SIGTERM handler that lets the node
-  stop cleanly, ``rclpy.init``, construction (a bad parameter or a missing message package
+* :func:`run_node` is the body of a node's ``main()``: a SIGINT / SIGTERM handler that lets
+  the node stop cleanly, ``rclpy.init``, construction (a bad parameter or a missing message package
   -> message on stderr and exit status 1), spinning until Ctrl-C / SIGTERM /
   ``rclpy.shutdown`` (also when the shutdown lands while the executor builds its wait set,
   where rclpy raises ``RCLError``), then ``destroy_node`` and shutdown.
@@ -11,6 +11,21 @@
   context (and with it /rosout) is already gone.
 * :func:`logged_warm_up` runs one of :mod:`mk_tracker.warm_up`'s functions while a node
   starts, with a log line before and after; a failure is a warning, never the node's end.
+
+A Ctrl-C or SIGTERM while the node is being constructed -- typically during the warm-up,
+which compiles numba kernels for tens of seconds on a machine's first run -- ends the
+process with status 0 and one line saying so, not a traceback.  While the node is
+constructed, :func:`run_node`'s handler of both signals raises :class:`StartupInterrupted`
+(again, 20 ms later, when a ctypes callback swallowed it: :class:`_StartGuard`; after the
+construction the handler does nothing and rclpy's own handler stops the spin);
+:func:`logged_warm_up` turns it into "warm-up of the ... interrupted after N s; stopping",
+and :func:`run_node` says "interrupted while starting; stopping" when it came elsewhere.
+Not ``KeyboardInterrupt``: when one passes through code that ``exec`` runs from a string
+(numba's compiler does), CPython (3.11) ends a ``python -m`` process through SIGINT
+(status -2) even if the exception was caught.  The context also goes away without an
+exception (rclpy's handler shuts it down first, and alone when Python ignores SIGINT): the
+warm-up then checks the context when it returns, and a later ``create_*`` call's
+``RCLError`` on a shut-down context is the same clean stop.
 """
 
 from __future__ import annotations
@@ -46,14 +61,28 @@ class ReportTimer:
         return True
 
 
-def log_shutdown(node: Node, statistics: dict[str, Any]) -> None:
-    """Log ``shutting down: {statistics}``: on /rosout while the context is up, else on
-    stderr (after Ctrl-C the context is gone and /rosout cannot be published to)."""
-    text = f"shutting down: {statistics}"
+class StartupInterrupted(BaseException):
+    """SIGINT or SIGTERM while the node was being constructed (see the module docstring);
+    ``logged`` once a line has said so.  A BaseException, so that no ``except Exception``
+    on the way (numba's, the warm-up's) swallows it."""
+
+    def __init__(self, logged: bool = False) -> None:
+        super().__init__("interrupted while starting")
+        self.logged = logged
+
+
+def _log_info(node: Node, text: str) -> None:
+    """Log ``text`` on /rosout while the context is up, else on stderr with the node's name
+    (after Ctrl-C the context is gone and /rosout cannot be published to)."""
     if node.context.ok():
         node.get_logger().info(text)
     else:
         print(f"[{node.get_name()}] {text}", file=sys.stderr, flush=True)
+
+
+def log_shutdown(node: Node, statistics: dict[str, Any]) -> None:
+    """Log ``shutting down: {statistics}`` (on stderr once the context is gone)."""
+    _log_info(node, f"shutting down: {statistics}")
 
 
 def logged_warm_up(node: Node, what: str, warm_up: Callable[[], Any]) -> None:
@@ -61,23 +90,90 @@ def logged_warm_up(node: Node, what: str, warm_up: Callable[[], Any]) -> None:
     logger = node.get_logger()
     logger.info(f"preparing the compiled kernels of the {what} (the first run on a machine "
                 f"compiles them: tens of seconds; later runs load them from numba's cache)")
+    start = time.monotonic()
     try:
         seconds = warm_up().seconds
+    except (StartupInterrupted, KeyboardInterrupt):    # Ctrl-C / SIGTERM: stop, quietly
+        _log_info(node, f"warm-up of the {what} interrupted after "
+                        f"{time.monotonic() - start:.1f} s; stopping")
+        raise StartupInterrupted(logged=True) from None
     except Exception as exc:  # a warm-up problem must not stop the node; frames will show it
         logger.warning(f"warm-up of the {what} failed ({type(exc).__name__}: {exc}); the "
                        f"first frames may be slow")
         return
+    if not node.context.ok():     # shut down meanwhile (a SIGINT Python ignores)
+        _log_info(node, f"shut down during the warm-up of the {what}; stopping")
+        raise StartupInterrupted(logged=True)
     logger.info(f"{what} ready ({seconds:.1f} s)")
+
+
+class _StartGuard:
+    """The signal handling of :func:`run_node` (see the module docstring).
+
+    rclpy shuts the context down on SIGINT / SIGTERM and then calls the previous handler:
+    by default a KeyboardInterrupt / the end of the process at once.  One handler for both
+    (installed before rclpy.init, which chains to it; replacing it later would remove
+    rclpy's) raises :class:`StartupInterrupted` while ``starting`` and otherwise lets rclpy
+    stop the spin, so the node stops cleanly (worker joined, statistics logged).
+
+    An exception raised in a signal handler surfaces in whatever Python code runs next; in
+    a ctypes callback (llvmlite calls one while numba compiles) Python prints it as
+    "Exception ignored" and goes on, which left a compile running for 15 s more in 1 of 10
+    runs.  The guard's ``sys.unraisablehook`` therefore keeps such a swallowed interrupt quiet
+    and raises it again 20 ms later (SIGALRM), until it lands in ordinary code.
+    """
+
+    RETRY_S = 0.02
+
+    def __init__(self) -> None:
+        self.starting = True
+        self._retry = hasattr(signal, "setitimer")
+        self._signals = [signal.SIGINT, signal.SIGTERM] + (
+            [signal.SIGALRM] if self._retry else [])
+        self._previous = {sig: signal.getsignal(sig) for sig in self._signals}
+        self._previous_hook = sys.unraisablehook
+        for sig in self._signals:
+            signal.signal(sig, self._on_signal)
+        sys.unraisablehook = self._on_unraisable
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        if self.starting:
+            raise StartupInterrupted()
+
+    def _on_unraisable(self, unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, StartupInterrupted) and self.starting:
+            if self._retry:
+                signal.setitimer(signal.ITIMER_REAL, self.RETRY_S)
+            return
+        self._previous_hook(unraisable)
+
+    def started(self) -> None:
+        """The node is constructed (or gave up): signals no longer raise."""
+        self.starting = False
+        if self._retry:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+
+    def restore(self) -> None:
+        self.started()
+        sys.unraisablehook = self._previous_hook
+        for sig, handler in self._previous.items():
+            if handler is not None:
+                signal.signal(sig, handler)
 
 
 def run_node(node_class: Callable[[], Node], name: str,
              args: Sequence[str] | None = None) -> int:
     """Run one node until shutdown; returns the process exit status (0, or 1 when the node
-    cannot be constructed)."""
-    # rclpy shuts the context down on SIGTERM and then calls the previous handler, which by
-    # default kills the process at once; a no-op Python handler lets the node stop cleanly
-    # (worker joined, statistics logged), as on Ctrl-C.
-    signal.signal(signal.SIGTERM, lambda signum, frame: None)
+    cannot be constructed).  The process's signal handlers are restored at the end."""
+    guard = _StartGuard()
+    try:
+        return _run(node_class, name, args, guard)
+    finally:
+        guard.restore()
+
+
+def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,
+         guard: _StartGuard) -> int:
     rclpy.init(args=list(args) if args is not None else None)
     try:
         node = node_class()
@@ -85,6 +181,18 @@ def run_node(node_class: Callable[[], Node], name: str,
         print(f"{name}: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 1
+    except (StartupInterrupted, KeyboardInterrupt, _rclpy_impl.RCLError) as exc:
+        # an RCLError while the context is up is a real error; after a shutdown (rclpy's
+        # signal handler) the node's next create_* call fails with "context is invalid"
+        if isinstance(exc, _rclpy_impl.RCLError) and rclpy.ok():
+            raise
+        if not getattr(exc, "logged", False):
+            print(f"[{name}] interrupted while starting; stopping", file=sys.stderr,
+                  flush=True)
+        rclpy.try_shutdown()
+        return 0
+    finally:
+        guard.started()
     fallback = fallback_warning()       # one line when numba's compiled paths are off
     if fallback:
         node.get_logger().warning(fallback)

@@ -35,7 +35,10 @@ Topics (relative names, resolved in the node's namespace; change them by remappi
   -- tentative, confirmed, occluded, lost -- with state, velocity and its covariance, age,
   time since detected; :mod:`mk_tracker.messages.track_messages`) on every processed
   image, and, when ``publish_debug_image`` is true,
-  ``~/debug_image`` (bgr8) with boxes, ids, states and the kernels as ellipses.
+  ``~/debug_image`` (bgr8) with boxes, ids, states and the kernels as ellipses, and the
+  same as JPEG on ``~/debug_image/compressed``, each only while it has a subscriber;
+* publishes ``/diagnostics`` (diagnostic_msgs/DiagnosticArray) every ``diagnostics.period``
+  s: input and processed rate, dropped frames, latency (:mod:`mk_tracker.ros.node_diagnostics`).
 
 Parameters: ``tracker.*`` (MultiObjectTrackerConfig, e.g. ``tracker.kalman.sigma_u``,
 ``tracker.homography``, ``tracker.multi_kernel.num_kernels``) and the node's own
@@ -68,14 +71,17 @@ from mk_tracker.messages.compressed_image import as_image
 from mk_tracker.messages.image_transport import (image_transport_parameter,
                                                  no_image_warning_parameter)
 from mk_tracker.ros.image_subscription import ImageSubscription
-from mk_tracker.messages.image_conversion import ImageConversionError, numpy_to_image
+from mk_tracker.messages.image_conversion import ImageConversionError
 from mk_tracker.messages.message_types import ros_message_types, stamp_to_seconds
 from mk_tracker.messages.track_messages import (make_tracked_object_array,
                                                 ros_track_message_types, tracked_objects)
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                              MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.parameters import ParameterError, parameter
+from mk_tracker.node_health import DiagnosticsConfig
+from mk_tracker.ros.debug_image_publisher import DebugImagePublisher, jpeg_quality_parameter
 from mk_tracker.ros.latest_frame import LatestFrameWorker
+from mk_tracker.ros.node_diagnostics import NodeDiagnostics
 from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, logged_warm_up, run_node
 from mk_tracker.ros.parameter_bridge import ParameterBridge
 from mk_tracker.ros.throttled_log import throttled_ros_log
@@ -133,7 +139,10 @@ class TrackerNodeConfig:
                                                  "QoS of the image subscription")
     detections_qos: SubscriptionQosConfig = parameter(
         SubscriptionQosConfig(depth=10), "QoS of the detections subscription")
-    publish_debug_image: bool = parameter(False, "Publish ~/debug_image (bgr8)")
+    publish_debug_image: bool = parameter(
+        False, "Publish ~/debug_image (bgr8) and ~/debug_image/compressed (JPEG), each while "
+        "it has a subscriber")
+    debug_image_jpeg_quality: int = jpeg_quality_parameter()
     thermal_frame_id: str = parameter(
         "thermal_camera", "Detections with this header.frame_id are in the thermal plane and "
         "are mapped with tracker.homography")
@@ -155,6 +164,8 @@ class TrackerNodeConfig:
     warm_up: bool = parameter(
         True, "Compile (first run) or load the multiple-kernel tracker's numba kernels before "
         "subscribing, so the first tracked frames are not stalled", read_only=True)
+    diagnostics: DiagnosticsConfig = parameter(
+        DiagnosticsConfig(), "/diagnostics: input rate, processed rate, dropped frames, latency")
 
 
 def default_configs() -> dict[str, Any]:
@@ -230,12 +241,15 @@ class TrackerNode(Node):
                                                  publisher_qos(10))
         self._detailed_pub = self.create_publisher(TrackedObjectArray, "~/tracks_detailed",
                                                    publisher_qos(10))
-        self._debug_pub = self.create_publisher(Image, "~/debug_image", publisher_qos(1))
+        self._debug = DebugImagePublisher(self, self._types)
         if cfg.warm_up and tracker_cfg.use_multi_kernel:
             logged_warm_up(self, "multiple-kernel tracker",
                            lambda: warm_up_tracker(tracker_cfg.multi_kernel))
         self._worker = LatestFrameWorker(self._process_image, self._on_worker_error,
                                          name="tracker_node-frames").start()
+        self._diagnostics = NodeDiagnostics(
+            self, lambda: self.node_config.diagnostics, self._worker,
+            lambda: self._counters.bad_images, self.statistics)
         log = self.get_logger().info
         self._images = ImageSubscription(self, IMAGE_TOPIC, cfg.image_transport,
                                          self._worker.submit, subscription_qos(cfg.image_qos),
@@ -435,7 +449,8 @@ class TrackerNode(Node):
         self._detailed_pub.publish(make_tracked_object_array(
             tracked_objects(result.tracks, class_id), msg.header, self._types,
             self._track_types))
-        if self.node_config.publish_debug_image and self._debug_pub.get_subscription_count():
+        self._diagnostics.published(msg.header)
+        if self.node_config.publish_debug_image and self._debug.wanted():
             self._publish_debug(bgr, msg.header, reported, kernel_drawings(result), dets,
                                 tracker)
         self._report()
@@ -483,7 +498,7 @@ class TrackerNode(Node):
         canvas = tracker_debug_image(bgr, reported, kernels, dets, tracker.homography,
                                      [f"tracks {len(reported)}  frames {w.processed + 1}"
                                       f"  dropped {w.dropped}"])
-        self._debug_pub.publish(numpy_to_image(canvas, "bgr8", header, types=self._types))
+        self._debug.publish(canvas, header, self.node_config.debug_image_jpeg_quality)
 
     def _report(self) -> None:
         c = self._counters

@@ -1,6 +1,8 @@
 """mk_tracker.ros.node_runner: the start/spin/stop scaffolding both node processes share."""
 
+import os
 import signal
+import time
 
 import pytest
 
@@ -8,7 +10,9 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) is not i
 from rclpy.node import Node  # noqa: E402
 
 from mk_tracker.parameters import ParameterError  # noqa: E402
-from mk_tracker.ros.node_runner import ReportTimer, log_shutdown, run_node  # noqa: E402
+from mk_tracker.ros.node_runner import (ReportTimer, StartupInterrupted,  # noqa: E402
+                                        log_shutdown, logged_warm_up, run_node)
+from mk_tracker.warm_up import WarmUp  # noqa: E402
 
 
 @pytest.fixture
@@ -33,15 +37,21 @@ def test_report_timer_is_due_once_per_period():
 
 
 def test_construction_error_exits_1_with_the_message(keep_sigterm, capsys):
+    seen = {}
+
     def broken():
+        seen["handlers"] = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
         raise ParameterError("tracker.homography: singular")
 
+    before = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
     assert run_node(broken, "some_node", []) == 1
     assert "some_node: tracker.homography: singular" in capsys.readouterr().err
     assert not rclpy.ok()                 # the context was shut down again
-    # the SIGTERM handler lets the node stop cleanly instead of killing the process
-    handler = signal.getsignal(signal.SIGTERM)
-    assert callable(handler) and handler is not signal.SIG_DFL
+    # while the node ran, run_node's handler let it stop cleanly instead of the default
+    # (SIGTERM: the end of the process at once); afterwards the process's own are back
+    assert all(callable(h) and h not in (signal.SIG_DFL, signal.SIG_IGN)
+               and h not in before for h in seen["handlers"])
+    assert [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)] == before
 
 
 def test_node_is_spun_until_shutdown_then_destroyed_and_statistics_logged(keep_sigterm, capsys):
@@ -135,3 +145,100 @@ def test_one_warning_line_when_the_numpy_fallback_is_used(keep_sigterm, monkeypa
         assert "slower" in lines[0] and "python3-numba" in lines[0]
     else:
         assert lines == [], err
+
+
+def _busy(seconds: float) -> None:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        sum(range(100))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_node_is_constructed_ends_the_run_with_0(keep_sigterm, capsys, sig):
+    reached = []
+
+    class Slow(Node):
+        def __init__(self):
+            super().__init__("runner_slow_node")
+            os.kill(os.getpid(), sig)
+            _busy(5.0)                    # a start that would go on (a compile)
+            reached.append("end of construction")
+
+    t0 = time.monotonic()
+    assert run_node(Slow, "runner_slow_node") == 0
+    assert time.monotonic() - t0 < 5.0    # the construction was cut short
+    assert reached == []
+    assert capsys.readouterr().err.count("[runner_slow_node] interrupted while starting; "
+                                         "stopping") == 1
+    assert not rclpy.ok()
+
+
+def test_an_interrupted_warm_up_says_so_once_and_stops_the_start(keep_sigterm, capfd):
+    calls = []
+
+    def warm_up():
+        calls.append("warm-up")
+        os.kill(os.getpid(), signal.SIGINT)
+        _busy(5.0)
+        calls.append("finished")
+
+    class Warming(Node):
+        def __init__(self):
+            super().__init__("runner_warming_node")
+            logged_warm_up(self, "test kernels", warm_up)
+            calls.append("constructed")
+
+    assert run_node(Warming, "runner_warming_node") == 0
+    assert calls == ["warm-up"]
+    err = capfd.readouterr().err      # rclpy's logger writes to the file descriptor
+    assert "warm-up of the test kernels interrupted after" in err
+    assert "interrupted while starting" not in err     # one line, not two
+
+
+def test_a_warm_up_that_ends_after_a_shutdown_stops_the_start(keep_sigterm):
+    class Warming(Node):
+        def __init__(self):
+            super().__init__("runner_shutdown_node")
+            # as a SIGINT Python ignores: rclpy shuts the context down, no exception
+            logged_warm_up(self, "test kernels", lambda: rclpy.shutdown() or WarmUp(0.0, None))
+
+    with pytest.raises(StartupInterrupted) as info:
+        rclpy.init()
+        try:
+            Warming()
+        finally:
+            rclpy.try_shutdown()
+    assert info.value.logged
+
+
+def test_an_interrupt_swallowed_by_a_ctypes_callback_is_raised_again(keep_sigterm, capfd):
+    """llvmlite calls Python through ctypes while numba compiles; an exception raised there
+    (the signal handler's) is printed as "Exception ignored" and dropped.  run_node raises it
+    again once the callback returned, quietly."""
+    import ctypes
+
+    steps = []
+
+    def in_callback():
+        steps.append("in the callback")
+        os.kill(os.getpid(), signal.SIGTERM)
+        _busy(0.2)                        # the handler raises in here: swallowed
+        steps.append("callback went on")
+
+    callback = ctypes.CFUNCTYPE(None)(in_callback)
+
+    class Compiling(Node):
+        def __init__(self):
+            super().__init__("runner_ctypes_node")
+            callback()
+            _busy(5.0)                    # the rest of a compile
+            steps.append("constructed")
+
+    t0 = time.monotonic()
+    assert run_node(Compiling, "runner_ctypes_node") == 0
+    assert time.monotonic() - t0 < 5.0
+    # the callback was cut short and the construction did not go on to its end
+    assert steps == ["in the callback"]
+    err = capfd.readouterr().err
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert err.count("interrupted while starting") == 1, err
