@@ -248,8 +248,10 @@ class DetectorNode(Node):
             self._warn(error)
         counters.frames += 1
         counters.detections += len(out)
-        self._detections_pub.publish(make_detection_array(out, msg.header, self._types))
+        detections_msg = make_detection_array(out, msg.header, self._types)
+        # latency is read before the publish: a subscriber never sees an answer earlier
         self._diagnostics.published(msg.header)
+        self._detections_pub.publish(detections_msg)
         if self.node_config.publish_debug_image and self._debug.wanted():
             canvas = detector_debug_image(frame, msg.encoding, out, self.node_config.method)
             self._debug.publish(canvas, msg.header, self.node_config.debug_image_jpeg_quality)

@@ -6,8 +6,8 @@ module only feeds it and builds the message:
 
 * images received and dropped are the :class:`~mk_tracker.ros.latest_frame.LatestFrameWorker`'s
   counters (its ``submit`` is the subscription callback, which stays as thin as it was);
-* :meth:`NodeDiagnostics.published` is called by the worker thread after a frame's output
-  was published: it counts the frame and records its latency, ``now - header.stamp`` in the
+* :meth:`NodeDiagnostics.published` is called by the worker thread when a frame's output
+  is ready, just before it is published (so no subscriber can see it sooner): it counts the frame and records its latency, ``now - header.stamp`` in the
   node's clock (the ROS clock, so with ``use_sim_time`` the simulated time of ``/clock``);
 * skipped frames are the node's own count of frames it took but could not use (bad input,
   rejected by the algorithm) plus the worker's count of frames whose processing raised.

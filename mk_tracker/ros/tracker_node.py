@@ -445,11 +445,13 @@ class TrackerNode(Node):
         reported = result.reported()
         class_id = self.node_config.class_id
         out = tracks_to_detections(reported, class_id)
-        self._tracks_pub.publish(make_detection_array(out, msg.header, self._types))
+        tracks_msg = make_detection_array(out, msg.header, self._types)
+        # latency is read before the publish: a subscriber never sees an answer earlier
+        self._diagnostics.published(msg.header)
+        self._tracks_pub.publish(tracks_msg)
         self._detailed_pub.publish(make_tracked_object_array(
             tracked_objects(result.tracks, class_id), msg.header, self._types,
             self._track_types))
-        self._diagnostics.published(msg.header)
         if self.node_config.publish_debug_image and self._debug.wanted():
             self._publish_debug(bgr, msg.header, reported, kernel_drawings(result), dets,
                                 tracker)
