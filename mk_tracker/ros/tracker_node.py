@@ -449,9 +449,10 @@ class TrackerNode(Node):
         # latency is read before the publish: a subscriber never sees an answer earlier
         self._diagnostics.published(msg.header)
         self._tracks_pub.publish(tracks_msg)
-        self._detailed_pub.publish(make_tracked_object_array(
-            tracked_objects(result.tracks, class_id), msg.header, self._types,
-            self._track_types))
+        if self._detailed_pub.get_subscription_count():   # built only for a reader
+            self._detailed_pub.publish(make_tracked_object_array(
+                tracked_objects(result.tracks, class_id), msg.header, self._types,
+                self._track_types))
         if self.node_config.publish_debug_image and self._debug.wanted():
             self._publish_debug(bgr, msg.header, reported, kernel_drawings(result), dets,
                                 tracker)
