@@ -46,6 +46,16 @@ def _node(context, overrides=None, name="toy"):
     return Node(name, context=context, parameter_overrides=overrides or [])
 
 
+def _refused_at_start_up(context, overrides, name, match):
+    """A node started with ``overrides`` cannot build ToyConfig: ParameterError ``match``."""
+    node = _node(context, overrides, name=name)
+    try:
+        with pytest.raises(ParameterError, match=match):
+            ParameterBridge(node).add_config("toy", ToyConfig())
+    finally:
+        node.destroy_node()
+
+
 def test_descriptor_carries_description_range_and_read_only():
     specs = {s.name: s for s in parameter_specs(ToyConfig())}
     d = descriptor_for(specs["inner.sigma"], "toy.inner.sigma")
@@ -84,18 +94,8 @@ def test_overrides_are_applied_and_validated(context):
         assert cfg.inner.sigma == 2.5 and cfg.weights == (0.5, 0.5)
     finally:
         node.destroy_node()
-    node = _node(context, [Parameter("toy.mode", value="medium")], name="toy2")
-    try:
-        with pytest.raises(ParameterError, match="medium"):
-            ParameterBridge(node).add_config("toy", ToyConfig())
-    finally:
-        node.destroy_node()
-    node = _node(context, [Parameter("toy.inner.sigma", value=11.0)], name="toy3")
-    try:
-        with pytest.raises(ParameterError, match="sigma"):
-            ParameterBridge(node).add_config("toy", ToyConfig())
-    finally:
-        node.destroy_node()
+    _refused_at_start_up(context, [Parameter("toy.mode", value="medium")], "toy2", "medium")
+    _refused_at_start_up(context, [Parameter("toy.inner.sigma", value=11.0)], "toy3", "sigma")
 
 
 def test_whole_numbers_for_doubles_are_taken_as_doubles_at_start_up(context):
@@ -118,26 +118,13 @@ def test_whole_numbers_for_doubles_are_taken_as_doubles_at_start_up(context):
     finally:
         node.destroy_node()
     # a whole number out of range is still refused, naming the parameter
-    node = _node(context, [Parameter("toy.inner.sigma", value=30)], name="toy_range")
-    try:
-        with pytest.raises(ParameterError, match="sigma"):
-            ParameterBridge(node).add_config("toy", ToyConfig())
-    finally:
-        node.destroy_node()
+    _refused_at_start_up(context, [Parameter("toy.inner.sigma", value=30)], "toy_range", "sigma")
     # a string for a double is refused with a readable reason
-    node = _node(context, [Parameter("toy.inner.sigma", value="three")], name="toy_str")
-    try:
-        with pytest.raises(ParameterError, match="toy.inner.sigma: expected a number"):
-            ParameterBridge(node).add_config("toy", ToyConfig())
-    finally:
-        node.destroy_node()
+    _refused_at_start_up(context, [Parameter("toy.inner.sigma", value="three")], "toy_str",
+                         "toy.inner.sigma: expected a number")
     # a double for an integer parameter is not rounded silently
-    node = _node(context, [Parameter("toy.inner.steps", value=2.5)], name="toy_int")
-    try:
-        with pytest.raises(ParameterError, match="toy.inner.steps"):
-            ParameterBridge(node).add_config("toy", ToyConfig())
-    finally:
-        node.destroy_node()
+    _refused_at_start_up(context, [Parameter("toy.inner.steps", value=2.5)], "toy_int",
+                         "toy.inner.steps")
 
 
 def test_whole_numbers_for_doubles_are_taken_as_doubles_at_run_time(context):
