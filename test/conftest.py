@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import pytest
@@ -70,11 +71,24 @@ def compiled_kernels_ready(request):
 _RERUN_FAILURES: list[tuple[str, str]] = []
 
 
+#: Every failed attempt's whole report (traceback, the failing line, captured output) is
+#: appended here, because the summary line alone does not say which assertion of a long test
+#: failed, and an assertion whose message is a process log hides its own line.
+RERUN_LOG = Path(__file__).resolve().parents[1] / "out" / "test_reruns.log"
+
+
 def pytest_runtest_logreport(report):
     if report.outcome == "rerun":
         crash = getattr(report.longrepr, "reprcrash", None)
         message = crash.message if crash is not None else str(report.longrepr)
-        _RERUN_FAILURES.append((report.nodeid, message))
+        where = f"{Path(crash.path).name}:{crash.lineno}: " if crash is not None else ""
+        _RERUN_FAILURES.append((report.nodeid, where + message))
+        RERUN_LOG.parent.mkdir(parents=True, exist_ok=True)
+        with RERUN_LOG.open("a") as log:
+            log.write(f"==== {time.strftime('%Y-%m-%d %H:%M:%S')} {report.nodeid} "
+                      f"failed ({report.when}); it was rerun\n{report.longreprtext}\n")
+            for title, content in report.sections:
+                log.write(f"---- {title}\n{content}\n")
 
 
 def pytest_terminal_summary(terminalreporter):
@@ -84,6 +98,7 @@ def pytest_terminal_summary(terminalreporter):
     for nodeid, message in _RERUN_FAILURES:
         lines = message.strip().splitlines() or [""]
         terminalreporter.write_line(f"{nodeid}: {' | '.join(lines[:4])[:600]}")
+    terminalreporter.write_line(f"the whole report of each failed attempt: {RERUN_LOG}")
     # the reruns are a safety net, not a pass: say so where nobody can miss it
     terminalreporter.write_line(
         f"WARNING: {len(_RERUN_FAILURES)} rerun(s) were needed: the suite is meant to pass "
