@@ -158,6 +158,28 @@ def _wait_for_subscribers(publishers: dict[str, Any], minimum: int, timeout_s: f
         stop.sleep(0.02)
 
 
+def _wait_for_go(stream: Any, stop: StopFlag) -> None:
+    """Block until a line or end of file arrives on ``stream``, or ``stop`` is set.
+
+    The writer side cannot see whether a subscriber's reader has matched this writer yet
+    (:func:`_wait_for_subscribers`); the subscribers can, and log it.  mk_launch reads their
+    logs and sends the line, so the first message is not played before the readers exist
+    for it."""
+    _log("waiting for the go line on stdin")
+    arrived = threading.Event()
+
+    def read() -> None:
+        try:
+            stream.readline()
+        except (OSError, ValueError):
+            pass
+        arrived.set()
+
+    threading.Thread(target=read, daemon=True).start()
+    while not (arrived.is_set() or stop.is_set()):
+        arrived.wait(0.05)
+
+
 @dataclass
 class Lateness:
     """How late messages were published relative to their schedule (player-side only)."""
@@ -248,6 +270,10 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wait-topics", nargs="+", default=None, metavar="TOPIC",
                         help="output topics --wait-for-subscribers waits for (default: all "
                              "played topics); played topics not named here are not awaited")
+    parser.add_argument("--go-on-stdin", action="store_true",
+                        help="after the wait for subscribers, play only once a line (or "
+                             "end of file) arrives on stdin: mk_launch sends it when the "
+                             "nodes have logged that their readers matched this player")
     parser.add_argument("--ack-timeout", type=float, default=5.0, metavar="S",
                         help="at the end, wait up to S s for reliable messages to be acked")
 
@@ -330,6 +356,8 @@ def run(args: argparse.Namespace) -> int:
                     _log(f"none of {sorted(names)} is published; not waiting for subscribers")
             _wait_for_subscribers(awaited, args.min_subscribers, args.wait_for_subscribers,
                                   stop)
+        if args.go_on_stdin:
+            _wait_for_go(sys.stdin, stop)
         clock_period = round(NS_PER_S / args.clock) if args.clock > 0 else 0
         selected = sorted(played)
         while not stop.is_set():

@@ -23,8 +23,14 @@ Start-up order (issue #14): the nodes warm up their numba kernels before they su
 starts once both have printed their ready line (:data:`READY_LINES`, logged after their
 subscriptions exist), and the player once the recorder, if any, has subscribed; the player
 then also waits until the nodes' input topics have matched subscribers
-(``--wait-topics``), so no frame of the bag is played to nobody.  The launch file applies the
-same rule with launch's ``OnProcessIO`` events.
+(``--wait-topics``), so no frame of the bag is played to nobody.  Discovery is not symmetric:
+the player's writer can match a node's reader before that reader has matched the writer, and
+a best-effort reader drops what an unmatched writer sends (a first frame was lost this way
+in about 1 of 4 cold starts).  So the player then waits for a go line on its stdin
+(``--go-on-stdin``), which mk_launch sends once every node has logged that its input topic
+matched a publisher (:func:`matched_input`), or after ``--ready-timeout``.  The launch file
+applies the first rule with launch's ``OnProcessIO`` events, and a fixed ``play_delay`` for
+the second.
 
 This module does not import rclpy: it only manages processes.
 """
@@ -33,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -70,6 +77,10 @@ class ProcessSpec:
     # False: start right after the previous process, without waiting for the ready lines
     # of the processes before (the two nodes warm up side by side)
     waits: bool = True
+    # (process name, topic): after this process has started, each named process must log
+    # that its subscription to topic matched a publisher (:func:`matched_input`); then a
+    # go line is written to this process's stdin (the player's ``--go-on-stdin``)
+    go_after: tuple[tuple[str, str], ...] = ()
 
 
 def shm_profile_path() -> str | None:
@@ -105,6 +116,21 @@ NODE_INPUTS = {"detector_node": ("thermal/image_raw",), "tracker_node": ("image_
 #: "detecting people (<method>) in ...", the tracker's "tracking <topic> with detections
 #: from ..."); the launch file waits for the same texts.
 READY_LINES = {"detector_node": "detecting people (", "tracker_node": " with detections from "}
+
+
+#: What a node's log line says when a subscription gained a publisher; the whole line is
+#: ``"<topic>: <n> publisher(s) matched (gained <k>)"``
+#: (:func:`mk_tracker.ros.subscription_events.matched_text`).
+MATCHED_MARK = " matched (gained "
+
+
+def matched_input(line: str, topic: str) -> bool:
+    """Whether a node's output ``line`` says that its subscription to ``topic`` (or to its
+    compressed transport, ``topic/compressed``) has matched a publisher."""
+    if MATCHED_MARK not in line:
+        return False
+    # the topic as a whole name: "/thermal/image_raw: ..." is no match of /image_raw
+    return re.search(rf"(^|\s){re.escape(topic)}(/compressed)?: ", line) is not None
 
 
 def normalize_namespace(namespace: str) -> str:
@@ -200,10 +226,10 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     if args.bag:
         play = [args.bag, "--rate", str(args.rate), "--wait-for-subscribers",
                 str(args.wait_for_subscribers)]
-        inputs = [remapped(topic, args.remap, namespace) for spec in specs
-                  for topic in NODE_INPUTS.get(spec.name, ())]
-        if inputs:  # start playing once the nodes listen (not for topics nobody reads)
-            play += ["--wait-topics", *inputs]
+        go_after = tuple((spec.name, remapped(topic, args.remap, namespace)) for spec in specs
+                         for topic in NODE_INPUTS.get(spec.name, ()))
+        if go_after:  # start playing once the nodes listen (not for topics nobody reads)
+            play += ["--wait-topics", *(topic for _, topic in go_after), "--go-on-stdin"]
         if args.clock:
             play += ["--clock"]
         for remap in args.remap:
@@ -216,7 +242,7 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
                     if root != inside:
                         play += ["--remap", f"{root}:={inside}"]
         specs.append(ProcessSpec("bag_player", module_command(
-            "mk_tracker.ros.bag_player", play), essential=False))
+            "mk_tracker.ros.bag_player", play), essential=False, go_after=go_after))
     if not specs:
         raise LaunchError("nothing to launch")
     dds = fastdds_environment(os.environ, shm_profile_path(), not args.no_fastdds_shm)
@@ -244,8 +270,13 @@ class _Running:
         self.spec = spec
         self.stopped_by_us = False
         self.waiting_for = list(spec.ready_lines)
+        self.lines: list[tuple[float, str]] = []   # (monotonic time, line) of match lines
+        self.started = time.monotonic()
+        self.go_sent = not spec.go_after
         self.proc = subprocess.Popen(spec.argv, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                     stderr=subprocess.STDOUT,
+                                     stdin=subprocess.PIPE if spec.go_after
+                                     else subprocess.DEVNULL,
                                      env=env, text=True, errors="replace", bufsize=1,
                                      start_new_session=True,
                                      preexec_fn=_die_with_parent if sys.platform.startswith(
@@ -260,6 +291,8 @@ class _Running:
         assert self.proc.stdout is not None
         for line in self.proc.stdout:
             self.waiting_for = [t for t in self.waiting_for if t not in line]
+            if MATCHED_MARK in line:
+                self.lines.append((time.monotonic(), line))
             with lock:
                 out.write(f"[{self.spec.name}] {line.rstrip()}\n")
                 out.flush()
@@ -314,6 +347,32 @@ def _wait_ready(procs: list[_Running], timeout_s: float, stop_event: threading.E
         stop_event.wait(0.05)
 
 
+def _send_go_when_matched(procs: list[_Running], timeout_s: float, log) -> None:
+    """Write the go line to every started process whose ``go_after`` matches have all been
+    logged since it started (or that has waited ``timeout_s``)."""
+    by_name = {p.spec.name: p for p in procs}
+    for p in procs:
+        if p.go_sent or p.proc.poll() is not None:
+            continue
+        missing = [(name, topic) for name, topic in p.spec.go_after
+                   if name in by_name and not any(
+                       t >= p.started and matched_input(line, topic)
+                       for t, line in list(by_name[name].lines))]
+        timed_out = time.monotonic() - p.started >= timeout_s
+        if missing and not timed_out:
+            continue
+        if missing:
+            log(f"{', '.join(f'{n} on {t}' for n, t in missing)} did not log a matched "
+                f"publisher within {timeout_s:g} s; telling {p.spec.name} to go anyway")
+        p.go_sent = True
+        try:
+            assert p.proc.stdin is not None
+            p.proc.stdin.write("go\n")
+            p.proc.stdin.flush()
+        except (OSError, ValueError):     # it exited meanwhile: its status tells
+            pass
+
+
 def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
                   linger_s: float = 0.0, timeout_s: float | None = None,
                   out: TextIO | None = None, stop_event: threading.Event | None = None,
@@ -323,6 +382,8 @@ def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
 
     A spec starts only once every earlier process has printed its ``ready_lines`` (or
     exited), at most ``ready_timeout_s`` later; one with ``waits=False`` starts at once.
+    A spec with ``go_after`` gets a go line on its stdin once those processes have logged
+    their input's match, at most ``ready_timeout_s`` after it started.
 
     The launch ends when ``stop_event`` is set (SIGINT/SIGTERM of ``mk_launch``), when an
     essential process exits, when every non-essential process has finished and
@@ -350,6 +411,7 @@ def run_processes(specs: Sequence[ProcessSpec], *, grace_s: float = GRACE_S,
         optional = [p for p in procs if not p.spec.essential]
         finished_at = None
         while not stop_event.is_set():
+            _send_go_when_matched(procs, ready_timeout_s, log)
             dead = [p for p in procs if p.spec.essential and p.proc.poll() is not None]
             if dead:
                 log(f"{dead[0].spec.name} exited with status {dead[0].proc.returncode}; "

@@ -426,3 +426,30 @@ def test_start_offset_past_the_end_is_an_error_even_with_loop(test_bag, processe
     assert proc.returncode == 1
     assert "no message of the selected topics at or after the start offset of 5 s" in err
     assert "played 0 messages" in out and "Traceback" not in err
+
+
+def test_go_on_stdin_waits_for_a_line_end_of_file_or_a_stop():
+    """``--go-on-stdin``: the player blocks until mk_launch writes a line, the pipe closes,
+    or the player is stopped -- never longer, and not before."""
+    from mk_tracker.ros.bag_player import StopFlag, _wait_for_go
+
+    read_fd, write_fd = os.pipe()
+    with os.fdopen(read_fd) as reader, os.fdopen(write_fd, "w") as writer:
+        done = threading.Event()
+        waiter = threading.Thread(target=lambda: (_wait_for_go(reader, StopFlag()),
+                                                  done.set()), daemon=True)
+        waiter.start()
+        assert not done.wait(0.3), "went before any line arrived"
+        writer.write("go\n")
+        writer.flush()
+        assert done.wait(30), "a go line did not release the player"
+    read_fd, write_fd = os.pipe()
+    with os.fdopen(read_fd) as reader:
+        os.close(write_fd)                      # mk_launch gone: end of file
+        _wait_for_go(reader, StopFlag())        # returns (else the test hangs)
+    read_fd, write_fd = os.pipe()
+    with os.fdopen(read_fd) as reader, os.fdopen(write_fd, "w"):
+        stop = StopFlag()
+        threading.Timer(0.1, stop.set).start()  # Ctrl-C while waiting
+        _wait_for_go(reader, stop)
+        assert stop.is_set()
