@@ -195,6 +195,18 @@ def _bag_topics(bag: str) -> set[str]:
         return set()
 
 
+def player_waits(specs: Sequence[ProcessSpec], remaps: Sequence[str] = (),
+                 namespace: str = "") -> tuple[list[str], tuple[tuple[str, str], ...]]:
+    """The player's arguments and ``go_after`` for the nodes among ``specs``: wait for its
+    writers to match the nodes' inputs, then for the go line that follows the nodes' own
+    match lines (none of it when no node runs: nobody to wait for)."""
+    go_after = tuple((spec.name, remapped(topic, remaps, namespace)) for spec in specs
+                     for topic in NODE_INPUTS.get(spec.name, ()))
+    if not go_after:
+        return [], ()
+    return ["--wait-topics", *(topic for _, topic in go_after), "--go-on-stdin"], go_after
+
+
 def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     """The processes ``mk_launch`` starts for parsed command-line ``args``."""
     for params_file in args.params_file:
@@ -226,10 +238,8 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     if args.bag:
         play = [args.bag, "--rate", str(args.rate), "--wait-for-subscribers",
                 str(args.wait_for_subscribers)]
-        go_after = tuple((spec.name, remapped(topic, args.remap, namespace)) for spec in specs
-                         for topic in NODE_INPUTS.get(spec.name, ()))
-        if go_after:  # start playing once the nodes listen (not for topics nobody reads)
-            play += ["--wait-topics", *(topic for _, topic in go_after), "--go-on-stdin"]
+        wait_args, go_after = player_waits(specs, args.remap, namespace)
+        play += wait_args
         if args.clock:
             play += ["--clock"]
         for remap in args.remap:

@@ -276,7 +276,8 @@ class NodeRun:
     subscribed to the nodes' topics (the launcher's rule), imports rclpy, waits for the
     file ``ready`` (:meth:`bag_ready` creates it when the bag is complete), then for the
     nodes to subscribe to its topics (``startup_wait_s``, long: on a machine's first run the
-    nodes compile numba's kernels before they subscribe), then plays at ``rate``.
+    nodes compile numba's kernels before they subscribe) and for the launcher's go line
+    (the nodes logged their readers' match), then plays at ``rate``.
     :attr:`status` is the launcher's (0 = every process ended well)."""
 
     def __init__(self, bag: Path, params: Path, record: Path, rate: float, domain_id: int,
@@ -307,13 +308,13 @@ class NodeRun:
                                   "--record-topics", *RECORD_TOPICS])
         # no --bag: the bag does not exist yet; the player is added here
         specs = launcher.build_specs(args)
+        wait_args, go_after = launcher.player_waits(specs)
         play = [str(bag), "--rate", f"{rate:.6f}", "--wait-for-subscribers",
-                f"{startup_wait_s:g}", "--wait-topics",
-                *(launcher.remapped(t, []) for spec in specs
-                  for t in launcher.NODE_INPUTS.get(spec.name, ()))]
+                f"{startup_wait_s:g}", *wait_args]
         specs.append(launcher.ProcessSpec(
             "bag_player", (sys.executable, "-c", PLAYER_WAITING_FOR_BAG, str(self.ready),
-                           *play), essential=False, env=dict(specs[0].env)))
+                           *play), essential=False, env=dict(specs[0].env),
+            go_after=go_after))
         env = ros_environment(domain_id)
         return [replace(s, env={**s.env, **env}) for s in specs]
 
