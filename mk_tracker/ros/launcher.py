@@ -25,8 +25,7 @@ subscriptions exist), and the player once the recorder, if any, has subscribed; 
 then also waits until the nodes' input topics have matched subscribers
 (``--wait-topics``), so no frame of the bag is played to nobody.  Discovery is not symmetric:
 the player's writer can match a node's reader before that reader has matched the writer, and
-a best-effort reader drops what an unmatched writer sends (a first frame was lost this way
-in about 1 of 4 cold starts).  So the player then waits for a go line on its stdin
+a best-effort reader drops what an unmatched writer sends.  So the player then waits for a go line on its stdin
 (``--go-on-stdin``), which mk_launch sends once every node has logged that its input topic
 matched a publisher (:func:`matched_input`), or after ``--ready-timeout``.  The launch file
 applies the first rule with launch's ``OnProcessIO`` events, and a fixed ``play_delay`` for
