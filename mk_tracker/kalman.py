@@ -247,7 +247,13 @@ class ConstantVelocityKalman:
         s_inv = np.array([[s11, -s01], [-s01, s00]]) / det
         gain = p[:, :2] @ s_inv                      # (4.5): G = P H^T S^-1
         state = self._state + gain @ (z - self._state[:2])
-        cov = p - gain @ p[:2, :]                    # (4.4): (I - G H) P, with H P = P[:2, :]
+        # (4.4) is (I - G H) P; in exact arithmetic that equals the Joseph form used here,
+        # (I - G H) P (I - G H)^T + G R G^T, which stays positive semi-definite in floating
+        # point: with a tiny position and a huge velocity variance (1e-9, 1e12) the short
+        # form's velocity variance cancelled to -2.4e-4 (a property test found it)
+        a = np.eye(4)
+        a[:, :2] -= gain                             # I - G H, with H = [I 0]
+        cov = a @ p @ a.T + r * (gain @ gain.T)
         cov = 0.5 * (cov + cov.T)
         if not (math.isfinite(float(state.sum())) and math.isfinite(float(cov.sum()))):
             raise KalmanError("update produced a non-finite state; filter left unchanged")
