@@ -134,3 +134,14 @@ def test_only_the_kalman_gate_holds_a_new_track_back():
     assert confirmed_after(154.0) == 3                 # last detection at x = 156
     # on the prediction (x = 156 + 100 * 1.04 s): held for reacquire_hold_time 0.6 s
     assert confirmed_after(260.0) > 3 + 10
+
+
+def test_a_track_keeps_its_last_detection_box_itself_not_the_filtered_one():
+    trk = MultiObjectTracker(config())
+    for i in range(6):
+        trk.step(IMG, i * DT, [FrameDetection((100 + 4.0 * i, 100, 30 + i, 60), 0.9)])
+    (t,) = trk.tracks
+    assert tuple(t.detected_box) == (120.0, 100.0, 35.0, 60.0)
+    assert t.size[0] != 35.0                         # the smoothed size lags behind
+    trk.step(IMG, 6 * DT, [])                        # a missed frame leaves it as it was
+    assert tuple(t.detected_box) == (120.0, 100.0, 35.0, 60.0)
