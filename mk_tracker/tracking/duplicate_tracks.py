@@ -117,12 +117,14 @@ def merge_into(keep, gone) -> None:
     """Fold track ``gone`` into track ``keep`` (both :class:`~mk_tracker.tracking.track.Track`).
 
     ``keep`` keeps its id, age and appearance model.  When ``gone`` was detected more
-    recently its estimate is the better one: ``keep`` takes its Kalman filter and size.
+    recently its estimate is the better one: ``keep`` takes its Kalman filter, size and last
+    detected box.
     ``keep``'s detection count and last detection / sighting become the larger of the
     two."""
     if gone.last_detection > keep.last_detection:
         keep.kf = copy.deepcopy(gone.kf)
         keep.size = np.array(gone.size, dtype=float)
+        keep.detected_box = np.array(gone.detected_box, dtype=float)
     keep.hits = max(keep.hits, gone.hits)
     keep.last_detection = max(keep.last_detection, gone.last_detection)
     keep.last_seen = max(keep.last_seen, gone.last_seen)

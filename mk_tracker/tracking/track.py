@@ -213,6 +213,9 @@ class Track:
         self.created = float(stamp)
         self.stamp = float(stamp)
         self.last_detection = float(stamp)
+        #: the box of the last detection assigned to the track (the observation itself, not
+        #: the filtered box), for re-acquisition from the last detection
+        self.detected_box = np.array([x, y, w, h])
         self.last_seen = float(stamp)
         self.lost_since: float | None = None
         self.hits = 1

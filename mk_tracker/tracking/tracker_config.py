@@ -63,6 +63,15 @@ class MultiObjectTrackerConfig:
     reacquire_gate: float = parameter(
         13.8, "Chi-square gate (2 dof) for a detection to re-acquire a lost track",
         minimum=0.1, maximum=1e4)
+    reacquire_last_detection_floor: float = parameter(
+        0.05, "Std (box heights) of a lost track's last detected centre when it gates a "
+        "re-acquiring detection besides the Kalman prediction (observation-centric, "
+        "mk_tracker/tracking/reacquisition.py); 0 together with "
+        "reacquire_last_detection_speed = the Kalman gate only", minimum=0.0, maximum=100.0)
+    reacquire_last_detection_speed: float = parameter(
+        0.3, "Growth of that std in box heights per second since the last detection; at "
+        "the 13.8 gate (3.7 std) the radius grows by 1.1 box heights/s, about walking "
+        "speed", minimum=0.0, maximum=100.0)
     reacquire_similarity: float = parameter(
         0.4, "Appearance similarity a detection needs to re-acquire a lost track",
         minimum=0.0, maximum=1.0)

@@ -73,6 +73,8 @@ def test_merge_takes_the_estimate_of_the_more_recently_detected_track():
     assert tuple(keep.size) == pytest.approx((20.0, 50.0))
     assert keep.kf is not gone.kf                    # a copy: the gone track keeps its own
     assert (keep.hits, keep.last_detection, keep.last_seen) == (12, 2.0, 2.0)
+    # and its last detected box (re-acquisition gates on it, tracking/reacquisition.py)
+    assert tuple(keep.detected_box) == (110.0, 104.0, 20.0, 50.0)
 
     # the surviving track was detected last: its own estimate stays
     keep = _track(1, (100, 100, 30, 60), 0.0)
@@ -82,6 +84,7 @@ def test_merge_takes_the_estimate_of_the_more_recently_detected_track():
     merge_into(keep, gone)
     assert tuple(keep.center) == pytest.approx((115.0, 130.0))
     assert tuple(keep.size) == pytest.approx((30.0, 60.0))
+    assert tuple(keep.detected_box) == (100.0, 100.0, 30.0, 60.0)
     assert keep.hits == 9
 
 

@@ -1,0 +1,73 @@
+"""Re-acquisition of lost tracks from their last detection (issues #15 / #19).
+
+A track that went unseen keeps its Kalman filter running: the constant-velocity prediction
+(4.2) of Schizas et al. 2018 carries the last velocity on, and its covariance (4.3) grows as
+``q t^3``.  When a person stops, turns or walks back while unseen (or is simply not
+detected because the kernel covariance detector finds only what moves), the prediction ends
+up far from where the person is found again while the covariance has not grown enough to
+cover it: on BU-TIV-lab most re-appearing people were refused by the Kalman gate although
+their new detection was within 0.2-0.35 box heights of the old track's last detection
+(docs/benchmark_real_thermal.md, "Why new ids are born").
+
+OC-SORT (Cao et al. 2023) names the remedy "observation-centric": trust the last
+*observation*, not the drifted estimate.  Here the observation gets its own gate, with a
+motion model that makes no claim about the direction: the person is somewhere around the
+last detected centre ``c`` with an isotropic spread that grows with the time ``dt`` since
+that detection at most at a walking speed ``v`` (box heights per second), on top of a floor
+``s0`` (box heights) for the detection's own error:
+
+    d2 = |z - c|^2 / (h^2 (s0^2 + (v dt)^2))
+
+with ``h`` the height of the last detected box.  ``d2`` is compared with the same chi-square
+gate as the Kalman distance; a pair passes when either distance is inside it, and the
+smaller of the two enters the re-acquisition cost.  Like ByteTrack's ``track_buffer``, the
+growing spread lets a lost track be kept longer without claiming far detections early.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["last_detection_distance2", "nearer_of_both"]
+
+
+def last_detection_distance2(points: np.ndarray, centre: np.ndarray, height: float,
+                             elapsed: float, floor: float, speed: float) -> np.ndarray:
+    """Squared normalised distances ``(D,)`` of ``points (D, 2)`` from the last detected
+    ``centre`` of a box of ``height`` px, ``elapsed`` s after that detection (module
+    docstring): ``|z - c|^2 / (height^2 (floor^2 + (speed elapsed)^2))``.
+
+    ``floor`` and ``speed`` are in box heights and box heights per second.  Returns ``inf``
+    everywhere when the spread is zero (``floor`` and ``speed`` 0: the gate is off) or the
+    height is not positive; a negative ``elapsed`` counts as 0.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    c = np.asarray(centre, dtype=np.float64).reshape(2)
+    spread2 = float(height) ** 2 * (floor ** 2 + (speed * max(float(elapsed), 0.0)) ** 2)
+    if not (float(height) > 0.0 and spread2 > 0.0 and np.isfinite(spread2)):
+        return np.full(p.shape[0], np.inf)
+    return np.sum((p - c) ** 2, axis=1) / spread2
+
+
+def nearer_of_both(kalman_d2: np.ndarray, points: np.ndarray, detected_boxes: np.ndarray,
+                   elapsed: np.ndarray, floor: float, speed: float) -> np.ndarray:
+    """Per lost track and detection ``(T, D)``, the smaller of the Kalman distance
+    ``kalman_d2`` and :func:`last_detection_distance2` from each track's last detected box.
+
+    ``points`` are the detection centres, ``(D, 2)`` or ``(T, D, 2)`` (per track, moved to
+    the frame time with its velocity); ``detected_boxes (T, 4)`` ``(x, y, w, h)``;
+    ``elapsed (T,)`` seconds since each track's last detection.  ``floor`` and ``speed``
+    both 0: a copy of ``kalman_d2`` (the gate is off).
+    """
+    out = np.array(kalman_d2, dtype=np.float64, copy=True)
+    if floor <= 0.0 and speed <= 0.0:
+        return out
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim == 2:
+        p = np.broadcast_to(p, (out.shape[0],) + p.shape)
+    boxes = np.asarray(detected_boxes, dtype=np.float64).reshape(-1, 4)
+    for i, b in enumerate(boxes):
+        d2 = last_detection_distance2(p[i], b[:2] + b[2:] / 2.0, float(b[3]),
+                                      float(elapsed[i]), floor, speed)
+        out[i] = np.minimum(out[i], d2)
+    return out
