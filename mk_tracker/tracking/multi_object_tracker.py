@@ -65,7 +65,8 @@ from mk_tracker.tracking.duplicate_tracks import (due_pairs, merge_into, stacked
 from mk_tracker.tracking.group_measurement import (constrain_inside, explained_fraction,
                                                    find_groups)
 from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectTrackerConfig
-from mk_tracker.tracking.reacquisition import nearer_of_both
+from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
+                                               reacquisition_matches)
 from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
                                               manual_track_lifecycle,
                                               manual_track_multi_kernel, recentre_shift)
@@ -676,57 +677,14 @@ class MultiObjectTracker:
                                self.last_stamp - np.array([t.last_detection for t in lost]),
                                self.config.reacquire_last_detection_floor,
                                self.config.reacquire_last_detection_speed)
-        cost = np.full(maha.shape, np.inf)
-        contested: set[int] = set()
-        best_reference: dict[tuple[int, int], int] = {}
-        for i, t in enumerate(lost):
-            for j, d in enumerate(dets):
-                refused, sim, k = self._reacquire_check(t, d, float(gated[i, j]), image)
-                if refused in (None, "appearance") and \
-                        maha[i, j] <= self.config.reacquire_gate:
-                    contested.add(j)        # inside the Kalman gate, of a plausible size
-                if refused is not None:
-                    continue
-                if k is not None:
-                    best_reference[(i, j)] = k
-                cost[i, j] = (1.0 - sim) + self.config.reacquire_distance_weight * \
-                    gated[i, j] / self.config.reacquire_gate
-        matches = assign(cost, math.inf).matches
-        for i, j in matches:
-            # the working target's models were blended while the person disappeared: restart
-            # it from the frozen model that matched
-            k = best_reference.get((i, j))
-            if k is not None:
-                lost[i].target = copy.deepcopy(lost[i].references[k])
-        return matches, contested
+        return reacquisition_matches(lost, dets, maha, gated, image, self.config,
+                                     self._reacquire_check)
 
     def _reacquire_check(self, t: Track, d: _Prepared, maha: float, image: np.ndarray
                          ) -> tuple[str | None, float, int | None]:
-        """The checks of one lost track against one detection in :meth:`_reacquire`, in
-        order: ``"gate"`` (``maha``, the squared distance of :meth:`_reacquire`, above
-        ``reacquire_gate``),
-        ``"size"`` (height ratio beyond ``reacquire_max_size_ratio``), ``"appearance"``
-        (best similarity of a frozen reference below ``reacquire_similarity``).  Returns
-        ``(first failed check or None, appearance similarity, index of the best reference or
-        None)``; the similarity is 1 without a refiner or references, NaN when not reached."""
-        if maha > self.config.reacquire_gate:
-            return "gate", math.nan, None
-        ratio = d.box[3] / max(t.size[1], 1e-9)
-        ratio_max = self.config.reacquire_max_size_ratio
-        if not (1.0 / ratio_max <= ratio <= ratio_max):
-            return "size", math.nan, None
-        refiner = self._refiner_for(t)
-        if refiner is None or not t.references:
-            return None, 1.0, None
-        try:
-            sims = [float(refiner.appearance_similarity(image, ref, tuple(d.box)))
-                    for ref in t.references]
-        except ValueError:
-            return "appearance", math.nan, None
-        sim = max(sims)
-        if not math.isfinite(sim) or sim < self.config.reacquire_similarity:
-            return "appearance", sim, None
-        return None, sim, int(np.argmax(sims))
+        """One lost track against one detection in :meth:`_reacquire`
+        (:func:`~mk_tracker.tracking.reacquisition.reacquire_check`)."""
+        return reacquire_check(t, d.box, maha, image, self.config, self._refiner_for(t))
 
     @staticmethod
     def _at_frame_time(t: Track, d: _Prepared) -> np.ndarray:

@@ -26,9 +26,16 @@ growing spread lets a lost track be kept longer without claiming far detections 
 
 from __future__ import annotations
 
+import copy
+import math
+from typing import Any, Callable, Sequence
+
 import numpy as np
 
-__all__ = ["last_detection_distance2", "nearer_of_both"]
+from mk_tracker.tracking.association import assign
+
+__all__ = ["last_detection_distance2", "nearer_of_both", "reacquire_check",
+           "reacquisition_matches"]
 
 
 def last_detection_distance2(points: np.ndarray, centre: np.ndarray, height: float,
@@ -71,3 +78,68 @@ def nearer_of_both(kalman_d2: np.ndarray, points: np.ndarray, detected_boxes: np
                                       float(elapsed[i]), floor, speed)
         out[i] = np.minimum(out[i], d2)
     return out
+
+
+def reacquire_check(track: Any, box: np.ndarray, d2: float, image: np.ndarray, config: Any,
+                    refiner: Any) -> tuple[str | None, float, int | None]:
+    """The checks of one lost ``track`` against one detection ``box`` ``(x, y, w, h)``, in
+    order: ``"gate"`` (``d2``, the squared gated distance, above ``config.reacquire_gate``),
+    ``"size"`` (height ratio beyond ``reacquire_max_size_ratio``), ``"appearance"`` (best
+    similarity of the track's frozen references, by ``refiner.appearance_similarity``,
+    below ``reacquire_similarity``).  Returns ``(first failed check or None, appearance
+    similarity, index of the best reference or None)``; the similarity is 1 without a
+    refiner or references, NaN when not reached."""
+    if d2 > config.reacquire_gate:
+        return "gate", math.nan, None
+    ratio = box[3] / max(track.size[1], 1e-9)
+    ratio_max = config.reacquire_max_size_ratio
+    if not (1.0 / ratio_max <= ratio <= ratio_max):
+        return "size", math.nan, None
+    if refiner is None or not track.references:
+        return None, 1.0, None
+    try:
+        sims = [float(refiner.appearance_similarity(image, ref, tuple(box)))
+                for ref in track.references]
+    except ValueError:
+        return "appearance", math.nan, None
+    sim = max(sims)
+    if not math.isfinite(sim) or sim < config.reacquire_similarity:
+        return "appearance", sim, None
+    return None, sim, int(np.argmax(sims))
+
+
+def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.ndarray,
+                          gated: np.ndarray, image: np.ndarray, config: Any,
+                          check: Callable[..., tuple[str | None, float, int | None]]
+                          ) -> tuple[list[tuple[int, int]], set[int]]:
+    """Matches ``(lost index, det index)`` of lost tracks and detections, and the detections
+    inside some lost track's Kalman gate.
+
+    ``maha (T, D)`` are the Kalman distances, ``gated`` the distances that gate (the nearer
+    of both, :func:`nearer_of_both`); ``check(track, det, d2, image)`` is
+    :func:`reacquire_check` for one pair.  The cost of a pair that passes is
+    ``(1 - similarity) + reacquire_distance_weight * d2 / reacquire_gate``, assigned
+    one-to-one.  A matched track restarts its working target from the frozen reference that
+    matched: its models were blended while the person disappeared.  A detection counts as
+    contested when it is inside a track's *Kalman* gate at a plausible size (whatever its
+    appearance)."""
+    cost = np.full(np.shape(maha), np.inf)
+    contested: set[int] = set()
+    best_reference: dict[tuple[int, int], int] = {}
+    for i, t in enumerate(lost):
+        for j, d in enumerate(dets):
+            refused, sim, k = check(t, d, float(gated[i, j]), image)
+            if refused in (None, "appearance") and maha[i, j] <= config.reacquire_gate:
+                contested.add(j)
+            if refused is not None:
+                continue
+            if k is not None:
+                best_reference[(i, j)] = k
+            cost[i, j] = (1.0 - sim) + config.reacquire_distance_weight * \
+                gated[i, j] / config.reacquire_gate
+    matches = assign(cost, math.inf).matches
+    for i, j in matches:
+        k = best_reference.get((i, j))
+        if k is not None:
+            lost[i].target = copy.deepcopy(lost[i].references[k])
+    return matches, contested
