@@ -4,9 +4,17 @@ tracking, everything is fully automatic"), for users with no thermal camera (iss
 
 The per-pixel background model is OpenCV's (a maintained implementation): MOG2, the
 adaptive Gaussian mixture of Zivkovic (2004, 2006), or KNN (Zivkovic & van der Heijden
-2006), chosen by ``model``.  Both mark shadows separately (value 127), which are dropped.
+2006), chosen by ``model``.  Shadows and highlights (``shadow_method``): the model's own test (it
+marks shadows 127, dropped), or the brightness/chromaticity ratio test of
+:mod:`mk_tracker.detection.shadows` against the model's background image.
 This module turns the foreground mask into one box per person:
 
+0. **Start-up without a clean background** (``bootstrap_frames``).  The first frames after
+   a (re)start are buffered; their per-pixel temporal median is the first background (a
+   standard background initialisation: a person who moves covers a pixel in fewer than
+   half of the frames), handed to the model with learning rate 1, and the model then learns
+   the background's spread from the buffered frames with their foreground (pixels far from
+   the median, ``bootstrap_tolerance``) replaced by the median.  Online: no future frame.
 1. **Working scale.**  Frames wider than ``max_width`` are reduced first (area averaging):
    the mask of a person needs no more pixels than that, and the cost falls with the square.
 2. **Global change.**  When more than ``max_foreground_fraction`` of the frame is foreground
@@ -45,11 +53,13 @@ import numpy as np
 
 from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
                                               people_in_width, split_columns)
+from mk_tracker.detection.shadows import shadow_or_highlight
 from mk_tracker.detection.thermal_image import ThermalInputError
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.stamps import checked_stamp
 
 MODELS = ("mog2", "knn")
+SHADOW_METHODS = ("model", "ratio", "none")
 SHADOW_VALUE = 127
 
 
@@ -65,16 +75,43 @@ class BackgroundDetectorConfig:
     var_threshold: float = parameter(
         16.0, "Foreground threshold: squared Mahalanobis distance (MOG2) or squared distance "
         "(KNN uses 25x this value, its own default scale)", minimum=1.0, maximum=10_000.0)
+    shadow_method: str = parameter(
+        "model", "Shadow and highlight test: the model's own (MOG2/KNN detectShadows with "
+        "shadow_threshold), the brightness/chromaticity ratio test of Horprasert et al. 1999 "
+        "against the background image (shadow_min_ratio .. shadow_max_ratio, "
+        "highlight_ratio, shadow_max_chroma), or none", choices=SHADOW_METHODS)
     shadow_threshold: float = parameter(
         0.5, "Shadow test of the model: a darker pixel whose brightness ratio to the "
         "background is at least this is a shadow and dropped (higher: fewer shadows, so dark "
         "clothes are not taken for shadows)", minimum=0.0, maximum=1.0)
+    shadow_min_ratio: float = parameter(
+        0.5, "Ratio test: smallest brightness ratio to the background of a shadow pixel",
+        minimum=0.0, maximum=1.0)
+    shadow_max_ratio: float = parameter(
+        0.95, "Ratio test: largest brightness ratio to the background of a shadow pixel",
+        minimum=0.0, maximum=1.0)
+    highlight_ratio: float = parameter(
+        1.0, "Ratio test: a pixel brighter than the background by at most this ratio, with "
+        "its colour, is a highlight and dropped (1 = no highlight test)", minimum=1.0,
+        maximum=10.0)
+    shadow_max_chroma: float = parameter(
+        0.1, "Ratio test: largest chromaticity distortion |I - aB| / (a|B|) of a shadow or "
+        "highlight pixel (colour unchanged)", minimum=0.0, maximum=10.0)
     learning_rate: float = parameter(
-        -1.0, "Model learning rate per frame; -1 = 1/history (OpenCV's automatic rate)",
-        minimum=-1.0, maximum=1.0)
+        -1.0, "Model learning rate per frame; -1 = 1/min(2 n, history) after n frames "
+        "(OpenCV's automatic rate)", minimum=-1.0, maximum=1.0)
+    bootstrap_frames: int = parameter(
+        0, "Frames buffered after a (re)start whose per-pixel temporal median becomes the "
+        "first background (people who move are not in the median); the model learns its "
+        "spread from those frames with their foreground replaced by the median.  0 = learn "
+        "from the frames as they come", minimum=0, maximum=1000)
+    bootstrap_tolerance: float = parameter(
+        25.0, "Bootstrap: a buffered pixel differing from the median by more than this "
+        "(grey levels, any channel) is foreground and replaced by the median", minimum=1.0,
+        maximum=255.0)
     startup_frames: int = parameter(10, "Frames after a (re)start before boxes are reported "
-                                    "(the model learns the background first)", minimum=0,
-                                    maximum=10_000)
+                                    "(the model learns the background first; counts the "
+                                    "bootstrap frames)", minimum=0, maximum=10_000)
     max_width: int = parameter(320, "Frames wider than this are reduced before the model "
                                "(px; speed)", minimum=32, maximum=10_000)
     max_foreground_fraction: float = parameter(
@@ -85,6 +122,12 @@ class BackgroundDetectorConfig:
         "smallest box)", minimum=2.0, maximum=10_000.0)
     person_aspect: float = parameter(0.4, "Width / height of one upright person",
                                      minimum=0.1, maximum=2.0)
+    open_fraction: float = parameter(
+        0.1, "Side of the square opening that removes speckle, as a share of the smallest "
+        "person's width (min_person_height x person_aspect)", minimum=0.0, maximum=1.0)
+    min_open: int = parameter(
+        1, "Smallest side of that opening, px at the working scale (3 removes the one- and "
+        "two-row streaks of interlaced video; 1 = none)", minimum=1, maximum=31)
     min_fill: float = parameter(0.1, "Smallest share of foreground pixels in a box",
                                 minimum=0.0, maximum=1.0)
     join_gap: float = parameter(0.3, "Largest vertical gap, in expected person heights, "
@@ -124,18 +167,21 @@ class BackgroundDetector:
         self._model: Any = None
         self._since_restart = 0
         self._mono16_map: tuple[float, float] | None = None
+        self._buffer: list[np.ndarray] = []
+        self._seeded = False
 
     # -- model ---------------------------------------------------------------------------
     def _new_model(self) -> Any:
         c = self.config
+        own_shadows = c.shadow_method == "model"
         if c.model == "knn":
             model = cv2.createBackgroundSubtractorKNN(history=c.history,
                                                       dist2Threshold=25.0 * c.var_threshold,
-                                                      detectShadows=True)
+                                                      detectShadows=own_shadows)
         else:
             model = cv2.createBackgroundSubtractorMOG2(history=c.history,
                                                        varThreshold=c.var_threshold,
-                                                       detectShadows=True)
+                                                       detectShadows=own_shadows)
         model.setShadowThreshold(float(c.shadow_threshold))
         return model
 
@@ -144,7 +190,49 @@ class BackgroundDetector:
         self._model = self._new_model()
         self._since_restart = 0
         self._mono16_map = None
+        self._buffer = []
+        self._seeded = self.config.bootstrap_frames == 0
         self.restarts += 1
+
+    def _seed(self) -> None:
+        """Start the model from the temporal median of the buffered frames, then let it learn
+        the background's spread from those frames with their foreground (pixels far from the
+        median) replaced by the median, so that people present from the first frame are not
+        learnt as background."""
+        stack = np.stack(self._buffer)
+        median = np.median(stack, axis=0).astype(np.uint8)
+        self._model.apply(median, learningRate=1.0)        # OpenCV: rate 1 re-initialises
+        tol = self.config.bootstrap_tolerance
+        for frame in self._buffer:
+            diff = cv2.absdiff(frame, median)
+            far = (diff.max(axis=2) if diff.ndim == 3 else diff) > tol
+            clean = frame.copy()
+            clean[far] = median[far]
+            self._model.apply(clean, learningRate=-1.0)        # OpenCV: 1 / (2 n)
+        self._buffer = []
+        self._seeded = True
+
+    def _update(self, small: np.ndarray) -> np.ndarray | None:
+        """Feed one working-scale frame; the model's raw mask, or None while the bootstrap
+        buffers frames (the frame that completes the buffer is already measured)."""
+        self._since_restart += 1
+        if not self._seeded:
+            self._buffer.append(small)
+            if len(self._buffer) < self.config.bootstrap_frames:
+                return None
+            self._seed()
+        return self._model.apply(small, learningRate=self.config.learning_rate)
+
+    def _foreground(self, small: np.ndarray, raw: np.ndarray) -> np.ndarray:
+        """Foreground mask (0/1) without shadows and highlights."""
+        mask = (raw == 255).astype(np.uint8)
+        if self.config.shadow_method == "ratio" and mask.any():
+            c = self.config
+            drop = shadow_or_highlight(small, self._model.getBackgroundImage(), mask,
+                                       c.shadow_min_ratio, c.shadow_max_ratio,
+                                       c.highlight_ratio, c.shadow_max_chroma)
+            mask[drop] = 0
+        return mask
 
     # -- input ---------------------------------------------------------------------------
     def _as_uint8(self, frame: np.ndarray, encoding: str | None) -> np.ndarray:
@@ -194,22 +282,28 @@ class BackgroundDetector:
         small = image if scale >= 1.0 else cv2.resize(
             image, (max(1, round(width * scale)), max(1, round(height * scale))),
             interpolation=cv2.INTER_AREA)
-        raw = self._model.apply(small, learningRate=self.config.learning_rate)
-        self._since_restart += 1
-        mask = (raw == 255).astype(np.uint8)
-        if (self._since_restart > self.config.startup_frames
-                and mask.mean() > self.config.max_foreground_fraction):
+        raw = self._update(small)
+        if raw is None:
+            self.last_mode = "startup"
+            return []
+        moving = float(np.count_nonzero(raw == 255)) / raw.size
+        if self._since_restart > self.config.startup_frames and \
+                moving > self.config.max_foreground_fraction:
             self.global_changes += 1
-            self.last_event = (f"{100 * mask.mean():.0f} % of the frame changed at once: "
+            self.last_event = (f"{100 * moving:.0f} % of the frame changed at once: "
                                "background model restarted")
             self.reset()
-            self._model.apply(small, learningRate=1.0)
-            self._since_restart = 1
+            if self.config.bootstrap_frames > 0:
+                self._update(small)                       # the first bootstrap frame
+            else:
+                self._model.apply(small, learningRate=1.0)
+                self._since_restart = 1
             self.last_mode = "global_change"
             return []
         if self._since_restart <= self.config.startup_frames:
             self.last_mode = "startup"
             return []
+        mask = self._foreground(small, raw)
         self.last_mode = "tracking"
         boxes = self._person_boxes(mask, scale)
         inv = 1.0 / scale
@@ -222,8 +316,11 @@ class BackgroundDetector:
         c = self.config
         min_h = c.min_person_height * scale
         min_w = max(1.0, c.person_aspect * min_h)
-        k_open = max(1, int(round(min_w / 10.0)) | 1)
-        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
+        # speckle and thin streaks (interlacing, a flickering edge) go by an opening sized to
+        # the smallest person (sizing it by the learnt size fed wrong sizes back: worse)
+        k_open = max(c.min_open, int(round(c.open_fraction * min_w)))
+        if k_open > 1:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
         # fragments of one person (clothes like the background, a thin occluder) are grouped
         # by a person-sized dilation; each group's box is that of its own foreground pixels
         k_group = (max(3, int(round(min_w / 2.0)) | 1), max(3, int(round(min_h / 2.0)) | 1))
