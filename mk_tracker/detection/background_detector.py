@@ -81,7 +81,7 @@ class BackgroundDetectorConfig:
         "against the background image (shadow_min_ratio .. shadow_max_ratio, "
         "highlight_ratio, shadow_max_chroma), or none", choices=SHADOW_METHODS)
     shadow_threshold: float = parameter(
-        0.5, "Shadow test of the model: a darker pixel whose brightness ratio to the "
+        0.7, "Shadow test of the model: a darker pixel whose brightness ratio to the "
         "background is at least this is a shadow and dropped (higher: fewer shadows, so dark "
         "clothes are not taken for shadows)", minimum=0.0, maximum=1.0)
     shadow_min_ratio: float = parameter(
@@ -128,9 +128,13 @@ class BackgroundDetectorConfig:
     min_open: int = parameter(
         1, "Smallest side of that opening, px at the working scale (3 removes the one- and "
         "two-row streaks of interlaced video; 1 = none)", minimum=1, maximum=31)
+    min_height_ratio: float = parameter(
+        0.8, "A box shorter than this share of the person height learnt at its row is "
+        "dropped (and not learnt); 0 = only min_person_height applies", minimum=0.0,
+        maximum=1.0)
     min_fill: float = parameter(0.1, "Smallest share of foreground pixels in a box",
                                 minimum=0.0, maximum=1.0)
-    join_gap: float = parameter(0.3, "Largest vertical gap, in expected person heights, "
+    join_gap: float = parameter(0.1, "Largest vertical gap, in expected person heights, "
                                 "between two parts joined into one person", minimum=0.0,
                                 maximum=2.0)
     split_ratio: float = parameter(1.6, "A blob wider than this many expected person widths "
@@ -342,6 +346,9 @@ class BackgroundDetector:
                 x, y, w, h = sub
                 if h < 0.5 * min_h or w * h < min_area:
                     continue
+                expected = self._expected_height(y + h, scale)
+                if expected is not None and h < c.min_height_ratio * expected:
+                    continue      # a fragment or speckle: neither a person nor a size sample
                 x0, y0 = int(x), int(y)
                 count = int(mask[y0:y0 + int(h), x0:x0 + int(w)].sum())
                 fill = count / max(w * h, 1.0)

@@ -189,14 +189,31 @@ def test_a_cast_shadow_is_not_a_detection(method):
         img[120:160, x:x + 40] = (img[120:160, x:x + 40] * 0.6).astype(np.uint8)
         return img
     frames = [BACKGROUND] * 20 + [scene(k) for k in range(6)]
+    # the size filter is off (the patch is shorter than the person): the shadow test decides
     det = BackgroundDetector(config(shadow_method=method, shadow_threshold=0.5,
-                                    shadow_min_ratio=0.5, shadow_max_ratio=0.95))
+                                    shadow_min_ratio=0.5, shadow_max_ratio=0.95,
+                                    min_height_ratio=0.0))
     out = run(det, frames)
     assert len(out) == 1 and iou(out[0].box, (70, 100, 24, 60)) > 0.7, [d.box for d in out]
     # with no shadow test the darkened patch (x 160..200, y 120..160) is foreground too
     # (reported as one box or cut in two: it is wider than one person of the learnt size)
-    out = run(BackgroundDetector(config(shadow_method="none")), frames)
+    out = run(BackgroundDetector(config(shadow_method="none", min_height_ratio=0.0)), frames)
     inside = [d.box for d in out if d.box[0] >= 155 and d.box[0] + d.box[2] <= 205
               and d.box[1] >= 115 and d.box[1] + d.box[3] <= 165]
     assert inside and sum(w * h for _x, _y, w, h in inside) > 0.8 * 40 * 40, \
         [d.box for d in out]
+
+
+@pytest.mark.parametrize("ratio, boxes", [(0.0, 2), (0.8, 1)])
+def test_a_blob_much_shorter_than_the_learnt_person_is_dropped(ratio, boxes):
+    det = BackgroundDetector(config(min_height_ratio=ratio))
+    walk = [frame_with([(30 + 3 * k, 100, 24, 60), (150 + 3 * k, 60, 24, 60),
+                        (240 - 2 * k, 140, 24, 60)]) for k in range(20)]
+    run(det, [BACKGROUND] * 20 + walk)
+    assert det.heights.height_at(160) == pytest.approx(60, abs=3)
+    # a person (60 px) and a 16 x 24 blob with its bottom on the same row: 24 < 0.8 x 60
+    out = run(det, [frame_with([(60, 100, 24, 60), (200, 136, 16, 24)])], t0=10.0)
+    assert len(out) == boxes, [d.box for d in out]
+    assert max(iou((60, 100, 24, 60), d.box) for d in out) > 0.7
+    if boxes == 2:
+        assert max(iou((200, 136, 16, 24), d.box) for d in out) > 0.7
