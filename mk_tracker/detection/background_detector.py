@@ -28,6 +28,8 @@ This module turns the foreground mask into one box per person:
    one upright person gives a sample (bottom row, height); a line ``h = a + b * y_bottom``
    is fitted to them by least squares with exponential forgetting (``size_memory``): under a
    ground-plane camera a person's image height is close to linear in the row of the feet.
+   A box shorter than ``min_height_ratio`` of the height learnt at its row is a fragment
+   or speckle: it is dropped and not learnt (most false boxes on the TUD clips were such).
 5. **Joining.**  Two boxes that overlap horizontally and are separated vertically by less
    than ``join_gap`` of the expected height are one person broken apart.
 6. **Splitting groups.**  A component wider than ``split_ratio`` expected person widths is
