@@ -51,14 +51,14 @@ SHADOWS = ({"shadow_method": "model", "shadow_threshold": 0.5},
 #: Every combination is scored on every sequence.
 GRID: dict[str, tuple] = {
     "bootstrap_frames": (0, 10, 20),
-    "learning_rate": (-1.0, 0.005),
     "min_height_ratio": (0.0, 0.5, 0.8),
     "split_ratio": (1.3, 1.6),
     "join_gap": (0.1, 0.3),
+    "column_trim": (0.0, 0.2),
 }
 #: The detector as first built for issue #13 (no bootstrap, no size filter): a reference.
-BEFORE = {"bootstrap_frames": 0, "learning_rate": -1.0, "min_height_ratio": 0.0,
-          "split_ratio": 1.6, "join_gap": 0.3, "shadow_method": "model",
+BEFORE = {"bootstrap_frames": 0, "min_height_ratio": 0.0, "split_ratio": 1.6,
+          "join_gap": 0.3, "column_trim": 0.0, "shadow_method": "model",
           "shadow_threshold": 0.5}
 
 

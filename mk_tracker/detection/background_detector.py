@@ -103,7 +103,7 @@ class BackgroundDetectorConfig:
         -1.0, "Model learning rate per frame; -1 = 1/min(2 n, history) after n frames "
         "(OpenCV's automatic rate)", minimum=-1.0, maximum=1.0)
     bootstrap_frames: int = parameter(
-        0, "Frames buffered after a (re)start whose per-pixel temporal median becomes the "
+        10, "Frames buffered after a (re)start whose per-pixel temporal median becomes the "
         "first background (people who move are not in the median); the model learns its "
         "spread from those frames with their foreground replaced by the median.  0 = learn "
         "from the frames as they come", minimum=0, maximum=1000)
@@ -134,6 +134,10 @@ class BackgroundDetectorConfig:
         0.8, "A box shorter than this share of the person height learnt at its row is "
         "dropped (and not learnt); 0 = only min_person_height applies", minimum=0.0,
         maximum=1.0)
+    column_trim: float = parameter(
+        0.2, "Columns at the sides of a box holding less than this share of its fullest "
+        "column's foreground are trimmed (a stride's leg, a swinging arm); 0 = off",
+        minimum=0.0, maximum=1.0)
     min_fill: float = parameter(0.1, "Smallest share of foreground pixels in a box",
                                 minimum=0.0, maximum=1.0)
     join_gap: float = parameter(0.1, "Largest vertical gap, in expected person heights, "
@@ -345,6 +349,8 @@ class BackgroundDetector:
         out = []
         for box in parts:
             for sub in self._split(mask, box, scale):
+                if c.column_trim > 0.0:
+                    sub = self._trim_columns(mask, sub)
                 x, y, w, h = sub
                 if h < 0.5 * min_h or w * h < min_area:
                     continue
@@ -359,6 +365,18 @@ class BackgroundDetector:
                 self._learn(sub, scale)
                 out.append((sub, min(1.0, fill), count))
         return out
+
+    def _trim_columns(self, mask: np.ndarray, box: tuple) -> tuple:
+        """The box narrowed to the columns holding at least ``column_trim`` of its fullest
+        column's foreground: a stride's leg or a swinging arm widens the mask's extent well
+        beyond the body."""
+        x, y, w, h = box
+        x0, y0 = int(x), int(y)
+        cols = mask[y0:y0 + int(h), x0:x0 + int(w)].sum(axis=0)
+        if cols.size == 0 or cols.max() == 0:
+            return box
+        keep = np.flatnonzero(cols >= self.config.column_trim * cols.max())
+        return (float(x0 + keep[0]), y, float(keep[-1] + 1 - keep[0]), h)
 
     def _expected_height(self, y_bottom: float, scale: float) -> float | None:
         """Expected person height (working scale) with feet at ``y_bottom`` (working scale)."""

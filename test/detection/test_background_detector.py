@@ -217,3 +217,18 @@ def test_a_blob_much_shorter_than_the_learnt_person_is_dropped(ratio, boxes):
     assert max(iou((60, 100, 24, 60), d.box) for d in out) > 0.7
     if boxes == 2:
         assert max(iou((200, 136, 16, 24), d.box) for d in out) > 0.7
+
+
+def test_column_trim_drops_a_stride_leg_from_the_box():
+    # a 24 x 60 person with a 10 px tall leg stretched 10 px to the right at the bottom:
+    # the leg's columns hold 10 foreground pixels, the body's 60 (10 / 60 = 0.17)
+    def walker(k):
+        img = frame_with([(60 + 2 * k, 100, 24, 60)])
+        img[150:160, 84 + 2 * k:94 + 2 * k] = (230, 40, 200)
+        return img
+    frames = [BACKGROUND] * 20 + [walker(k) for k in range(6)]
+    wide = run(BackgroundDetector(config(column_trim=0.0)), frames)
+    trimmed = run(BackgroundDetector(config(column_trim=0.2)), frames)
+    assert len(wide) == 1 and iou(wide[0].box, (70, 100, 34, 60)) > 0.85, wide[0].box
+    assert len(trimmed) == 1 and iou(trimmed[0].box, (70, 100, 24, 60)) > 0.85, \
+        trimmed[0].box
