@@ -21,8 +21,8 @@ This module turns the foreground mask into one box per person:
    (lights switched on, the camera moved), the model is restarted from this frame, the event
    counted (:attr:`global_changes`) and no box is reported for the frame, instead of one
    frame-sized detection flooding the tracker.
-3. **Morphology sized to a person.**  An opening of about a tenth of the expected person
-   width removes speckle; a closing with a tall, narrow element joins a person cut by a thin
+3. **Morphology sized to a person.**  An opening of ``open_fraction`` of the smallest
+   person's width (at least ``min_open`` px) removes speckle; a closing with a tall, narrow element joins a person cut by a thin
    vertical occluder (a pole or a sign) or split at the waist.
 4. **Person size per image row, learnt online.**  A component whose aspect ratio is that of
    one upright person gives a sample (bottom row, height); a line ``h = a + b * y_bottom``
@@ -36,6 +36,8 @@ This module turns the foreground mask into one box per person:
    cut into ``round(width / expected width)`` people at the minima of the mask's vertical
    projection (column sums) near the evenly spaced cut positions; each part's box is then
    tightened to its own foreground rows.
+7. **Trimming.**  Columns at a box's sides holding less than ``column_trim`` of its fullest
+   column's foreground (a stride's leg, a swinging arm) are cut off the box.
 
 People who stand still become background and are no longer detected: with OpenCV's
 background ratio (0.9) a still colour joins the background after about ``0.1 * history``
