@@ -22,8 +22,9 @@ This module turns the foreground mask into one box per person:
    counted (:attr:`global_changes`) and no box is reported for the frame, instead of one
    frame-sized detection flooding the tracker.
 3. **Morphology sized to a person.**  An opening of ``open_fraction`` of the smallest
-   person's width (at least ``min_open`` px) removes speckle; a closing with a tall, narrow element joins a person cut by a thin
-   vertical occluder (a pole or a sign) or split at the waist.
+   person's width (at least ``min_open`` px) removes speckle; fragments of one person (cut
+   by a thin occluder, or clothes like the background) are grouped by a dilation of half
+   the smallest person's size, each group's box being that of its own foreground pixels.
 4. **Person size per image row, learnt online.**  A component whose aspect ratio is that of
    one upright person gives a sample (bottom row, height); a line ``h = a + b * y_bottom``
    is fitted to them by least squares with exponential forgetting (``size_memory``): under a
