@@ -4,28 +4,41 @@ tracking, everything is fully automatic"), for users with no thermal camera (iss
 
 The per-pixel background model is OpenCV's (a maintained implementation): MOG2, the
 adaptive Gaussian mixture of Zivkovic (2004, 2006), or KNN (Zivkovic & van der Heijden
-2006), chosen by ``model``.  Both mark shadows separately (value 127), which are dropped.
+2006), chosen by ``model``.  Shadows and highlights (``shadow_method``): the model's own test (it
+marks shadows 127, dropped), or the brightness/chromaticity ratio test of
+:mod:`mk_tracker.detection.shadows` against the model's background image.
 This module turns the foreground mask into one box per person:
 
+0. **Start-up without a clean background** (``bootstrap_frames``).  The first frames after
+   a (re)start are buffered; their per-pixel temporal median is the first background (a
+   standard background initialisation: a person who moves covers a pixel in fewer than
+   half of the frames), handed to the model with learning rate 1, and the model then learns
+   the background's spread from the buffered frames with their foreground (pixels far from
+   the median, ``bootstrap_tolerance``) replaced by the median.  Online: no future frame.
 1. **Working scale.**  Frames wider than ``max_width`` are reduced first (area averaging):
    the mask of a person needs no more pixels than that, and the cost falls with the square.
 2. **Global change.**  When more than ``max_foreground_fraction`` of the frame is foreground
    (lights switched on, the camera moved), the model is restarted from this frame, the event
    counted (:attr:`global_changes`) and no box is reported for the frame, instead of one
    frame-sized detection flooding the tracker.
-3. **Morphology sized to a person.**  An opening of about a tenth of the expected person
-   width removes speckle; a closing with a tall, narrow element joins a person cut by a thin
-   vertical occluder (a pole or a sign) or split at the waist.
+3. **Morphology sized to a person.**  An opening of ``open_fraction`` of the smallest
+   person's width (at least ``min_open`` px) removes speckle; fragments of one person (cut
+   by a thin occluder, or clothes like the background) are grouped by a dilation of half
+   the smallest person's size, each group's box being that of its own foreground pixels.
 4. **Person size per image row, learnt online.**  A component whose aspect ratio is that of
    one upright person gives a sample (bottom row, height); a line ``h = a + b * y_bottom``
    is fitted to them by least squares with exponential forgetting (``size_memory``): under a
    ground-plane camera a person's image height is close to linear in the row of the feet.
+   A box shorter than ``min_height_ratio`` of the height learnt at its row is a fragment
+   or speckle: it is dropped and not learnt (most false boxes on the TUD clips were such).
 5. **Joining.**  Two boxes that overlap horizontally and are separated vertically by less
    than ``join_gap`` of the expected height are one person broken apart.
 6. **Splitting groups.**  A component wider than ``split_ratio`` expected person widths is
    cut into ``round(width / expected width)`` people at the minima of the mask's vertical
    projection (column sums) near the evenly spaced cut positions; each part's box is then
    tightened to its own foreground rows.
+7. **Trimming.**  Columns at a box's sides holding less than ``column_trim`` of its fullest
+   column's foreground (a stride's leg, a swinging arm) are cut off the box.
 
 People who stand still become background and are no longer detected: with OpenCV's
 background ratio (0.9) a still colour joins the background after about ``0.1 * history``
@@ -45,11 +58,13 @@ import numpy as np
 
 from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
                                               people_in_width, split_columns)
+from mk_tracker.detection.shadows import shadow_or_highlight
 from mk_tracker.detection.thermal_image import ThermalInputError
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.stamps import checked_stamp
 
 MODELS = ("mog2", "knn")
+SHADOW_METHODS = ("model", "ratio", "none")
 SHADOW_VALUE = 127
 
 
@@ -65,16 +80,43 @@ class BackgroundDetectorConfig:
     var_threshold: float = parameter(
         16.0, "Foreground threshold: squared Mahalanobis distance (MOG2) or squared distance "
         "(KNN uses 25x this value, its own default scale)", minimum=1.0, maximum=10_000.0)
+    shadow_method: str = parameter(
+        "model", "Shadow and highlight test: the model's own (MOG2/KNN detectShadows with "
+        "shadow_threshold), the brightness/chromaticity ratio test of Horprasert et al. 1999 "
+        "against the background image (shadow_min_ratio .. shadow_max_ratio, "
+        "highlight_ratio, shadow_max_chroma), or none", choices=SHADOW_METHODS)
     shadow_threshold: float = parameter(
-        0.5, "Shadow test of the model: a darker pixel whose brightness ratio to the "
+        0.7, "Shadow test of the model: a darker pixel whose brightness ratio to the "
         "background is at least this is a shadow and dropped (higher: fewer shadows, so dark "
         "clothes are not taken for shadows)", minimum=0.0, maximum=1.0)
+    shadow_min_ratio: float = parameter(
+        0.5, "Ratio test: smallest brightness ratio to the background of a shadow pixel",
+        minimum=0.0, maximum=1.0)
+    shadow_max_ratio: float = parameter(
+        0.95, "Ratio test: largest brightness ratio to the background of a shadow pixel",
+        minimum=0.0, maximum=1.0)
+    highlight_ratio: float = parameter(
+        1.0, "Ratio test: a pixel brighter than the background by at most this ratio, with "
+        "its colour, is a highlight and dropped (1 = no highlight test)", minimum=1.0,
+        maximum=10.0)
+    shadow_max_chroma: float = parameter(
+        0.1, "Ratio test: largest chromaticity distortion |I - aB| / (a|B|) of a shadow or "
+        "highlight pixel (colour unchanged)", minimum=0.0, maximum=10.0)
     learning_rate: float = parameter(
-        -1.0, "Model learning rate per frame; -1 = 1/history (OpenCV's automatic rate)",
-        minimum=-1.0, maximum=1.0)
+        -1.0, "Model learning rate per frame; -1 = 1/min(2 n, history) after n frames "
+        "(OpenCV's automatic rate)", minimum=-1.0, maximum=1.0)
+    bootstrap_frames: int = parameter(
+        10, "Frames buffered after a (re)start whose per-pixel temporal median becomes the "
+        "first background (people who move are not in the median); the model learns its "
+        "spread from those frames with their foreground replaced by the median.  0 = learn "
+        "from the frames as they come", minimum=0, maximum=1000)
+    bootstrap_tolerance: float = parameter(
+        25.0, "Bootstrap: a buffered pixel differing from the median by more than this "
+        "(grey levels, any channel) is foreground and replaced by the median", minimum=1.0,
+        maximum=255.0)
     startup_frames: int = parameter(10, "Frames after a (re)start before boxes are reported "
-                                    "(the model learns the background first)", minimum=0,
-                                    maximum=10_000)
+                                    "(the model learns the background first; counts the "
+                                    "bootstrap frames)", minimum=0, maximum=10_000)
     max_width: int = parameter(320, "Frames wider than this are reduced before the model "
                                "(px; speed)", minimum=32, maximum=10_000)
     max_foreground_fraction: float = parameter(
@@ -85,9 +127,23 @@ class BackgroundDetectorConfig:
         "smallest box)", minimum=2.0, maximum=10_000.0)
     person_aspect: float = parameter(0.4, "Width / height of one upright person",
                                      minimum=0.1, maximum=2.0)
+    open_fraction: float = parameter(
+        0.1, "Side of the square opening that removes speckle, as a share of the smallest "
+        "person's width (min_person_height x person_aspect)", minimum=0.0, maximum=1.0)
+    min_open: int = parameter(
+        1, "Smallest side of that opening, px at the working scale (3 removes the one- and "
+        "two-row streaks of interlaced video; 1 = none)", minimum=1, maximum=31)
+    min_height_ratio: float = parameter(
+        0.8, "A box shorter than this share of the person height learnt at its row is "
+        "dropped (and not learnt); 0 = only min_person_height applies", minimum=0.0,
+        maximum=1.0)
+    column_trim: float = parameter(
+        0.2, "Columns at the sides of a box holding less than this share of its fullest "
+        "column's foreground are trimmed (a stride's leg, a swinging arm); 0 = off",
+        minimum=0.0, maximum=1.0)
     min_fill: float = parameter(0.1, "Smallest share of foreground pixels in a box",
                                 minimum=0.0, maximum=1.0)
-    join_gap: float = parameter(0.3, "Largest vertical gap, in expected person heights, "
+    join_gap: float = parameter(0.1, "Largest vertical gap, in expected person heights, "
                                 "between two parts joined into one person", minimum=0.0,
                                 maximum=2.0)
     split_ratio: float = parameter(1.6, "A blob wider than this many expected person widths "
@@ -124,18 +180,21 @@ class BackgroundDetector:
         self._model: Any = None
         self._since_restart = 0
         self._mono16_map: tuple[float, float] | None = None
+        self._buffer: list[np.ndarray] = []
+        self._seeded = False
 
     # -- model ---------------------------------------------------------------------------
     def _new_model(self) -> Any:
         c = self.config
+        own_shadows = c.shadow_method == "model"
         if c.model == "knn":
             model = cv2.createBackgroundSubtractorKNN(history=c.history,
                                                       dist2Threshold=25.0 * c.var_threshold,
-                                                      detectShadows=True)
+                                                      detectShadows=own_shadows)
         else:
             model = cv2.createBackgroundSubtractorMOG2(history=c.history,
                                                        varThreshold=c.var_threshold,
-                                                       detectShadows=True)
+                                                       detectShadows=own_shadows)
         model.setShadowThreshold(float(c.shadow_threshold))
         return model
 
@@ -144,7 +203,49 @@ class BackgroundDetector:
         self._model = self._new_model()
         self._since_restart = 0
         self._mono16_map = None
+        self._buffer = []
+        self._seeded = self.config.bootstrap_frames == 0
         self.restarts += 1
+
+    def _seed(self) -> None:
+        """Start the model from the temporal median of the buffered frames, then let it learn
+        the background's spread from those frames with their foreground (pixels far from the
+        median) replaced by the median, so that people present from the first frame are not
+        learnt as background."""
+        stack = np.stack(self._buffer)
+        median = np.median(stack, axis=0).astype(np.uint8)
+        self._model.apply(median, learningRate=1.0)        # OpenCV: rate 1 re-initialises
+        tol = self.config.bootstrap_tolerance
+        for frame in self._buffer:
+            diff = cv2.absdiff(frame, median)
+            far = (diff.max(axis=2) if diff.ndim == 3 else diff) > tol
+            clean = frame.copy()
+            clean[far] = median[far]
+            self._model.apply(clean, learningRate=-1.0)        # OpenCV: 1 / (2 n)
+        self._buffer = []
+        self._seeded = True
+
+    def _update(self, small: np.ndarray) -> np.ndarray | None:
+        """Feed one working-scale frame; the model's raw mask, or None while the bootstrap
+        buffers frames (the frame that completes the buffer is already measured)."""
+        self._since_restart += 1
+        if not self._seeded:
+            self._buffer.append(small)
+            if len(self._buffer) < self.config.bootstrap_frames:
+                return None
+            self._seed()
+        return self._model.apply(small, learningRate=self.config.learning_rate)
+
+    def _foreground(self, small: np.ndarray, raw: np.ndarray) -> np.ndarray:
+        """Foreground mask (0/1) without shadows and highlights."""
+        mask = (raw == 255).astype(np.uint8)
+        if self.config.shadow_method == "ratio" and mask.any():
+            c = self.config
+            drop = shadow_or_highlight(small, self._model.getBackgroundImage(), mask,
+                                       c.shadow_min_ratio, c.shadow_max_ratio,
+                                       c.highlight_ratio, c.shadow_max_chroma)
+            mask[drop] = 0
+        return mask
 
     # -- input ---------------------------------------------------------------------------
     def _as_uint8(self, frame: np.ndarray, encoding: str | None) -> np.ndarray:
@@ -194,22 +295,28 @@ class BackgroundDetector:
         small = image if scale >= 1.0 else cv2.resize(
             image, (max(1, round(width * scale)), max(1, round(height * scale))),
             interpolation=cv2.INTER_AREA)
-        raw = self._model.apply(small, learningRate=self.config.learning_rate)
-        self._since_restart += 1
-        mask = (raw == 255).astype(np.uint8)
-        if (self._since_restart > self.config.startup_frames
-                and mask.mean() > self.config.max_foreground_fraction):
+        raw = self._update(small)
+        if raw is None:
+            self.last_mode = "startup"
+            return []
+        moving = float(np.count_nonzero(raw == 255)) / raw.size
+        if self._since_restart > self.config.startup_frames and \
+                moving > self.config.max_foreground_fraction:
             self.global_changes += 1
-            self.last_event = (f"{100 * mask.mean():.0f} % of the frame changed at once: "
+            self.last_event = (f"{100 * moving:.0f} % of the frame changed at once: "
                                "background model restarted")
             self.reset()
-            self._model.apply(small, learningRate=1.0)
-            self._since_restart = 1
+            if self.config.bootstrap_frames > 0:
+                self._update(small)                       # the first bootstrap frame
+            else:
+                self._model.apply(small, learningRate=1.0)
+                self._since_restart = 1
             self.last_mode = "global_change"
             return []
         if self._since_restart <= self.config.startup_frames:
             self.last_mode = "startup"
             return []
+        mask = self._foreground(small, raw)
         self.last_mode = "tracking"
         boxes = self._person_boxes(mask, scale)
         inv = 1.0 / scale
@@ -222,8 +329,11 @@ class BackgroundDetector:
         c = self.config
         min_h = c.min_person_height * scale
         min_w = max(1.0, c.person_aspect * min_h)
-        k_open = max(1, int(round(min_w / 10.0)) | 1)
-        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
+        # speckle and thin streaks (interlacing, a flickering edge) go by an opening sized to
+        # the smallest person (sizing it by the learnt size fed wrong sizes back: worse)
+        k_open = max(c.min_open, int(round(c.open_fraction * min_w)))
+        if k_open > 1:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k_open, k_open), np.uint8))
         # fragments of one person (clothes like the background, a thin occluder) are grouped
         # by a person-sized dilation; each group's box is that of its own foreground pixels
         k_group = (max(3, int(round(min_w / 2.0)) | 1), max(3, int(round(min_h / 2.0)) | 1))
@@ -242,9 +352,14 @@ class BackgroundDetector:
         out = []
         for box in parts:
             for sub in self._split(mask, box, scale):
+                if c.column_trim > 0.0:
+                    sub = self._trim_columns(mask, sub)
                 x, y, w, h = sub
                 if h < 0.5 * min_h or w * h < min_area:
                     continue
+                expected = self._expected_height(y + h, scale)
+                if expected is not None and h < c.min_height_ratio * expected:
+                    continue      # a fragment or speckle: neither a person nor a size sample
                 x0, y0 = int(x), int(y)
                 count = int(mask[y0:y0 + int(h), x0:x0 + int(w)].sum())
                 fill = count / max(w * h, 1.0)
@@ -253,6 +368,18 @@ class BackgroundDetector:
                 self._learn(sub, scale)
                 out.append((sub, min(1.0, fill), count))
         return out
+
+    def _trim_columns(self, mask: np.ndarray, box: tuple) -> tuple:
+        """The box narrowed to the columns holding at least ``column_trim`` of its fullest
+        column's foreground: a stride's leg or a swinging arm widens the mask's extent well
+        beyond the body."""
+        x, y, w, h = box
+        x0, y0 = int(x), int(y)
+        cols = mask[y0:y0 + int(h), x0:x0 + int(w)].sum(axis=0)
+        if cols.size == 0 or cols.max() == 0:
+            return box
+        keep = np.flatnonzero(cols >= self.config.column_trim * cols.max())
+        return (float(x0 + keep[0]), y, float(keep[-1] + 1 - keep[0]), h)
 
     def _expected_height(self, y_bottom: float, scale: float) -> float | None:
         """Expected person height (working scale) with feet at ``y_bottom`` (working scale)."""
