@@ -253,7 +253,8 @@ class ConstantVelocityKalman:
         # form's velocity variance cancelled to -2.4e-4 (a property test found it)
         a = np.eye(4)
         a[:, :2] -= gain                             # I - G H, with H = [I 0]
-        cov = a @ p @ a.T + r * (gain @ gain.T)
+        with np.errstate(invalid="ignore", over="ignore"):   # a non-finite result is refused
+            cov = a @ p @ a.T + r * (gain @ gain.T)          # just below, with a clear error
         cov = 0.5 * (cov + cov.T)
         if not (math.isfinite(float(state.sum())) and math.isfinite(float(cov.sum()))):
             raise KalmanError("update produced a non-finite state; filter left unchanged")
