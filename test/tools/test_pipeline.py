@@ -4,6 +4,7 @@ single-target mode, bad messages, parameter files, and TUD-Campus when the real 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -409,3 +410,32 @@ def test_detection_wait_pairs_late_detections_with_their_own_frame(scene_bag, tm
     assert waited == reference
     not_waited = tracks(late, 0.0, "late_not_waited")
     assert not_waited != reference     # every frame got the detections of the frame before
+
+
+def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
+    """config/tracker_public_detections.yaml (issue #16) changes exactly the two settings
+    the leave-one-sequence-out protocol prefers for [0, 1]-scored detections, to valid
+    values, and leaves every other shipped value as it is."""
+    import yaml
+
+    from mk_tracker.parameters import parameter_specs, validate_value
+    from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig
+
+    files = [CONFIG_DIR / "tracker.yaml", CONFIG_DIR / "tracker_public_detections.yaml"]
+    base = load_pipeline_config(files[:1], include_defaults=False)
+    both = load_pipeline_config(files, include_defaults=False)
+    assert both.tracker.min_detection_score == 0.2
+    assert both.tracker.lifecycle.min_hits == 2
+    assert base.tracker.min_detection_score != 0.2 and base.tracker.lifecycle.min_hits != 2
+    restored = dataclasses.replace(
+        both.tracker, min_detection_score=base.tracker.min_detection_score,
+        lifecycle=dataclasses.replace(both.tracker.lifecycle,
+                                      min_hits=base.tracker.lifecycle.min_hits))
+    assert restored == base.tracker and both.detection_wait == base.detection_wait
+    overlay = yaml.safe_load(files[1].read_text())["/**/tracker_node"]["ros__parameters"]
+    specs = {s.name: s for s in parameter_specs(MultiObjectTrackerConfig())}
+    assert set(overlay) == {"tracker"}
+    values = {"min_detection_score": overlay["tracker"]["min_detection_score"],
+              "lifecycle.min_hits": overlay["tracker"]["lifecycle"]["min_hits"]}
+    for name, value in values.items():
+        validate_value(specs[name], value)
