@@ -53,6 +53,18 @@ def test_round_trip_every_encoding(world, encoding):
     np.testing.assert_array_equal(back, arr)
 
 
+def test_one_channel_array_with_a_unit_axis_reads_back_as_height_by_width():
+    # found by the property test's dev profile: (h, w, 1) is accepted for mono16 and is
+    # read back as (h, w), the documented shape of every one-channel encoding
+    types = WORLDS["bag"]
+    arr = np.array([[[1], [258]]], dtype=np.uint16)          # shape (1, 2, 1)
+    msg = numpy_to_image(arr, "mono16", types=types)
+    assert (msg.height, msg.width, msg.step) == (1, 2, 4)
+    back = image_to_numpy(msg)
+    assert back.shape == (1, 2)
+    assert back.tolist() == [[1, 258]]
+
+
 def test_ros_world_stores_bytes_as_array_array():
     if "ros" not in WORLDS:
         pytest.skip("rclpy message packages not installed")
