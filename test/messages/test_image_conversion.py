@@ -65,6 +65,19 @@ def test_one_channel_array_with_a_unit_axis_reads_back_as_height_by_width():
     assert back.tolist() == [[1, 258]]
 
 
+@pytest.mark.parametrize("big, raw", [(0, b"\x00\x00\x81\x7f"), (1, b"\x7f\x80\x00\x01")])
+def test_signalling_nan_pixels_keep_their_bits(big, raw):
+    # a 32FC1 pixel holding a signalling NaN (0x7f810000 little-endian, 0x7f800001
+    # big-endian) is handed through bit for bit, also through the byteswapping copy; the
+    # property test's own decoder once quieted it (0x7fc1...) by widening to a Python float
+    msg = SimpleNamespace(height=1, width=1, step=4, encoding="32FC1", is_bigendian=big,
+                          data=raw)
+    back = image_to_numpy(msg)
+    want = 0x7F810000 if not big else 0x7F800001
+    assert back.dtype == np.float32 and back.shape == (1, 1)
+    assert int(back.view(np.uint32)[0, 0]) == want
+
+
 def test_ros_world_stores_bytes_as_array_array():
     if "ros" not in WORLDS:
         pytest.skip("rclpy message packages not installed")
