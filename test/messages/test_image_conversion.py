@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import array
 import sys
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -76,6 +77,18 @@ def test_signalling_nan_pixels_keep_their_bits(big, raw):
     want = 0x7F810000 if not big else 0x7F800001
     assert back.dtype == np.float32 and back.shape == (1, 1)
     assert int(back.view(np.uint32)[0, 0]) == want
+
+
+def test_signalling_nan_pixels_are_displayed_as_zero_without_a_warning():
+    # 5x dev-profile examples: to_bgr of a 32FC1 image holding a signalling NaN warned
+    # "invalid value encountered in cast" (the float64 widening raises the FPU flag)
+    arr = np.array([[1.0, 1.0, 3.0]], dtype=np.float32)
+    arr.view(np.uint32)[0, 0] = 0x7F810000                  # a signalling NaN
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        bgr = to_bgr(arr, "32FC1")
+    # finite min 1 -> 0, max 3 -> 255, the NaN -> 0
+    np.testing.assert_array_equal(bgr[0, :, 0], [0, 0, 255])
 
 
 def test_ros_world_stores_bytes_as_array_array():
