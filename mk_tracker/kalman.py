@@ -123,8 +123,10 @@ def _positive_semidefinite(cov: np.ndarray) -> np.ndarray:
     result is rounding noise around a singular matrix; clipping its negative eigenvalues
     changes P by about that noise, and each variance becomes a sum of non-negative terms.
     """
-    if np.all(np.diag(cov) >= 0.0) or not np.all(np.isfinite(cov)):
-        return cov          # the usual case; a non-finite P is refused by the caller
+    # the usual case, checked on Python floats (this runs on every predict and update); a
+    # NaN fails ``>=`` and falls to the finiteness test: a non-finite P is the caller's error
+    if min(cov.ravel()[::5].tolist()) >= 0.0 or not np.all(np.isfinite(cov)):
+        return cov
     values, vectors = np.linalg.eigh(cov)
     out = (vectors * np.maximum(values, 0.0)) @ vectors.T
     return 0.5 * (out + out.T)
