@@ -344,3 +344,35 @@ def test_step_matrices_are_shared_read_only_and_at_most_16():
         _step_matrices(2.0 + k, 1.0)
         sizes.append(len(_STEP_MATRICES))
     assert max(sizes) == 16
+
+
+def test_update_keeps_variances_non_negative_across_24_decades():
+    # found by the property test's dev profile (after the Joseph form): position variance
+    # 1e-9, velocity variance 1e12, sigma_u 0, sigma_w 1e-6, one 4.75 s step.  By hand:
+    # P(t|t-1)_pp = 1e-9 + 4.75^2 1e12 = 2.25625e13, P_pv = 4.75e12, P_vv = 1e12, r = 1e-12;
+    # posterior P_pp = r P_pp / (P_pp + r) = 1e-12 (to 1e-25), P_vv = P_vv (1e-9 + r) /
+    # (P_pp + r) = 4.4e-17, which double precision cannot resolve next to entries of 2e13
+    # (eps * 2.26e13 = 5e-3): the Joseph form alone left it at -1.2e-4
+    kf = ConstantVelocityKalman((0.0, 0.0), sigma_u=0.0, sigma_w=1e-6,
+                                initial_position_var=1e-9, initial_velocity_var=1e12)
+    kf.predict(4.75)
+    kf.update((0.0, 0.0))
+    cov = kf.covariance
+    assert np.all(np.diag(cov) >= 0.0)
+    np.testing.assert_allclose(np.diag(cov)[:2], [1e-12, 1e-12], rtol=1e-6)
+    assert np.all(np.diag(cov)[2:] <= 5e-3)
+    np.testing.assert_array_equal(cov, cov.T)
+
+
+def test_negative_variances_from_rounding_are_clipped_to_the_nearest_psd_matrix():
+    from mk_tracker.kalman import _positive_semidefinite
+    ok = np.diag([4.0, 4.0, 1.0, 1.0])
+    assert _positive_semidefinite(ok) is ok        # the usual case is not touched
+    # eigenvalues of [[1, 2], [2, 1]] are 3 and -1 (vectors (1, 1)/sqrt2, (1, -1)/sqrt2):
+    # clipping -1 leaves 3 (1, 1)(1, 1)^T / 2 = [[1.5, 1.5], [1.5, 1.5]]
+    bad = np.zeros((4, 4))
+    bad[:2, :2] = [[1.0, 2.0], [2.0, 1.0]]
+    bad[2, 2], bad[3, 3] = -1e-6, 5.0
+    out = _positive_semidefinite(bad)
+    np.testing.assert_allclose(out[:2, :2], [[1.5, 1.5], [1.5, 1.5]], atol=1e-12)
+    np.testing.assert_allclose(np.diag(out)[2:], [0.0, 5.0], atol=1e-12)

@@ -207,7 +207,10 @@ def numpy_to_image(array: np.ndarray, encoding: str, header: Any = None, *,
 
 def _to_uint8(array: np.ndarray) -> np.ndarray:
     """Scale a 16-bit or float single-channel image to uint8 by its own min..max range."""
-    values = np.asarray(array, dtype=np.float64)
+    # widening a signalling-NaN float32 pixel raises the FPU "invalid" flag (a
+    # RuntimeWarning per frame); it becomes a quiet NaN and is mapped to 0 below anyway
+    with np.errstate(invalid="ignore"):
+        values = np.asarray(array, dtype=np.float64)
     finite = np.isfinite(values)
     if not finite.any():
         return np.zeros(values.shape, np.uint8)

@@ -628,6 +628,12 @@ def _kernels_loops(bins, ox, oy, stride, centres, axes, models, epsilon, sqrt_we
     rh, rw = bins.shape
     ratio = np.empty(m)
     for i in range(n_k):
+        if not (axes[i, 0] > 0.0 and axes[i, 1] > 0.0):
+            # a zero (or NaN) half-axis, e.g. the layout of a box whose visible part is
+            # thinner than rounding: no pixel, like the numpy path (numba would raise
+            # ZeroDivisionError on 1 / 0 where numpy gives inf)
+            costs[i] = np.inf
+            continue
         cx = centres[i, 0]
         cy = centres[i, 1]
         iax = 1.0 / axes[i, 0]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import array
 import sys
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -51,6 +52,43 @@ def test_round_trip_every_encoding(world, encoding):
     back = image_to_numpy(msg)
     assert back.dtype == dtype and back.shape == arr.shape
     np.testing.assert_array_equal(back, arr)
+
+
+def test_one_channel_array_with_a_unit_axis_reads_back_as_height_by_width():
+    # found by the property test's dev profile: (h, w, 1) is accepted for mono16 and is
+    # read back as (h, w), the documented shape of every one-channel encoding
+    types = WORLDS["bag"]
+    arr = np.array([[[1], [258]]], dtype=np.uint16)          # shape (1, 2, 1)
+    msg = numpy_to_image(arr, "mono16", types=types)
+    assert (msg.height, msg.width, msg.step) == (1, 2, 4)
+    back = image_to_numpy(msg)
+    assert back.shape == (1, 2)
+    assert back.tolist() == [[1, 258]]
+
+
+@pytest.mark.parametrize("big, raw", [(0, b"\x00\x00\x81\x7f"), (1, b"\x7f\x80\x00\x01")])
+def test_signalling_nan_pixels_keep_their_bits(big, raw):
+    # a 32FC1 pixel holding a signalling NaN (0x7f810000 little-endian, 0x7f800001
+    # big-endian) is handed through bit for bit, also through the byteswapping copy; the
+    # property test's own decoder once quieted it (0x7fc1...) by widening to a Python float
+    msg = SimpleNamespace(height=1, width=1, step=4, encoding="32FC1", is_bigendian=big,
+                          data=raw)
+    back = image_to_numpy(msg)
+    want = 0x7F810000 if not big else 0x7F800001
+    assert back.dtype == np.float32 and back.shape == (1, 1)
+    assert int(back.view(np.uint32)[0, 0]) == want
+
+
+def test_signalling_nan_pixels_are_displayed_as_zero_without_a_warning():
+    # 5x dev-profile examples: to_bgr of a 32FC1 image holding a signalling NaN warned
+    # "invalid value encountered in cast" (the float64 widening raises the FPU flag)
+    arr = np.array([[1.0, 1.0, 3.0]], dtype=np.float32)
+    arr.view(np.uint32)[0, 0] = 0x7F810000                  # a signalling NaN
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        bgr = to_bgr(arr, "32FC1")
+    # finite min 1 -> 0, max 3 -> 255, the NaN -> 0
+    np.testing.assert_array_equal(bgr[0, :, 0], [0, 0, 255])
 
 
 def test_ros_world_stores_bytes_as_array_array():

@@ -42,16 +42,22 @@ except ImportError:   # pragma: no cover - rclpy wheels are part of the venv
 
 def decode_independently(raw: bytes, encoding: str, height: int, width: int, step: int,
                          big: bool) -> np.ndarray:
-    """The image a reader must return, decoded one value at a time."""
+    """The image a reader must return, decoded one value at a time.
+
+    float32 values are unpacked as their 32-bit pattern ("I"), never through a Python float:
+    widening to double quiets a signalling NaN (0x7f810000 -> 0x7fc10000), and a reader
+    must hand the camera's bits through unchanged."""
     size, channels, kind = ORACLE[encoding]
     order = ">" if big else "<"
-    out = np.empty((height, width, channels), dtype=NUMPY_OF[kind])
+    bits_kind = {"B": "B", "H": "H", "f": "I"}[kind]
+    bits = np.empty((height, width, channels), dtype=np.dtype(f"u{size}"))
     for r in range(height):
         for c in range(width):
             for k in range(channels):
                 at = r * step + (c * channels + k) * size
                 chunk = raw[at:at + size]
-                out[r, c, k] = struct.unpack(order + kind, chunk)[0]
+                bits[r, c, k] = struct.unpack(order + bits_kind, chunk)[0]
+    out = bits.view(NUMPY_OF[kind])
     return out[:, :, 0] if channels == 1 else out
 
 
@@ -153,7 +159,10 @@ def test_arbitrary_arrays_round_trip_or_raise_our_error(encoding, dtype, shape, 
     assert (msg.height, msg.width) == arr.shape[:2]
     assert msg.step == arr.shape[1] * size * channels
     back = image_to_numpy(msg)
-    assert back.dtype.isnative and back.shape == arr.shape
+    # image_to_numpy promises (h, w) for every one-channel encoding (its docstring, like
+    # cv_bridge), so an accepted (h, w, 1) array comes back without its unit axis.
+    want_shape = arr.shape[:2] if channels == 1 else arr.shape
+    assert back.dtype.isnative and back.shape == want_shape
     assert np.ascontiguousarray(back).tobytes() == np.ascontiguousarray(
         arr.astype(arr.dtype.newbyteorder("="))).tobytes()
     # the display/gray helpers accept whatever was accepted, NaN/inf included

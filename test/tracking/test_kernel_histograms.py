@@ -958,3 +958,22 @@ def test_no_numba_environment_variable_disables_the_compiled_kernels(monkeypatch
 def test_search_region_backend_defaults_to_auto():
     region = SearchRegion(np.zeros((4, 4), np.int32), (0, 0), 1, M)
     assert region.backend == resolve_backend("auto")
+
+
+@needs_numba
+@pytest.mark.filterwarnings("ignore:divide by zero")
+@pytest.mark.parametrize("backend", ["compiled", "numpy"])
+def test_a_kernel_with_a_zero_half_axis_has_no_pixel_on_both_backends(backend):
+    # found by the property test's dev profile: the layout of a box clipped to a sliver
+    # 1.8e-15 px high has zero half-axes; the compiled loop raised ZeroDivisionError
+    region = SearchRegion(np.zeros((4, 16), np.int32), (0, 0), 1, 2, "roof", backend)
+    out = region.evaluate(np.array([[4.0, 0.0], [0.0, 2.0], [4.0, 2.0]]),
+                          np.array([[8.0, 2.0], [8.0, 2.0], [8.0, 2.0]]), np.full((3, 2), 0.5))
+    assert out.n_pixels[:2].tolist() == [0, 0]
+    assert np.isinf(out.costs[:2]).all() and out.similarities[:2].tolist() == [0.0, 0.0]
+    assert out.mean_shift[:2].tolist() == [[0.0, 0.0], [0.0, 0.0]]
+    # the well-formed kernel beside them is evaluated: every pixel is in bin 0, so p = (1, 0)
+    # and J = 0.5 log(0.5 / (0.99 + 0.005)) + 0.5 log(0.5 / 0.005)
+    assert out.n_pixels[2] > 0
+    want = 0.5 * np.log(0.5 / 0.995) + 0.5 * np.log(0.5 / 0.005)
+    assert out.costs[2] == pytest.approx(want, rel=1e-12)

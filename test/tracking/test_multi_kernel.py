@@ -250,6 +250,16 @@ def test_bad_boxes_raise_tracking_input_error(box):
         MultiKernelTracker().start(_smooth_scene(), box)
 
 
+@pytest.mark.parametrize("backend", ["auto", "numpy"])
+def test_a_box_clipped_to_a_sliver_raises_tracking_input_error(backend):
+    # found by the property test's dev profile: (0, 16 - 2e-15, 16, 16) on a 16x16 image is
+    # 1.8e-15 px high inside it, its kernels' half-axes are 0; the compiled backend raised
+    # ZeroDivisionError instead of the documented "kernel with no pixel" error
+    image = np.random.default_rng(0).integers(0, 256, (16, 16, 3), dtype=np.uint8)
+    with pytest.raises(TrackingInputError, match="no pixel"):
+        MultiKernelTracker(backend=backend).start(image, (0.0, 15.999999999999998, 16.0, 16.0))
+
+
 def test_bad_images_and_uniform_targets_raise_tracking_input_error():
     tracker = MultiKernelTracker()
     with pytest.raises(TrackingInputError, match="uniform"):
