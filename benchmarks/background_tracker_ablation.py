@@ -15,7 +15,6 @@ defaults; MOTA / IDF1 as ``mk_tracker process`` scores them (motmetrics, IoU >= 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 from pathlib import Path
@@ -24,10 +23,11 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from mk_tracker.bags.dataset_import import import_sequence  # noqa: E402
 from mk_tracker.bags.datasets import read_sequence  # noqa: E402
-from mk_tracker.tools import cli  # noqa: E402
+from bench_background_detector import tracking_scores  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "mot"
 
@@ -45,18 +45,6 @@ def nested(variant: str) -> dict:
     return out
 
 
-def scores(bag: Path, out: Path, tracker: dict) -> dict:
-    args = ["process", str(bag), "--out", str(out), "--detections", "background", "--quiet",
-            "--no-video"]
-    if tracker:
-        params = out.parent / f"{out.name}.yaml"
-        params.write_text(yaml.safe_dump(
-            {"/**/tracker_node": {"ros__parameters": {"tracker": tracker}}}))
-        args += ["--params-file", str(params)]
-    cli.main(args)
-    return json.loads((out / "summary.json").read_text())["metrics"]
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--variant", nargs="*", default=[],
@@ -72,7 +60,8 @@ def main(argv=None) -> int:
                 continue
             import_sequence(read_sequence(DATA / name), tmp / name)
             for k, (label, variant) in enumerate(variants):
-                m = scores(tmp / name, tmp / f"{name}-{k}", nested(variant))
+                m = tracking_scores(tmp / name, tmp / f"{name}-{k}", "background",
+                                    tracker=nested(variant))
                 rows.append(f"| {name} | {label} | {m['mota']:.3f} | {m['idf1']:.3f} |")
     print("\n".join(["| sequence | tracker parameters | MOTA | IDF1 |", "|---|---|---|---|"]
                     + rows))

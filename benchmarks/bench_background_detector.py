@@ -91,13 +91,21 @@ def detection_scores(frames, truth, fps: float, config: BackgroundDetectorConfig
             "ms": 1000 * float(np.median(times))}
 
 
-def tracking_scores(bag: Path, out: Path, source: str, background: dict | None = None) -> dict:
+def tracking_scores(bag: Path, out: Path, source: str, background: dict | None = None,
+                    tracker: dict | None = None) -> dict:
+    """MOTA / IDF1 / recall / precision of ``mk_tracker process`` on ``bag`` with detections
+    from ``source``, the detector's ``background.*`` and the tracker's ``tracker.*``
+    parameters changed as given (nested dicts)."""
     args = ["process", str(bag), "--out", str(out), "--detections", source, "--quiet",
             "--no-video"]
+    nodes = {}
     if background:
+        nodes["/**/detector_node"] = {"ros__parameters": {"background": background}}
+    if tracker:
+        nodes["/**/tracker_node"] = {"ros__parameters": {"tracker": tracker}}
+    if nodes:
         params = out.parent / f"{out.name}.yaml"
-        params.write_text(yaml.safe_dump(
-            {"/**/detector_node": {"ros__parameters": {"background": background}}}))
+        params.write_text(yaml.safe_dump(nodes))
         args += ["--params-file", str(params)]
     cli.main(args)
     m = json.loads((out / "summary.json").read_text())["metrics"]

@@ -65,6 +65,7 @@ from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjec
                                              MultiObjectTrackerConfig)
 from mk_tracker.parameters import get_value, updated  # noqa: E402
 from hota import hota  # noqa: E402
+from setting_values import setting_value as _value  # noqa: E402
 from peers.norfair_peer import NorfairPeer  # noqa: E402
 from peers.sort_tracker import SortTracker  # noqa: E402
 
@@ -532,18 +533,6 @@ def _held_vs_default(rows, loso) -> str:
             "at the defaults" for r in loso[3]
             if r["sequence"] in ours and abs(r["MOTA"] - ours[r["sequence"]]["MOTA"]) > 0.05]
     return (" (our MOTA: " + "; ".join(gaps) + ")") if gaps else ""
-
-
-def _value(text: str):
-    """A YAML value; numbers YAML reads as strings (``-1e12``) become floats."""
-    import yaml
-    value = yaml.safe_load(text)
-    if isinstance(value, str):
-        try:
-            return float(value)
-        except ValueError:
-            pass
-    return value
 
 
 def main(argv=None) -> int:

@@ -51,21 +51,11 @@ from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker  # noqa: E402
 from mk_tracker.tracking.track import TrackState  # noqa: E402
+from setting_values import setting_value as _value  # noqa: E402
 
 DEFAULT_CLIP = ROOT.parent / "shared" / "data" / "thermal" / "BU-TIV-lab" / "BU-TIV-lab.mp4"
 COUNTER_REGION = (0.0, 0.0, 110.0, 50.0)
 ORDER = ("gate", "size", "appearance", "assigned-elsewhere")
-
-
-def _value(text: str):
-    import yaml
-    value = yaml.safe_load(text)
-    if isinstance(value, str):
-        try:
-            return float(value)
-        except ValueError:
-            pass
-    return value
 
 
 def capture(clip: Path) -> tuple[list, dict]:
