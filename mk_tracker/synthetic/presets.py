@@ -21,7 +21,8 @@ from mk_tracker.synthetic.scene_config import (OccluderSpec, PersonSpec, SceneCo
                                                WarmObjectSpec)
 
 __all__ = ["paper_scene", "occlusion_scene", "crossing_scene", "approach_scene", "crowd_scene",
-           "static_warm_objects_scene", "enter_leave_scene", "far_view_scene", "cross_modal_scene",
+           "static_warm_objects_scene", "enter_leave_scene", "far_view_scene", "static_camera_scene",
+           "cross_modal_scene",
            "CROSS_MODAL_HOMOGRAPHY", "PRESETS"]
 
 
@@ -233,7 +234,8 @@ def enter_leave_scene(seed: int = 0, frames: int = 150) -> SyntheticScene:
 
 
 def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
-                   fps: float = 7.0) -> SyntheticScene:
+                   fps: float = 7.0, stop_fraction: float = 0.0, shadows: float = 0.0,
+                   illumination_drift: float = 0.0) -> SyntheticScene:
     """A far view at a low frame rate: small people crossing from edge to edge (640x480).
 
     The condition of issue #16's unseen outdoor clips: ``fps`` 7, people 50-105 px tall
@@ -241,6 +243,12 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
     edge at a random frame and leaving at the other; about a third walk in pairs (a second
     person 0.6 box widths behind the first on the same line), so people cross, walk
     together and hide one another.  One pillar.  No perspective (a far view).
+
+    ``stop_fraction`` of the walkers (a pair together) stop for good between 30% and 70%
+    of their way across and stand there to the end: the case a background model absorbs.
+    ``shadows`` and ``illumination_drift`` are the scene's ``rgb_shadow_strength`` and
+    ``rgb_illumination_drift``.  At their defaults (0) the scene is the same as before
+    they existed: the stops draw from a random stream of their own.
     """
     _check_preset_args(seed, frames)
     if isinstance(n_people, bool) or not isinstance(n_people, (int, np.integer)) \
@@ -248,7 +256,10 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
         raise SceneError(f"n_people must be a non-negative integer, got {n_people!r}")
     if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
         raise SceneError(f"fps must be a positive number, got {fps!r}")
+    if not (isinstance(stop_fraction, (int, float)) and 0.0 <= stop_fraction <= 1.0):
+        raise SceneError(f"stop_fraction must be in [0, 1], got {stop_fraction!r}")
     rng = np.random.default_rng([seed, 0xFA7])
+    stops = np.random.default_rng([seed, 0x5709])
     width, height = 640, 480
     people = []
     while len(people) < int(n_people):
@@ -262,12 +273,17 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
         xs = (-margin, width + margin) if left_to_right else (width + margin, -margin)
         start = int(rng.integers(0, max(int(0.7 * frames), 1)))
         group = 2 if rng.random() < 0.35 else 1
+        stop_at = float(stops.uniform(0.3, 0.7)) if stops.random() < stop_fraction else None
         for g in range(min(group, int(n_people) - len(people))):
             lag = g * 1.6 * margin * (1 if left_to_right else -1)
+            end = (xs[1] - lag, y_end)
+            if stop_at is not None:   # stand still from here on, on the way across
+                end = (xs[0] - lag + stop_at * (xs[1] - xs[0]),
+                       y_start + stop_at * (y_end - y_start))
             people.append(PersonSpec(
-                waypoints=((xs[0] - lag, y_start), (xs[1] - lag, y_end)),
+                waypoints=((xs[0] - lag, y_start), end),
                 speed=round(speed, 3), height=round(h * (1.0 + 0.05 * g), 2),
-                start_frame=start, after_last="continue",
+                start_frame=start, after_last="continue" if stop_at is None else "stop",
                 torso_temperature=float(rng.uniform(301.5, 304.0))))
     ow, oh = 0.05 * width, 0.35 * height
     cx = float(rng.uniform(0.3, 0.7)) * width
@@ -276,8 +292,20 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
                         color=tuple(int(v) for v in rng.integers(40, 120, 3))),)
     cfg = SceneConfig(seed=seed, frames=frames, fps=float(fps), width=width, height=height,
                       perspective=0.0, turn_rate_deg=20.0, people=tuple(people),
-                      occluders=occ)
+                      occluders=occ, rgb_shadow_strength=float(shadows),
+                      rgb_illumination_drift=float(illumination_drift))
     return make_scene(cfg)
+
+
+def static_camera_scene(n_people: int = 10, seed: int = 0, frames: int = 210,
+                        fps: float = 7.0) -> SyntheticScene:
+    """What a static outdoor surveillance camera sees (issue #13): the far view of
+    :func:`far_view_scene` (7 fps by default; small people crossing, pairs, a pillar) with
+    a quarter of the walkers stopping for good on the way, cast shadows (strength 0.45) and
+    the light fading by 25% over the clip.  The test scene of the RGB-only system
+    (background subtraction -> tracker)."""
+    return far_view_scene(n_people, seed=seed, frames=frames, fps=fps, stop_fraction=0.25,
+                          shadows=0.45, illumination_drift=-0.25)
 
 
 CROSS_MODAL_HOMOGRAPHY = (1.92, 0.06, 18.0,
@@ -331,5 +359,6 @@ PRESETS = {
     "static_warm_objects": static_warm_objects_scene,
     "enter_leave": enter_leave_scene,
     "far_view": far_view_scene,
+    "static_camera": static_camera_scene,
     "cross_modal": cross_modal_scene,
 }

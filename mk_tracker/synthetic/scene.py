@@ -411,6 +411,8 @@ class SyntheticScene:
             thermal[drop] = np.nan if thermal.dtype == np.float32 else 0
         # RGB: static background, targets and occluders in depth order, sensor noise
         rgb = self._bg_rgb.copy()
+        if c.rgb_shadow_strength > 0:
+            self._cast_shadows(rgb, layers)
         for bottom, is_occ, k, box_t, box_r, item in layers:
             if is_occ:
                 x, y, img, mask = item["rgb"]
@@ -421,6 +423,9 @@ class SyntheticScene:
                 continue
             spr = self._sized(item, w, h)
             _paste(rgb, spr.rgb, spr.mask, x, y)
+        if c.rgb_illumination_drift != 0 and len(self) > 1:
+            gain = 1.0 + c.rgb_illumination_drift * i / (len(self) - 1)
+            cv2.convertScaleAbs(rgb, dst=rgb, alpha=gain)
         if c.rgb_noise_std > 0:
             oy, ox = (int(v) for v in rng.integers(0, _NOISE_PAD, size=2))
             H, W = c.height, c.width
@@ -429,6 +434,29 @@ class SyntheticScene:
         truth = self._truth(i, layers, labels, placed)
         return SceneFrame(index=i, stamp=c.start_time + i / c.fps, rgb=rgb, thermal=thermal,
                           objects=truth)
+
+    def _cast_shadows(self, rgb: np.ndarray, layers) -> None:
+        """Darken the ground beside each person's feet (``rgb_shadow_strength``), in place.
+
+        A shadow is a flat ellipse on the ground from the feet towards the right, as cast
+        by a low sun on the left: ``rgb_shadow_length`` person heights long and a fifth of a
+        height deep.  It darkens the background only (people and occluders are drawn over
+        it), keeping the chromaticity: the case shadow suppression is built for
+        (Horprasert et al. 1999)."""
+        c = self.config
+        mask = np.zeros(rgb.shape[:2], np.uint8)
+        for _bottom, is_occ, k, _box_t, box_r, _item in layers:
+            if is_occ or c.people[k].kind != "person":
+                continue
+            x, y, w, h = box_r
+            length = c.rgb_shadow_length * h
+            if length <= 0 or w <= 0 or h <= 0:
+                continue
+            centre = (int(round(x + 0.5 * w + 0.5 * length)), int(round(y + h)))
+            axes = (max(int(round(0.5 * length + 0.3 * w)), 1), max(int(round(0.1 * h)), 1))
+            cv2.ellipse(mask, centre, axes, 0.0, 0.0, 360.0, 255, -1)
+        shaded = mask > 0
+        rgb[shaded] = (rgb[shaded] * (1.0 - c.rgb_shadow_strength)).astype(np.uint8)
 
     def __getitem__(self, index: int) -> SceneFrame:
         return self.frame(index)

@@ -155,7 +155,7 @@ def read_scene_info(path: str | Path) -> dict[str, Any]:
 
 def build_preset(name: str, seed: int = 0, people: int | None = None,
                  frames: int | None = None, width: int | None = None,
-                 height: int | None = None) -> SyntheticScene:
+                 height: int | None = None, fps: float | None = None) -> SyntheticScene:
     """Call preset ``name`` of :data:`mk_tracker.synthetic.presets.PRESETS` with the arguments it
     takes; an argument the preset does not take raises :class:`SceneBagError`."""
     try:
@@ -166,7 +166,7 @@ def build_preset(name: str, seed: int = 0, people: int | None = None,
     accepted = inspect.signature(factory).parameters
     kwargs: dict[str, Any] = {"seed": seed}
     for arg, value in (("n_people", people), ("frames", frames), ("width", width),
-                       ("height", height)):
+                       ("height", height), ("fps", fps)):
         if value is None:
             continue
         if arg not in accepted:
@@ -186,6 +186,8 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, default=None, help="image width (crowd preset)")
     parser.add_argument("--height", type=int, default=None,
                         help="image height (crowd preset)")
+    parser.add_argument("--fps", type=float, default=None,
+                        help="frame rate (far_view and static_camera presets)")
     parser.add_argument("--thermal-encoding", choices=THERMAL_ENCODINGS,
                         default=None, help="override the preset's thermal encoding")
     parser.add_argument("--missing-pixels", type=float, default=None,
@@ -198,7 +200,8 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     try:
         scene = build_preset(args.preset, seed=args.seed, people=args.people,
-                             frames=args.frames, width=args.width, height=args.height)
+                             frames=args.frames, width=args.width, height=args.height,
+                             fps=args.fps)
         changes: dict[str, Any] = {}
         if args.thermal_encoding is not None:
             changes["thermal_encoding"] = args.thermal_encoding

@@ -135,6 +135,16 @@ class SceneConfig:
                                     choices=("textured", "flat"))
     rgb_background_level: int = parameter(110, "grey level of the RGB background", minimum=0,
                                           maximum=255)
+    rgb_shadow_strength: float = parameter(
+        0.0, "cast shadows in RGB: each person darkens the ground beside its feet by this "
+        "fraction (0 = no shadows; a shadow is not part of the person's box)", minimum=0.0,
+        maximum=0.9)
+    rgb_shadow_length: float = parameter(0.5, "length of a cast shadow along the ground, in "
+                                         "person heights", minimum=0.0, maximum=3.0)
+    rgb_illumination_drift: float = parameter(
+        0.0, "slow lighting change in RGB: the image gain moves linearly from 1 at the first "
+        "frame to 1 + this at the last (e.g. -0.3: 30% darker by the end)", minimum=-0.9,
+        maximum=2.0)
     missing_pixel_fraction: float = parameter(0.0, "fraction of thermal pixels dropped per "
                                               "frame (0, or NaN in 32FC1)", minimum=0.0,
                                               maximum=1.0)

@@ -487,3 +487,72 @@ def test_far_view_scene_is_7_fps_small_people_entering_and_leaving_at_the_edges(
         far_view_scene(n_people=-1)
     with pytest.raises(SceneError):
         far_view_scene(fps=0.0)
+
+
+# ---------------------------------------------------------------- RGB shadows, lighting drift
+
+def _standing_person_scene(**changes):
+    """One person standing at foot point (200, 300), 100 px tall, on a flat noiseless
+    background of grey 120 (every RGB change is the one under test)."""
+    person = PersonSpec(waypoints=((200.0, 300.0),), speed=0.0, height=100.0)
+    cfg = SceneConfig(seed=1, frames=3, width=400, height=400, rgb_noise_std=0.0,
+                      rgb_background="flat", rgb_background_level=120, people=(person,))
+    return make_scene(dataclasses.replace(cfg, **changes))
+
+
+def test_cast_shadow_darkens_the_ground_beside_the_feet_and_nothing_else():
+    plain = _standing_person_scene().frame(0)
+    shaded = _standing_person_scene(rgb_shadow_strength=0.5, rgb_shadow_length=1.0).frame(0)
+    x, y, w, h = plain.object(1).box_rgb
+    foot_y = int(round(y + h)) - 1
+    # one person height long from the feet to the right: the ground 30 px right of the
+    # box, at the feet, is half as bright; the same distance to the left is not shadowed
+    right = shaded.rgb[foot_y, int(x + w + 30)]
+    assert np.array_equal(plain.rgb[foot_y, int(x + w + 30)], [120, 120, 120])
+    assert np.array_equal(right, [60, 60, 60])
+    assert np.array_equal(shaded.rgb[foot_y, int(x - 30)], [120, 120, 120])
+    # well above the feet (the upper body's row band) nothing changes, person included
+    top = slice(int(y), int(y + 0.6 * h))
+    assert np.array_equal(shaded.rgb[top], plain.rgb[top])
+    # the ground truth does not include the shadow
+    assert shaded.object(1).box_rgb == plain.object(1).box_rgb
+
+
+def test_illumination_drift_scales_the_image_linearly_in_time():
+    plain = _standing_person_scene()
+    drift = _standing_person_scene(rgb_illumination_drift=-0.5)
+    assert np.array_equal(drift.frame(0).rgb, plain.frame(0).rgb)     # gain 1 at the start
+    # gain 0.75 at the middle frame, 0.5 at the last: grey 120 -> 90 -> 60
+    assert np.array_equal(drift.frame(1).rgb[5, 5], [90, 90, 90])
+    assert np.array_equal(drift.frame(2).rgb[5, 5], [60, 60, 60])
+    assert drift.frame(2).objects == plain.frame(2).objects
+
+
+def test_far_view_stops_keep_the_walkers_and_stop_them_inside_the_image():
+    from mk_tracker.synthetic.presets import far_view_scene
+    walking = far_view_scene(seed=4, frames=60).config.people
+    stopping = far_view_scene(seed=4, frames=60, stop_fraction=1.0).config.people
+    # the same walkers (the stops draw from a stream of their own) ...
+    assert [(p.speed, p.height, p.start_frame, p.waypoints[0]) for p in walking] == \
+        [(p.speed, p.height, p.start_frame, p.waypoints[0]) for p in stopping]
+    for walk, stop in zip(walking, stopping):
+        (x0, y0), (x1, y1) = walk.waypoints
+        (sx, sy) = stop.waypoints[1]
+        # ... each stopping for good 30-70% of its way across, inside the image
+        t = (sx - x0) / (x1 - x0)
+        assert stop.after_last == "stop" and 0.3 <= t <= 0.7
+        assert sy == pytest.approx(y0 + t * (y1 - y0))
+        assert 0.0 < sx < 640.0
+    with pytest.raises(SceneError):
+        far_view_scene(stop_fraction=1.5)
+
+
+def test_static_camera_preset_has_stops_shadows_drift_and_takes_a_frame_rate():
+    from mk_tracker.synthetic.scene_bag import SceneBagError, build_preset
+    scene = build_preset("static_camera", seed=2, frames=5, fps=25.0)
+    cfg = scene.config
+    assert cfg.fps == 25.0
+    assert cfg.rgb_shadow_strength == 0.45 and cfg.rgb_illumination_drift == -0.25
+    assert 0 < sum(p.after_last == "stop" for p in cfg.people) < len(cfg.people)
+    with pytest.raises(SceneBagError, match="does not take --fps"):
+        build_preset("crowd", fps=7.0)
