@@ -235,11 +235,12 @@ def enter_leave_scene(seed: int = 0, frames: int = 150) -> SyntheticScene:
 
 def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
                    fps: float = 7.0, stop_fraction: float = 0.0, shadows: float = 0.0,
-                   illumination_drift: float = 0.0) -> SyntheticScene:
+                   illumination_drift: float = 0.0, heights: tuple = (50.0, 105.0),
+                   perspective: float = 0.0) -> SyntheticScene:
     """A far view at a low frame rate: small people crossing from edge to edge (640x480).
 
     The condition of issue #16's unseen outdoor clips: ``fps`` 7, people 50-105 px tall
-    (18-38 px wide), 6-16 px of motion per frame, each entering at the left or right image
+    (18-38 px wide), 42-112 px/s (6-16 px of motion per frame at 7 fps), each entering at the left or right image
     edge at a random frame and leaving at the other; about a third walk in pairs (a second
     person 0.6 box widths behind the first on the same line), so people cross, walk
     together and hide one another.  One pillar.  No perspective (a far view).
@@ -247,8 +248,10 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
     ``stop_fraction`` of the walkers (a pair together) stop for good between 30% and 70%
     of their way across and stand there to the end: the case a background model absorbs.
     ``shadows`` and ``illumination_drift`` are the scene's ``rgb_shadow_strength`` and
-    ``rgb_illumination_drift``.  At their defaults (0) the scene is the same as before
-    they existed: the stops draw from a random stream of their own.
+    ``rgb_illumination_drift``; ``heights`` the range of the people's heights at the
+    reference row (80% of the image height), ``perspective`` the scene's (sizes
+    proportional to the row of the feet).  At their defaults the scene is the same as
+    before they existed: the stops draw from a random stream of their own.
     """
     _check_preset_args(seed, frames)
     if isinstance(n_people, bool) or not isinstance(n_people, (int, np.integer)) \
@@ -261,14 +264,15 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
     rng = np.random.default_rng([seed, 0xFA7])
     stops = np.random.default_rng([seed, 0x5709])
     width, height = 640, 480
+    nearest = (1.0 - perspective) + perspective * 0.97 / 0.8   # largest size factor
     people = []
     while len(people) < int(n_people):
-        h = float(rng.uniform(50.0, 105.0))
-        speed = float(rng.uniform(6.0, 16.0))
+        h = float(rng.uniform(*heights))
+        speed = float(rng.uniform(6.0, 16.0)) * 7.0 / fps    # 42-112 px/s at any fps
         y_start = float(rng.uniform(0.3, 0.97)) * height
         y_end = min(max(y_start + float(rng.uniform(-0.15, 0.15)) * height, 0.3 * height),
                     0.97 * height)
-        margin = h * PERSON_ASPECT
+        margin = h * nearest * PERSON_ASPECT
         left_to_right = bool(rng.random() < 0.5)
         xs = (-margin, width + margin) if left_to_right else (width + margin, -margin)
         start = int(rng.integers(0, max(int(0.7 * frames), 1)))
@@ -291,7 +295,8 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
     occ = (OccluderSpec(box=(cx - ow / 2, bottom - oh, ow, oh),
                         color=tuple(int(v) for v in rng.integers(40, 120, 3))),)
     cfg = SceneConfig(seed=seed, frames=frames, fps=float(fps), width=width, height=height,
-                      perspective=0.0, turn_rate_deg=20.0, people=tuple(people),
+                      perspective=float(perspective), turn_rate_deg=20.0,
+                      people=tuple(people),
                       occluders=occ, rgb_shadow_strength=float(shadows),
                       rgb_illumination_drift=float(illumination_drift))
     return make_scene(cfg)
@@ -300,12 +305,15 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
 def static_camera_scene(n_people: int = 10, seed: int = 0, frames: int = 210,
                         fps: float = 7.0) -> SyntheticScene:
     """What a static outdoor surveillance camera sees (issue #13): the far view of
-    :func:`far_view_scene` (7 fps by default; small people crossing, pairs, a pillar) with
-    a quarter of the walkers stopping for good on the way, cast shadows (strength 0.45) and
-    the light fading by 25% over the clip.  The test scene of the RGB-only system
-    (background subtraction -> tracker)."""
+    :func:`far_view_scene` (7 fps by default; people crossing, pairs, a pillar) over a
+    ground plane (full perspective: adults of 72-88 px at 80% of the image height, about
+    30 px where the walkable ground starts and 105 px at the bottom), a quarter of the
+    walkers stopping for good on the way, cast shadows (strength 0.45) and the light
+    fading by 25% over the clip.  The test scene of the RGB-only system (background
+    subtraction -> tracker)."""
     return far_view_scene(n_people, seed=seed, frames=frames, fps=fps, stop_fraction=0.25,
-                          shadows=0.45, illumination_drift=-0.25)
+                          shadows=0.45, illumination_drift=-0.25, heights=(72.0, 88.0),
+                          perspective=1.0)
 
 
 CROSS_MODAL_HOMOGRAPHY = (1.92, 0.06, 18.0,

@@ -554,5 +554,21 @@ def test_static_camera_preset_has_stops_shadows_drift_and_takes_a_frame_rate():
     assert cfg.fps == 25.0
     assert cfg.rgb_shadow_strength == 0.45 and cfg.rgb_illumination_drift == -0.25
     assert 0 < sum(p.after_last == "stop" for p in cfg.people) < len(cfg.people)
+    # a ground plane: adults of 72-88 px at the reference row (80% of 480), sizes
+    # proportional to the row of the feet
+    assert cfg.perspective == 1.0
+    assert all(72.0 <= p.height <= 88.0 * 1.05 + 1e-9 for p in cfg.people)
+    boxes = scene.boxes_thermal(0)
+    for (x, y, w, h), p in zip(boxes, cfg.people):
+        assert h == pytest.approx(max(4.0, p.height * (y + h) / 384.0))
     with pytest.raises(SceneBagError, match="does not take --fps"):
         build_preset("crowd", fps=7.0)
+
+
+def test_far_view_walkers_keep_their_speed_in_seconds_at_another_frame_rate():
+    from mk_tracker.synthetic.presets import far_view_scene
+    slow = far_view_scene(seed=6, frames=30).config.people
+    fast = far_view_scene(seed=6, frames=30, fps=28.0).config.people
+    # four times the frame rate: a quarter of the motion per frame (rounded to 3 decimals)
+    for a, b in zip(slow, fast):
+        assert b.speed == pytest.approx(a.speed / 4.0, abs=1e-3)
