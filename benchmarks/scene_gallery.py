@@ -27,6 +27,15 @@ from mk_tracker.synthetic.scene_config import SceneFrame  # noqa: E402
 from mk_tracker.messages.image_conversion import to_bgr  # noqa: E402
 
 PANE = (256, 192)
+RGB_CONDITIONS = """\
+RGB conditions for static-camera tests (`SceneConfig`): `rgb_shadow_strength` and
+`rgb_shadow_length` (a cast shadow on the ground beside each person's feet, not part of
+its box), `rgb_illumination_drift` (the image gain moving linearly over the clip);
+`far_view_scene(stop_fraction=...)` stops some walkers for good on their way across. The
+`static_camera` preset (issue #13's test scene) combines them over a ground plane (sizes
+proportional to the row of the feet, adults 72-88 px at 80% of the image height):
+`mk_tracker generate --preset static_camera --fps 7 --seed S --out scene`. Walking speeds
+are set in px/s, so another `--fps` changes the motion per frame, not the pace."""
 
 
 def pane(frame: SceneFrame, encoding: str, title: str) -> np.ndarray:
@@ -87,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     cv2.imwrite(str(image_path), grid, [cv2.IMWRITE_JPEG_QUALITY, 80])
     lines += ["", "Middle frame of each preset, RGB (left) and thermal (right, display "
               "scaling of `mk_tracker.messages.image_conversion.to_bgr`):", "",
-              f"![presets](images/{image_path.name})", ""]
+              f"![presets](images/{image_path.name})", "", RGB_CONDITIONS, ""]
     out.write_text("\n".join(lines) + "\n", encoding="utf-8")
     print(f"wrote {out} and {image_path}")
     return 0
