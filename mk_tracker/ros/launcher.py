@@ -241,8 +241,12 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
         play += wait_args
         if args.clock:
             play += ["--clock"]
+        played = _bag_topics(args.bag)
         for remap in args.remap:
-            play += ["--remap", remap]
+            # a rule for a topic the bag does not have (e.g. the detector's input remapped
+            # to the RGB camera of an RGB-only bag) is the nodes' alone
+            if not played or remapped(remap.partition(":=")[0], ()) in played:
+                play += ["--remap", remap]
         if namespace:   # the bag's topics at the root go to the nodes in the namespace
             for spec in specs:
                 for topic in NODE_INPUTS.get(spec.name, ()):

@@ -21,6 +21,13 @@ real time.
    per-frame error plot.  Each node's processed and dropped frame counts (from its own
    shutdown log) are printed next to the scores, whatever they are.
 
+``--rgb-only`` is the system for a camera without a thermal twin: the bag has no thermal
+topic, ``detector_node`` runs ``method: background`` (background subtraction) on
+``/image_raw`` (remapped), and the default scene is the ``static_camera`` preset (a far view
+at 7 fps with cast shadows, fading light and people who stop).  The scene and its bag are
+built by :mod:`~mk_tracker.tools.demo_scene`, the outputs read back by
+:mod:`~mk_tracker.tools.demo_outputs`.
+
 ``--compare-offline`` is the slow check instead: playback slow enough that no frame is
 dropped (``--period`` wall seconds per frame, pauses at every full-frame detector pass), the
 offline pipeline (:mod:`mk_tracker.tools.pipeline`) on the same bag with the same parameters
@@ -37,210 +44,31 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import secrets
 import shutil
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from mk_tracker.bags.bag_io import BagError, BagWriter, open_bag
-from mk_tracker.messages.detection_messages import read_detection_array
-from mk_tracker.evaluation.metrics import MotRow, mot_accumulator, mot_metrics, write_mot_file
-from mk_tracker.messages.message_types import stamp_to_nanoseconds, stamp_to_seconds
+from mk_tracker.bags.bag_io import BagError
+from mk_tracker.tools.demo_outputs import (compare_tracks, node_report, node_statistics,
+                                           read_tracks, render_online)
+from mk_tracker.tools.demo_scene import (DEFAULT_FPS, DEFAULT_FRAMES, SCENES,
+                                         STATIC_CAMERA_FPS, DemoError, choose_seed,
+                                         detector_pauses, make_demo_scene, write_demo_bag,
+                                         write_params_file)
 from mk_tracker.tools.pipeline import (CONFIG_DIR, PipelineError, PipelineOptions, format_metrics,
                                  load_pipeline_config, process_bag)
-from mk_tracker.synthetic.scene_bag import (GROUND_TRUTH_TOPIC, RGB_TOPIC, SCENE_INFO_TOPIC,
-                                            THERMAL_TOPIC, build_preset)
 
 SUMMARY_FILE = "demo_summary.json"
-STRIP_FILE = "strip.png"
 RECORD_TOPICS = ("/tracks", "/thermal/detections")
-#: share of a frame period between a thermal frame and its RGB frame in bag time
-RGB_DELAY = 0.75
 #: wall seconds between /scene_info and the first frame, and after the last one
 LEAD_S = 2.0
 #: the same at real time (the player already waits for the nodes and the recorder)
 REALTIME_LEAD_S = 0.5
-END_TOPIC = "/demo/end_of_scene"
-SCENES = ("groups", "crowd")
-#: the scene's frame rate and length by default: 200 frames at 20 fps = 10 s of scene
-DEFAULT_FPS = 20.0
-DEFAULT_FRAMES = 200
-#: frames of the PNG strip and the width of each
-STRIP_FRAMES = 4
-STRIP_WIDTH = 320
-
-
-class DemoError(ValueError):
-    """Bad demo options or an output folder that is not ours to replace."""
-
-
-# -- the scene ----------------------------------------------------------------------------
-
-def choose_seed(seed: int | None) -> int:
-    """``seed`` if given, else a fresh one from the operating system's entropy (so every
-    run without ``--seed`` shows another scene); small enough to type back."""
-    return int(seed) if seed is not None else secrets.randbelow(1_000_000)
-
-
-def groups_scene(seed: int, people: int | None = None, frames: int = DEFAULT_FRAMES,
-                 fps: float = DEFAULT_FPS, width: int = 640, height: int = 480,
-                 pillars: int = 3):
-    """The demo's scene: ``people`` (default 6-10, drawn from ``seed``) in groups of 1-3.
-
-    Each group walks back and forth between the left and the right third of the floor
-    (waypoints alternate sides, each at a random depth), odd groups starting on the other
-    side, so groups meet and cross in the middle, where the ``pillars`` stand (bottom edge
-    at 60-80% of the height: people whose feet are higher up pass behind them).  Members of
-    a group share the group's waypoints shifted by a fixed offset and its speed (60-100 px/s,
-    about 0.7-1.2 m/s for a 1.7 m person 144 px tall), so they walk together: half of the
-    groups side by side (each member 5-8% of the height deeper in the image than the one
-    before and 0.3-0.6 body widths aside, so the nearer one partly hides the farther one
-    while the group crosses the view), the others one after the other (1.6-2.2 body widths
-    apart along x).  Returns ``(scene, groups)``, ``groups`` being the person ids of each
-    group.
-    """
-    from mk_tracker.synthetic.scene import make_scene
-    from mk_tracker.synthetic.scene_config import OccluderSpec, PersonSpec, SceneConfig
-
-    rng = np.random.default_rng([int(seed), 0xDE30])
-    n = int(rng.integers(6, 11)) if people is None else int(people)
-    if n < 1:
-        raise DemoError(f"need at least one person, got {n}")
-    sizes: list[int] = []
-    while sum(sizes) < n:
-        sizes.append(min(n - sum(sizes), int(rng.choice([1, 2, 2, 3, 3]))))
-    body_h = 0.3 * height
-    body_w = body_h / 2.75
-    floor_y = (0.5 * height, 0.9 * height)
-    specs: list = []
-    groups: list[list[int]] = []
-    for g, size in enumerate(sizes):
-        speed = float(rng.uniform(60.0, 100.0)) / fps          # px per frame
-        legs = int(frames * speed / (0.4 * width)) + 3
-        start_left = g % 2 == 0
-        waypoints = np.empty((legs, 2))
-        for j in range(legs):
-            left = start_left == (j % 2 == 0)
-            side = (0.08, 0.32) if left else (0.68, 0.92)
-            waypoints[j] = rng.uniform(*side) * width, rng.uniform(*floor_y)
-        members = []
-        abreast = bool(rng.random() < 0.5)
-        for m in range(size):
-            rank = m - (size - 1) / 2
-            if abreast:   # side by side, ~0.75 m apart: a row deeper per member
-                offset = np.array([rank * rng.uniform(0.3, 0.6) * body_w,
-                                   rank * rng.uniform(0.05, 0.08) * height])
-            else:         # one after the other along the walk, ~1 m apart
-                offset = np.array([rank * rng.uniform(1.6, 2.2) * body_w,
-                                   rng.uniform(-0.02, 0.02) * height])
-            members.append(len(specs))
-            specs.append(PersonSpec(
-                waypoints=tuple(map(tuple, (waypoints + offset).round(2).tolist())),
-                speed=round(speed, 4), height=body_h,
-                torso_temperature=float(rng.uniform(301.5, 304.0))))
-        groups.append(members)
-    occluders = []
-    for k in range(pillars):
-        w, h = 0.06 * width, 0.42 * height
-        cx = width * (k + 1) / (pillars + 1) + float(rng.uniform(-0.04, 0.04)) * width
-        bottom = float(rng.uniform(0.6, 0.8)) * height
-        occluders.append(OccluderSpec(box=(cx - w / 2, bottom - h, w, h),
-                                      color=tuple(int(v) for v in rng.integers(40, 120, 3))))
-    config = SceneConfig(seed=int(seed), frames=int(frames), fps=float(fps), width=int(width),
-                         height=int(height), perspective=0.6, people=tuple(specs),
-                         occluders=tuple(occluders))
-    return make_scene(config), groups
-
-
-# -- the scene bag ------------------------------------------------------------------------
-
-def write_demo_bag(scene: Any, out: Path, pauses: dict[int, float] | None = None,
-                   lead_s: float = 0.0, preset: str = "") -> int:
-    """Render ``scene`` into a new bag at ``out`` with the demo's bag times (module
-    docstring, step 1); the topics, messages and header stamps are those of
-    :func:`mk_tracker.synthetic.scene_bag.write_scene_bag` (without ``/thermal/ground_truth``,
-    which nothing here reads).  Thermal frame ``k`` is logged at its stamp plus ``lead_s``
-    (time after ``/scene_info`` for the player's subscribers to settle) plus every pause
-    ``pauses[j]`` with ``j < k``; its RGB frame and ground truth ``RGB_DELAY`` periods later
-    plus ``pauses[k]`` too.  A last ``END_TOPIC`` message ``lead_s`` (at least a period)
-    after the last frame keeps the player (and its publishers) alive until the last frame
-    has been delivered.  Frames are rendered and written one at a time, straight to their
-    final times (no second copy of a bag of ~1.2 MB a frame).  Returns the frames written."""
-    from mk_tracker.messages.detection_messages import make_detection_array
-    from mk_tracker.messages.image_conversion import numpy_to_image
-    from mk_tracker.messages.message_types import bag_message_types, make_header
-    from mk_tracker.synthetic.scene_bag import (RGB_FRAME_ID, THERMAL_FRAME_ID,
-                                                ground_truth_detections)
-
-    pauses = dict(pauses or {})
-    period_ns = 1e9 / float(scene.config.fps)
-    encoding = scene.config.thermal_encoding
-    info = scene.info()
-    info["preset"] = preset
-    info["topics"] = {"rgb": RGB_TOPIC, "thermal": THERMAL_TOPIC,
-                      "ground_truth": GROUND_TRUTH_TOPIC}
-    info["frame_ids"] = {"rgb": RGB_FRAME_ID, "thermal": THERMAL_FRAME_ID}
-    with BagWriter(out) as writer:
-        types = bag_message_types(writer.typestore)
-        string = writer.typestore.types["std_msgs/msg/String"]
-        for topic, msgtype in ((SCENE_INFO_TOPIC, "std_msgs/msg/String"),
-                               (RGB_TOPIC, "sensor_msgs/msg/Image"),
-                               (THERMAL_TOPIC, "sensor_msgs/msg/Image"),
-                               (GROUND_TRUTH_TOPIC, "vision_msgs/msg/Detection2DArray"),
-                               (END_TOPIC, "std_msgs/msg/String")):
-            writer.add_topic(topic, msgtype)
-        first = round(scene.stamp(0) * 1e9)
-        writer.write(SCENE_INFO_TOPIC, first, string(data=json.dumps(info)))
-        paused = 0.0                        # pauses before frame k, seconds
-        last = first
-        for k in range(len(scene)):
-            frame = scene.frame(k)
-            ns = round(frame.stamp * 1e9)
-            thermal_t = round(ns + 1e9 * (lead_s + paused))
-            paused += pauses.get(k, 0.0)
-            rgb_t = round(ns + 1e9 * (lead_s + paused) + RGB_DELAY * period_ns)
-            rgb_header = make_header(types, RGB_FRAME_ID, ns)
-            thermal_header = make_header(types, THERMAL_FRAME_ID, ns)
-            writer.write(THERMAL_TOPIC, thermal_t, numpy_to_image(
-                frame.thermal, encoding, thermal_header, types=types))
-            writer.write(RGB_TOPIC, rgb_t, numpy_to_image(frame.rgb, "bgr8", rgb_header,
-                                                          types=types))
-            writer.write(GROUND_TRUTH_TOPIC, rgb_t, make_detection_array(
-                ground_truth_detections(scene, frame, "rgb"), rgb_header, types))
-            last = rgb_t
-        writer.write(END_TOPIC, last + round(max(lead_s * 1e9, period_ns)),
-                     string(data="end of the demo scene"))
-    return len(scene)
-
-
-def detector_pauses(config: Any, frames: int, warmup_s: float, full_pass_s: float
-                    ) -> dict[int, float]:
-    """Wall seconds to wait before the RGB frames whose thermal frame gets a full-frame
-    pass of the detector (Schizas et al. 2018, Algorithm 2: the start-up pass after
-    ``startup_frames`` frames, then one every ``reconfigure_period`` frames), which take
-    several times a tracking pass (the first one also compiles the numba kernels)."""
-    first = config.startup_frames - 1
-    pauses = {first: warmup_s}
-    for k in range(first + config.reconfigure_period, frames, config.reconfigure_period):
-        pauses[k] = full_pass_s
-    return pauses
-
-
-def write_params_file(path: Path, homography: Any) -> None:
-    """One parameters file for both nodes and the offline pipeline: the scene's homography
-    (thermal -> RGB) and reliable detection delivery; everything else stays default."""
-    h = ", ".join(repr(float(v)) for v in np.asarray(homography, dtype=float).reshape(9))
-    path.write_text(
-        "detector_node:\n  ros__parameters:\n    method: kernel_covariance\n"
-        "tracker_node:\n  ros__parameters:\n"
-        "    detections_qos:\n      reliability: reliable\n"
-        f"    tracker:\n      homography: [{h}]\n", encoding="utf-8")
+#: ``--rgb-only``: the detector's input is the RGB camera
+RGB_ONLY_REMAPS = ("thermal/image_raw:=image_raw",)
 
 
 # -- running the nodes --------------------------------------------------------------------
@@ -282,14 +110,15 @@ class NodeRun:
 
     def __init__(self, bag: Path, params: Path, record: Path, rate: float, domain_id: int,
                  timeout_s: float, log_path: Path, linger_s: float = 3.0,
-                 startup_wait_s: float = 300.0) -> None:
+                 startup_wait_s: float = 300.0, remaps: list[str] | None = None) -> None:
         import threading
 
         self.ready = bag.parent / (bag.name + ".ready")
         self.status: int | None = None
         self.error: BaseException | None = None
         self._stop = threading.Event()
-        self._specs = self._build(bag, params, record, rate, domain_id, startup_wait_s)
+        self._specs = self._build(bag, params, record, rate, domain_id, startup_wait_s,
+                                  remaps or [])
         self._args = dict(linger_s=linger_s, timeout_s=timeout_s,
                           ready_timeout_s=startup_wait_s, stop_event=self._stop)
         self._log_path = log_path
@@ -297,7 +126,7 @@ class NodeRun:
         self._thread.start()
 
     def _build(self, bag: Path, params: Path, record: Path, rate: float, domain_id: int,
-               startup_wait_s: float) -> list:
+               startup_wait_s: float, remaps: list[str]) -> list:
         from dataclasses import replace
 
         from mk_tracker.ros import launcher
@@ -305,10 +134,12 @@ class NodeRun:
         parser = argparse.ArgumentParser()
         launcher.configure_parser(parser)
         args = parser.parse_args(["--params-file", str(params), "--record", str(record),
-                                  "--record-topics", *RECORD_TOPICS])
+                                  "--record-topics", *RECORD_TOPICS,
+                                  *(a for r in remaps for a in ("--remap", r))])
         # no --bag: the bag does not exist yet; the player is added here
         specs = launcher.build_specs(args)
-        wait_args, go_after = launcher.player_waits(specs)
+        wait_args, go_after = launcher.player_waits(specs, remaps)
+        # the remaps are the nodes' (the RGB-only bag has no thermal topic to remap)
         play = [str(bag), "--rate", f"{rate:.6f}", "--wait-for-subscribers",
                 f"{startup_wait_s:g}", *wait_args]
         specs.append(launcher.ProcessSpec(
@@ -340,241 +171,6 @@ class NodeRun:
         return 1 if self.status is None else self.status
 
 
-def node_statistics(log_path: Path) -> dict[str, dict]:
-    """The ``shutting down: {...}`` statistics each node logged (frames, dropped, ...)."""
-    import ast
-    import re
-
-    stats: dict[str, dict] = {}
-    try:
-        text = log_path.read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return stats
-    for name, body in re.findall(r"\[(\w+_node)\].*shutting down: (\{[^}]*\})", text):
-        try:
-            stats[name] = ast.literal_eval(body)
-        except (ValueError, SyntaxError):
-            continue
-    return stats
-
-
-# -- reading, scoring and comparing -------------------------------------------------------
-
-@dataclass
-class Agreement:
-    frames: int = 0
-    missing_online: int = 0
-    id_mismatch_frames: int = 0
-    max_box_difference: float = 0.0
-    first_difference: str = ""
-
-    def agree(self, tolerance: float) -> bool:
-        return (self.frames > 0 and self.missing_online == 0 and self.id_mismatch_frames == 0
-                and self.max_box_difference <= tolerance)
-
-
-def read_tracks(bag: Path, topic: str = "/tracks", scores: bool = False
-                ) -> dict[int, list[tuple]]:
-    """``{header stamp (ns): [(track id, box), ...]}`` of a tracks topic
-    (``(track id, box, score)`` with ``scores``)."""
-    out: dict[int, list[tuple[int, tuple]]] = {}
-    with open_bag(bag, on_error="skip") as reader:
-        if topic not in reader.topics:
-            return out
-        for _, msg in reader.read_messages([topic]):
-            dets, _ = read_detection_array(msg, on_error="skip")
-            out[stamp_to_nanoseconds(msg.header.stamp)] = [
-                (int(d.id), d.box, d.score) if scores else (int(d.id), d.box)
-                for d in dets if d.id.lstrip("-").isdigit()]
-    return out
-
-
-def compare_tracks(offline: dict[int, list], online: dict[int, list]) -> Agreement:
-    """Frame-by-frame comparison of two ``read_tracks`` results (offline is the reference)."""
-    a = Agreement()
-    for stamp in sorted(offline):
-        a.frames += 1
-        if stamp not in online:
-            a.missing_online += 1
-            a.first_difference = a.first_difference or f"stamp {stamp}: no online tracks"
-            continue
-        off = dict(offline[stamp])
-        on = dict(online[stamp])
-        if set(off) != set(on):
-            a.id_mismatch_frames += 1
-            a.first_difference = a.first_difference or (
-                f"stamp {stamp}: ids offline {sorted(off)} online {sorted(on)}")
-            continue
-        for tid, box in off.items():
-            diff = float(np.max(np.abs(np.subtract(box, on[tid])))) if off else 0.0
-            a.max_box_difference = max(a.max_box_difference, diff)
-    return a
-
-
-# -- outputs ------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class _Drawn:
-    """A recorded track as :func:`mk_tracker.frame_processing.tracker_debug_image` draws it
-    (recorded messages carry no state or kernels)."""
-
-    id: int
-    box: tuple
-    score: float
-    state: str = ""
-
-
-def strip_indices(frames: int, count: int = STRIP_FRAMES) -> list[int]:
-    """Frame indices of the PNG strip: ``count`` evenly spaced from a quarter of the scene
-    (past the detector's start-up and the tracks' confirmation) to its last frame."""
-    if frames <= 0:
-        return []
-    picks = np.linspace(frames // 4, frames - 1, min(count, frames))
-    return sorted({int(round(v)) for v in picks})
-
-
-def write_strip(panels: list[np.ndarray], path: Path, width: int = STRIP_WIDTH) -> tuple:
-    """The annotated frames side by side, each scaled to ``width`` px wide, 4 px apart, as a
-    palette PNG (24-bit if Pillow is missing); returns the PNG's ``(width, height)``."""
-    import cv2
-
-    if not panels:
-        raise DemoError("no frames for the strip")
-    scaled = []
-    for panel in panels:
-        h = max(1, int(round(panel.shape[0] * width / panel.shape[1])))
-        scaled.append(cv2.resize(panel, (width, h), interpolation=cv2.INTER_AREA))
-    height = max(p.shape[0] for p in scaled)
-    gap = np.full((height, 4, 3), 32, dtype=np.uint8)
-    row = []
-    for k, p in enumerate(scaled):
-        if p.shape[0] < height:
-            p = np.vstack([p, np.zeros((height - p.shape[0], width, 3), np.uint8)])
-        row += ([gap] if k else []) + [p]
-    strip = np.hstack(row)
-    try:
-        # a 256-colour palette: 2.4x smaller than the 24-bit PNG of these noisy frames
-        # (~220 KB instead of ~520 KB for four 320x240 panels), no visible loss
-        from PIL import Image
-
-        rgb = Image.fromarray(cv2.cvtColor(strip, cv2.COLOR_BGR2RGB))
-        rgb.quantize(colors=256, method=Image.Quantize.MEDIANCUT,
-                     dither=Image.Dither.NONE).save(path, format="PNG", optimize=True)
-    except ImportError:
-        if not cv2.imwrite(str(path), strip, [cv2.IMWRITE_PNG_COMPRESSION, 9]):
-            raise DemoError(f"cannot write {path}") from None
-    return int(strip.shape[1]), int(strip.shape[0])
-
-
-def _recorded_detections(recorded: Path) -> dict[int, list]:
-    from mk_tracker.tracking.multi_object_tracker import FrameDetection
-
-    out: dict[int, list] = {}
-    with open_bag(recorded, on_error="skip") as reader:
-        if "/thermal/detections" not in reader.topics:
-            return out
-        for _, msg in reader.read_messages(["/thermal/detections"]):
-            out[stamp_to_nanoseconds(msg.header.stamp)] = [
-                FrameDetection(d.box, d.score, stamp_to_seconds(msg.header.stamp), "thermal")
-                for d in read_detection_array(msg, on_error="skip")[0]]
-    return out
-
-
-def render_online(scene_bag: Path, recorded: Path, out: Path, homography: Any,
-                  fps: float, frames: int, error_plot: bool = True) -> dict[str, Any]:
-    """Score the recorded ``/tracks`` and write their MOT file, video, PNG strip and
-    (``error_plot``; importing matplotlib alone takes seconds) the per-frame error plot.
-    The scene bag is read once, frame by frame (a 640x480 scene does not fit in memory
-    comfortably).  A frame without a ``/tracks`` message (the tracker dropped it,
-    or it was lost) has no hypotheses: its people count as misses."""
-    from mk_tracker.drawing.video_output import VideoOutput
-    from mk_tracker.frame_processing import tracker_debug_image, tracker_input
-
-    out.mkdir(parents=True, exist_ok=True)
-    tracks = read_tracks(recorded, scores=True)
-    dets = _recorded_detections(recorded)
-    h = np.asarray(homography, dtype=float).reshape(3, 3)
-    wanted = set(strip_indices(frames))
-    panels: list[np.ndarray] = []
-    stamps: list[int] = []
-    truth_rows: list[MotRow] = []
-    rows: list[MotRow] = []
-    pending: dict[int, tuple[int, Any]] = {}     # stamp -> (frame index, RGB message)
-    truth: dict[int, list] = {}
-
-    def draw(ns: int, video: VideoOutput) -> None:
-        index, msg = pending.pop(ns)
-        people = truth.pop(ns, [])
-        truth_rows.extend(MotRow(index + 1, int(d.id), d.box) for d in people)
-        boxes = [d.box for d in people]
-        drawn = [_Drawn(tid, box, score) for tid, box, score in tracks.get(ns, [])]
-        canvas = tracker_debug_image(
-            tracker_input(msg), drawn, {}, dets.get(ns, []), h,
-            [f"frame {index + 1}  tracks {len(drawn)}"
-             + ("" if ns in tracks else "  (no /tracks message: dropped)")],
-            ground_truth=boxes)
-        video.write(canvas)
-        if index in wanted:
-            panels.append(canvas)
-
-    with VideoOutput(out / "video.mp4", fps=fps) as video, open_bag(scene_bag) as reader:
-        for m, msg in reader.read_messages([RGB_TOPIC, GROUND_TRUTH_TOPIC]):
-            ns = stamp_to_nanoseconds(msg.header.stamp)
-            if m.topic == RGB_TOPIC:
-                index = len(stamps)
-                stamps.append(ns)
-                pending[ns] = (index, msg)
-                rows += [MotRow(index + 1, tid, box, score)
-                         for tid, box, score in tracks.get(ns, [])]
-            else:
-                truth[ns] = read_detection_array(msg)
-            if ns in pending and ns in truth:
-                draw(ns, video)
-        for ns in sorted(pending):                      # frames without ground truth
-            draw(ns, video)
-        video_frames = video.frames
-    write_mot_file(out / "tracks.txt", rows)
-    files = {"tracks": str(out / "tracks.txt"), "video": str(out / "video.mp4")}
-    strip = None
-    if panels:
-        strip = write_strip(panels, out / STRIP_FILE)
-        files["strip"] = str(out / STRIP_FILE)
-    metrics = mot_metrics(truth_rows, rows)
-    tracked = {i + 1 for i, ns in enumerate(stamps) if ns in tracks}
-    metrics_tracked = mot_metrics([r for r in truth_rows if r.frame in tracked],
-                                  [r for r in rows if r.frame in tracked]) if tracked else {}
-    if error_plot:
-        from mk_tracker.evaluation.error_plots import (ErrorPlotError, mot_frame_errors,
-                                                       plot_mot_errors)
-        try:
-            acc = mot_accumulator(truth_rows, rows, frames=range(1, len(stamps) + 1))
-            plot_mot_errors(mot_frame_errors(acc), out / "errors.png",
-                            title="online (nodes over DDS): per-frame errors")
-            files["plot"] = str(out / "errors.png")
-        except ErrorPlotError:
-            pass
-    return {"frames": len(stamps), "frames_with_tracks_message": len(tracked),
-            "detection_messages": sum(ns in dets for ns in stamps),
-            "video_frames": video_frames, "strip_size": strip, "metrics": metrics,
-            "metrics_frames_with_tracks": metrics_tracked, "files": files}
-
-
-def node_report(name: str, stats: dict | None, played: int) -> str:
-    """One line per node: frames played to it, processed, dropped, unaccounted for.
-    ``dropped`` is the node's own count of frames replaced by a newer one before it got to
-    them; the rest of the played frames never reached its worker (lost in transport, or
-    still queued at shutdown)."""
-    if not stats:
-        return (f"{name}: {played} frames played; it logged no statistics (crashed or "
-                "killed?), see launch.log")
-    processed, dropped = int(stats.get("frames", 0)), int(stats.get("dropped", 0))
-    extra = "".join(f", {stats[k]} {k.replace('_', ' ')}"
-                    for k in ("bad_images", "rejected_frames") if stats.get(k))
-    return (f"{name}: {played} frames played, {processed} processed, {dropped} dropped "
-            f"(a newer frame arrived while it was busy), "
-            f"{played - processed - dropped} not received{extra}")
-
-
 # -- the command --------------------------------------------------------------------------
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
@@ -583,15 +179,23 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                              "there is replaced)")
     parser.add_argument("--seed", type=int, default=None,
                         help="scene seed (default: a new one on every run, printed)")
-    parser.add_argument("--scene", choices=SCENES, default="groups",
+    parser.add_argument("--rgb-only", action="store_true",
+                        help="the RGB-only system: no thermal camera; detector_node finds "
+                             "people by background subtraction (method: background) in "
+                             "/image_raw; default scene static_camera")
+    parser.add_argument("--scene", choices=SCENES, default=None,
                         help="groups (default: 6-10 people walking in groups past three "
-                             "pillars) or the crowd preset (people wandering alone, 25 fps)")
+                             "pillars), the crowd preset (people wandering alone, 25 fps) or "
+                             "static_camera (a far view at 7 fps with shadows, fading light "
+                             "and people who stop; the default with --rgb-only)")
     parser.add_argument("--people", type=int, default=None,
-                        help="people (default: 6-10 from the seed; crowd: 5)")
+                        help="people (default: 6-10 from the seed; crowd: 5; "
+                             "static_camera: 10)")
     parser.add_argument("--frames", type=int, default=DEFAULT_FRAMES,
                         help=f"frames (default {DEFAULT_FRAMES})")
     parser.add_argument("--fps", type=float, default=None,
-                        help=f"frame rate of the groups scene (default {DEFAULT_FPS:g})")
+                        help=f"frame rate of the groups scene (default {DEFAULT_FPS:g}) "
+                             f"or the static_camera scene ({STATIC_CAMERA_FPS:g})")
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--warmup", type=float, default=None, metavar="S",
@@ -629,20 +233,6 @@ def _prepare_out(out: Path) -> None:
     out.mkdir(parents=True)
 
 
-def _make_scene(args: argparse.Namespace, seed: int):
-    """``(scene, groups, preset name)`` of the options."""
-    if args.scene == "crowd":
-        if args.fps is not None:
-            raise DemoError("--fps applies to the groups scene only (crowd is 25 fps)")
-        scene = build_preset("crowd", seed=seed, people=args.people or 5, frames=args.frames,
-                             width=args.width, height=args.height)
-        return scene, [[k] for k in range(len(scene.config.people))], "crowd"
-    scene, groups = groups_scene(seed, people=args.people, frames=args.frames,
-                                 fps=args.fps or DEFAULT_FPS, width=args.width,
-                                 height=args.height)
-    return scene, groups, "demo_groups"
-
-
 def _scratch_dir() -> Path:
     """A new folder for the scene bag (several hundred MB at 640x480): in ``/dev/shm``
     (memory) where there is one, which saves seconds of disk writes, else the temp dir."""
@@ -675,7 +265,9 @@ def _run_demo(args: argparse.Namespace, scratch: Path) -> dict[str, Any]:
     t0 = time.monotonic()
     timings: dict[str, float] = {}
     seed = choose_seed(args.seed)
-    scene, groups, preset = _make_scene(args, seed)
+    scene_name = args.scene or ("static_camera" if args.rgb_only else "groups")
+    scene, groups, preset = make_demo_scene(scene_name, seed, args.people, args.frames,
+                                            args.fps, args.width, args.height)
     print(f"scene seed {seed} (mk_tracker demo --seed {seed} shows this scene again): "
           f"{len(scene.config.people)} people in groups of "
           f"{'+'.join(str(len(g)) for g in groups)}, {len(scene.config.occluders)} pillars, "
@@ -684,7 +276,9 @@ def _run_demo(args: argparse.Namespace, scratch: Path) -> dict[str, Any]:
     fps = float(scene.config.fps)
     homography = scene.info()["homography"]
     params = out / "params.yaml"
-    write_params_file(params, homography)
+    write_params_file(params, homography,
+                      method="background" if args.rgb_only else "kernel_covariance")
+    remaps = list(RGB_ONLY_REMAPS) if args.rgb_only else []
     config = load_pipeline_config([params], include_defaults=False)   # as the nodes get it
     frames = len(scene)
     if compare:
@@ -705,10 +299,10 @@ def _run_demo(args: argparse.Namespace, scratch: Path) -> dict[str, Any]:
     if not compare:
         # the nodes start (seconds: imports, numba's cache) while the bag is written
         nodes = NodeRun(bag, params, out / "recorded", rate, domain, log_path=out / "launch.log",
-                        timeout_s=playback_s + 360.0, linger_s=1.0)
+                        timeout_s=playback_s + 360.0, linger_s=1.0, remaps=remaps)
     try:
         write_demo_bag(scene, bag, {k: p * rate for k, p in pauses.items()},
-                       lead_s=lead * rate, preset=preset)
+                       lead_s=lead * rate, preset=preset, thermal=not args.rgb_only)
     except BaseException:
         if nodes is not None:
             nodes.stop()
@@ -725,7 +319,7 @@ def _run_demo(args: argparse.Namespace, scratch: Path) -> dict[str, Any]:
                              PipelineOptions(progress=False, use_scene_homography=False))
         timings["offline"] = time.monotonic() - t
         nodes = NodeRun(bag, params, out / "recorded", rate, domain, log_path=out / "launch.log",
-                        timeout_s=playback_s + 360.0, linger_s=3.0)
+                        timeout_s=playback_s + 360.0, linger_s=3.0, remaps=remaps)
     print(f"playing it through detector_node and tracker_node over DDS (domain {domain}) at "
           + ("real time" if rate == 1.0 else f"rate {rate:.3f} (slow, for the comparison)")
           + f": {scene_s:.1f} s of scene, {playback_s:.1f} s of playback with the "
@@ -744,7 +338,8 @@ def _run_demo(args: argparse.Namespace, scratch: Path) -> dict[str, Any]:
         files["scene_bag"] = str(out / "scene")
     timings["outputs"] = time.monotonic() - t
     summary = {
-        "seed": seed, "scene": preset, "frames": frames, "fps": fps,
+        "seed": seed, "scene": preset, "rgb_only": bool(args.rgb_only), "frames": frames,
+        "fps": fps,
         "people": len(scene.config.people), "groups": groups,
         "size": list(scene.rgb_size), "real_time": not compare,
         "rate": rate, "warmup_pause_s": warmup, "domain_id": domain, "launch_status": status,

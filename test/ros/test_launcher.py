@@ -230,6 +230,32 @@ def test_specs_wait_for_the_nodes_and_namespace(tmp_path):
         normalize_namespace("1cam")
 
 
+def test_a_remap_of_a_topic_the_bag_lacks_is_the_nodes_alone(tmp_path):
+    """RGB only: the detector's input remapped to the RGB camera; the bag has no thermal
+    topic, so the player (which refuses a remap of a topic it does not play) gets no such
+    rule, while both nodes do and the player waits for the detector on /image_raw."""
+    from mk_tracker.bags.bag_io import BagWriter
+
+    bag = tmp_path / "rgb_only"
+    with BagWriter(bag) as writer:
+        writer.add_topic("/image_raw", "sensor_msgs/msg/Image")
+    parser = argparse.ArgumentParser()
+    configure_parser(parser)
+    specs = build_specs(parser.parse_args(["--bag", str(bag), "--remap",
+                                           "thermal/image_raw:=image_raw"]))
+    det, trk, player = specs
+    for node in (det, trk):
+        assert "thermal/image_raw:=image_raw" in node.argv
+    assert "--remap" not in player.argv
+    assert player.go_after == (("detector_node", "/image_raw"),
+                               ("tracker_node", "/image_raw"))
+    # a rule for a topic the bag has still reaches the player
+    specs = build_specs(parser.parse_args(["--bag", str(bag), "--remap",
+                                           "image_raw:=/cam/image_raw"]))
+    argv = list(specs[-1].argv)
+    assert argv[argv.index("--remap") + 1] == "image_raw:=/cam/image_raw"
+
+
 def test_matched_input_reads_the_nodes_match_lines():
     """The launcher's reading of a node's log agrees with what the node logs."""
     line = f"[tracker_node] [INFO] [1.0] [tracker_node]: {matched_text('/image_raw', 1, 1)}"

@@ -18,9 +18,10 @@ from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
 from mk_tracker.drawing.video_output import count_video_frames
 from mk_tracker.synthetic.scene_bag import build_preset
 from mk_tracker.tools.cli import main as cli_main
-from mk_tracker.tools.demo import (RGB_DELAY, STRIP_FRAMES, Agreement, choose_seed,
-                                   compare_tracks, detector_pauses, groups_scene, node_report,
-                                   strip_indices, write_demo_bag, write_strip)
+from mk_tracker.tools.demo_outputs import (STRIP_FRAMES, Agreement, compare_tracks,
+                                           node_report, strip_indices, write_strip)
+from mk_tracker.tools.demo_scene import (RGB_DELAY, choose_seed, detector_pauses, groups_scene,
+                                         write_demo_bag)
 
 FRAMES = 60
 PEOPLE = 3
@@ -174,6 +175,35 @@ def test_demo_compare_offline_agrees(tmp_path, monkeypatch):
     assert agreement["frames"] == FRAMES and agreement["max_box_difference"] <= 1.0
 
 
+def test_demo_rgb_only_tracks_with_background_subtraction_on_the_rgb_topic(tmp_path,
+                                                                          monkeypatch):
+    """``--rgb-only``: no thermal topic is played, detector_node runs ``method: background``
+    on ``/image_raw`` and its detections reach the tracker.  Real time: nothing here
+    assumes how many frames a busy machine drops; what is checked could only fail on a
+    wiring error (wrong topic, wrong method, no detections reaching the tracker)."""
+    _need_ros()
+    from quiet_domain import quiet_domain
+
+    out = tmp_path / "demo"
+    frames = 40
+    rc = cli_main(["demo", "--rgb-only", "--out", str(out), "--frames", str(frames),
+                   "--seed", "3", "--fps", "10", "--keep-bag",
+                   "--domain-id", str(quiet_domain(monkeypatch))])
+    summary = json.loads((out / "demo_summary.json").read_text())
+    assert rc == 0, summary
+    assert summary["rgb_only"] and summary["scene"] == "static_camera"
+    assert summary["launch_status"] == 0
+    log = (out / "launch.log").read_text()
+    assert re.search(r"\[detector_node\] .*detecting people \(background\) in /image_raw", log)
+    assert "method: background" in (out / "params.yaml").read_text()
+    with open_bag(out / "scene") as reader:                  # --keep-bag
+        assert "/thermal/image_raw" not in reader.topics and "/image_raw" in reader.topics
+    detections = _count_messages(out / "recorded", "/thermal/detections")
+    assert 0 < detections <= summary["nodes"]["detector_node"]["frames"] <= frames
+    # people were found and followed: some tracked boxes match the ground truth
+    assert summary["online"]["metrics"]["idf1"] > 0.0, summary["online"]["metrics"]
+
+
 def test_compare_tracks_finds_every_kind_of_difference():
     box = (10.0, 20.0, 30.0, 60.0)
     offline = {1: [(1, box)], 2: [(1, box), (2, box)], 3: [(1, box)], 4: [(1, box)]}
@@ -186,6 +216,24 @@ def test_compare_tracks_finds_every_kind_of_difference():
     assert not a.agree(1.0)
     assert "ids offline [1, 2] online [1]" in a.first_difference
     assert not Agreement().agree(1.0)                            # nothing compared
+
+
+def test_rgb_only_pieces_write_no_thermal_topic_and_the_background_method(tmp_path):
+    from mk_tracker.tools.demo_scene import DemoError, make_demo_scene, write_params_file
+
+    scene, groups, preset = make_demo_scene("static_camera", 5, None, 6, None, 640, 480)
+    assert preset == "static_camera" and scene.config.fps == 7.0
+    assert groups == [[k] for k in range(10)]
+    assert write_demo_bag(scene, tmp_path / "rgb", thermal=False) == 6
+    with open_bag(tmp_path / "rgb") as reader:
+        assert "/thermal/image_raw" not in reader.topics
+    assert _count_messages(tmp_path / "rgb", "/image_raw") == 6
+    write_params_file(tmp_path / "p.yaml", np.eye(3), method="background")
+    assert "    method: background\n" in (tmp_path / "p.yaml").read_text()
+    with pytest.raises(DemoError, match="640x480"):
+        make_demo_scene("static_camera", 5, None, 6, None, 320, 240)
+    with pytest.raises(DemoError, match="crowd is 25 fps"):
+        make_demo_scene("crowd", 5, None, 6, 10.0, 320, 240)
 
 
 def test_pauses_follow_the_detector_full_passes():
