@@ -463,7 +463,10 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="ROS 2 parameters file given to both nodes (repeatable; a file "
                              "is keyed by node name, e.g. config/tracker.yaml)")
     parser.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
-                        help="topic remapping applied to the nodes and the player")
+                        help="topic remapping applied to the nodes, and to the player "
+                             "when the bag has the topic (RGB only: "
+                             "thermal/image_raw:=image_raw feeds the RGB camera to the "
+                             "detector)")
     parser.add_argument("--namespace", default="", metavar="NS",
                         help="run both nodes in namespace NS (their relative topics then "
                              "resolve inside it, e.g. /NS/image_raw); the player plays the "
