@@ -7,7 +7,8 @@ Multi-object (default)::
 ``--gt`` is a MOTChallenge ground-truth file or a sequence folder holding ``gt/gt.txt``; each
 result is a MOTChallenge result file (any tracker's).  Prints MOTA, MOTP, IDF1, IDP, IDR, ID
 switches, fragmentations, FP, FN, mostly tracked / partially tracked / mostly lost per result
-(motmetrics), optionally also as a markdown table (``--markdown``).
+(motmetrics), then HOTA, DetA and AssA (:mod:`mk_tracker.evaluation.hota`, the MOTChallenge
+headline metric), optionally also as a markdown table (``--markdown``).
 
 Single target (OTB protocol)::
 
@@ -27,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from mk_tracker.evaluation import metrics as ev
+from mk_tracker.evaluation.hota import hota
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
@@ -140,8 +142,15 @@ def run(args: argparse.Namespace) -> int:
             for name, path in zip(names, args.results):
                 hyp = ev.read_mot_file(path)
                 accs[name] = ev.mot_accumulator(gt, hyp, iou_threshold=args.iou)
-                rows.append({"name": name, **ev.mot_metrics(gt, hyp, iou_threshold=args.iou)})
+                rows.append({"name": name, **ev.mot_metrics(gt, hyp, iou_threshold=args.iou),
+                             **hota(gt, hyp)})
             print(ev.render_summary(ev.mot_summary(accs)))
+            width = max(len(r["name"]) for r in rows)
+            print(f"{'':{width}}   HOTA   DetA   AssA   (Luiten et al. 2021; alpha "
+                  "0.05..0.95, independent of --iou)")
+            for r in rows:
+                print(f"{r['name']:{width}} {100 * r['hota']:5.1f}% {100 * r['deta']:5.1f}% "
+                      f"{100 * r['assa']:5.1f}%")
         if args.markdown is not None:
             args.markdown.parent.mkdir(parents=True, exist_ok=True)
             args.markdown.write_text(_markdown(rows), encoding="utf-8")

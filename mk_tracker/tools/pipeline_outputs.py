@@ -1,7 +1,7 @@
 """What ``mk_tracker process`` leaves after a run: scores against the ground truth, and files.
 
 * :func:`write_outputs` -- after the run: ``tracks.txt`` (MOTChallenge), ``gt.txt`` when the
-  bag has ground truth, the scores (CLEAR MOT and identity scores; or, for a single target,
+  bag has ground truth, the scores (CLEAR MOT, identity scores and HOTA; or, for a single target,
   the centre error and overlap of Chu et al. 2013 Table I, with ``target.txt`` /
   ``target_gt.txt`` box lists), ``errors.png`` and ``summary.json``.
 * :func:`format_metrics` -- the scores on one line (ratios as percentages).
@@ -17,6 +17,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from mk_tracker.evaluation.hota import hota
 from mk_tracker.evaluation.metrics import (center_errors, mot_accumulator, mot_metrics, overlaps,
                                            single_target_metrics, write_mot_file)
 
@@ -68,7 +69,7 @@ def write_outputs(result: PipelineResult, bag: Path, out: Path, options: Pipelin
                     r.files["plot"] = str(out / "errors.png")
         else:
             frames = list(range(1, r.frames + 1))
-            r.metrics = mot_metrics(r.gt_rows, r.mot_rows)
+            r.metrics = {**mot_metrics(r.gt_rows, r.mot_rows), **hota(r.gt_rows, r.mot_rows)}
             if opts.write_plots:
                 acc = mot_accumulator(r.gt_rows, r.mot_rows, frames=frames)
                 try:
@@ -106,7 +107,8 @@ def format_metrics(metrics: Mapping[str, Any]) -> str:
     parts = []
     for k, v in metrics.items():
         if isinstance(v, float) and k in ("mota", "motp", "idf1", "idp", "idr", "precision",
-                                          "recall", "precision_at_20px", "success_auc"):
+                                          "recall", "precision_at_20px", "success_auc",
+                                          "hota", "deta", "assa"):
             parts.append(f"{k} {100 * v:.1f}%")
         elif isinstance(v, float):
             parts.append(f"{k} {v:.2f}")

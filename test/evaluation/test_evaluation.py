@@ -1,6 +1,7 @@
 """Scoring: CLEAR-MOT/identity metrics on hand-built sequences, MOT files, OTB metrics, CLI."""
 
 import argparse
+import re
 
 import numpy as np
 import pytest
@@ -114,7 +115,11 @@ def test_cli_scores_results_and_writes_markdown(tmp_path, capsys):
     assert evaluation_cli.run(parse(["--gt", str(gt), str(res), "--markdown", str(md)])) == 0
     out = capsys.readouterr().out
     assert "MOTA" in out and "50.0%" in out
-    assert "| res |" in md.read_text()
+    # HOTA of one of two people tracked perfectly: DetA 10 / (10 + 10) = 0.5, AssA 1,
+    # HOTA sqrt(0.5)
+    assert re.search(r"^res\s+70\.7%\s+50\.0%\s+100\.0%$", out, re.M), out
+    table = md.read_text()
+    assert "| res |" in table and "hota | deta | assa |" in table and "| 0.707 | 0.500 | 1.000 |" in table
 
 
 def test_cli_reports_missing_file(tmp_path, capsys):

@@ -16,6 +16,7 @@ from mk_tracker.bags.bag_writer import BagWriter
 from mk_tracker.boxes import iou
 from mk_tracker.tools.cli import main as cli_main
 from mk_tracker.messages.detection_messages import Detection, make_detection_array, read_detection_array
+from mk_tracker.evaluation.hota import hota
 from mk_tracker.evaluation.metrics import mot_metrics, read_box_list, read_mot_file, single_target_metrics
 from mk_tracker.messages.message_types import bag_message_types
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag
@@ -102,8 +103,14 @@ def test_outputs_can_be_rescored_with_mk_tracker_eval(thermal_run, capsys):
     rescored = mot_metrics(gt, read_mot_file(out / "tracks.txt"))
     for name in ("mota", "idf1", "num_switches", "num_misses", "num_false_positives"):
         assert rescored[name] == pytest.approx(result.metrics[name], abs=1e-9), name
+    # HOTA of the written files is the run's (and a real score, not a placeholder)
+    rehota = hota(gt, read_mot_file(out / "tracks.txt"))
+    assert 0.3 < result.metrics["hota"] == pytest.approx(rehota["hota"], abs=1e-9)
     assert cli_main(["eval", "--gt", str(out / "gt.txt"), str(out / "tracks.txt")]) == 0
-    assert f"{100 * result.metrics['mota']:.1f}%" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert f"{100 * result.metrics['mota']:.1f}%" in printed
+    assert f"{100 * result.metrics['hota']:5.1f}% {100 * result.metrics['deta']:5.1f}%" \
+        in printed
 
 
 def test_thermal_mode_scores(thermal_run):
