@@ -284,3 +284,17 @@ def test_two_people_who_look_different_are_both_reported_while_stacked():
     id_b, id_a, out = _one_person_two_tracks(trk)
     for r in out:
         assert {t.id for t in r.reported()} == {id_a, id_b} and not r.suppressed_ids
+
+
+def test_the_hidden_track_is_reported_again_once_both_are_detected():
+    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0,
+                    "duplicates.min_time": 10.0})                # never merged here
+    trk = MultiObjectTracker(cfg)
+    id_b, id_a, out = _one_person_two_tracks(trk, frames_after=4)
+    assert cfg.duplicates.report_one == "detected"               # the default
+    for r in out:                                                # A detected: only A shown
+        assert [t.id for t in r.reported()] == [id_a] and r.suppressed_ids == {id_b}
+    # both detected again (two people): both reported at once
+    r = trk.step(IMG, 34 * DT, [FrameDetection((100, 100, 30, 60), 0.9),
+                                FrameDetection((104, 100, 30, 60), 0.9)])
+    assert {t.id for t in r.reported()} == {id_a, id_b} and not r.suppressed_ids
