@@ -35,8 +35,9 @@ def test_real_thermal_clip_keeps_ids_and_duplicates_down(shared_data, tmp_path):
     18 / 0.18 / 4.33, before the duplicate and still-person rules of #19 21 / 0.59 / 4.58,
     before group measurements 34 / 1.53 / 5.80.  The bounds keep a margin over the newest
     figures (nearby settings of the last-detection gate give 9-17 ids: one re-acquisition
-    changes what follows; the duplicates bound is #19's goal), so every gain so far is
-    guarded without pinning the figure."""
+    changes what follows, with 0.00-0.01 duplicate pairs and 3.9-4.7 tracks per frame; the
+    duplicates bound is #19's goal), so every gain so far is guarded without pinning the
+    figure."""
     from mk_tracker.bags.bag_io import open_bag
     from mk_tracker.tools.cli import main as cli_main
     from mk_tracker.tools.pipeline import PipelineOptions, process_bag
@@ -56,7 +57,7 @@ def test_real_thermal_clip_keeps_ids_and_duplicates_down(shared_data, tmp_path):
     assert result.frames == 562
     stamps = sorted(result.frame_stamps)
     f = identity_figures([list(result.tracks.get(ns, [])) for ns in stamps])
-    assert f["ids"] <= 13 and f["duplicates"] <= 0.02 and f["tracks"] <= 4.7, f
+    assert f["ids"] <= 13 and f["duplicates"] <= 0.02 and f["tracks"] <= 4.8, f
     assert f["tracks"] >= 3.0, f              # people are followed (4-6 visible)
     with open_bag(bag) as reader:             # the imported bag is the clip, thermal only
         assert "/thermal/image_raw" in reader.topics
