@@ -20,7 +20,16 @@ detector, applied to tracks, with the persistence test of "two tracks are one ta
   ``min_similarity`` (two people in different clothes who occlude each other are not
   merged); the older track keeps its id (:func:`survivor`) and takes the newer one's
   Kalman state when the newer one was detected more recently (:func:`merge_into`); the
-  other track is deleted.
+  other track is deleted;
+* while a stacked pair waits for ``min_time`` (and passes the appearance test), only one of
+  its tracks is *published* (``report_one``, :func:`published_of_pair`): by default the one
+  detected last, the box a detector-level non-maximum suppression would keep.  The other is
+  tracked on, unreported; if the pair is then detected as two people both are reported
+  again.  A detector that sees only what moves (Schizas et al. 2018) lets the one
+  detection of a person go to either of two stacked tracks from frame to frame, and their
+  boxes' overlap drifts around ``min_iou``, so the clock restarts again and again and the
+  merge comes late or never (docs/benchmark_real_thermal.md, "Where the duplicate pairs
+  come from"); the pair is then published as one all the while.
 
 Pure functions on ids, boxes and stamps; the tracker
 (:class:`mk_tracker.tracking.multi_object_tracker.MultiObjectTracker`) calls them once per
@@ -39,7 +48,7 @@ from mk_tracker.boxes import iou_matrix
 from mk_tracker.parameters import parameter
 
 __all__ = ["DuplicateConfig", "stacked_pairs", "update_stacked_since", "due_pairs",
-           "survivor", "merge_into"]
+           "survivor", "published_of_pair", "publish_one_of_each", "merge_into"]
 
 Pair = tuple[int, int]
 
@@ -63,6 +72,13 @@ class DuplicateConfig:
         "model must reach on the other track's box for a merge (0 = no appearance test; "
         "without a multiple-kernel refiner and min_similarity > 0 nothing is merged)",
         minimum=0.0, maximum=1.0)
+    report_one: str = parameter(
+        "detected", "While a stacked pair waits for min_time (and passes the appearance test), "
+        "publish only one of its tracks: none (both), survivor (the one that will keep its "
+        "id), detected (the one detected last) or merged (the survivor's id with the box "
+        "of the one detected last, as the merge would make it); the other is tracked on "
+        "but not reported",
+        choices=("none", "survivor", "detected", "merged"))
 
 
 def _key(a: int, b: int) -> Pair:
@@ -111,6 +127,54 @@ def survivor(created_a: float, id_a: int, created_b: float, id_b: int) -> int:
     if created_a != created_b:
         return id_a if created_a < created_b else id_b
     return min(id_a, id_b)
+
+
+def published_of_pair(a, b, mode: str):
+    """Which track of a stacked pair waiting for ``min_time`` is published, and whose box
+    it shows (``duplicates.report_one``): ``(published, hidden, box from)`` of tracks ``a``
+    and ``b`` (anything with ``id``, ``created`` and ``last_detection``), or None for mode
+    ``none``.
+
+    ``survivor``: the track that keeps its id at the merge (:func:`survivor`), with its own
+    box; ``detected``: the one detected last (equal: the survivor), with its own box;
+    ``merged``: the survivor's id with the box of the one detected last, what
+    :func:`merge_into` will make of the pair."""
+    if mode == "none":
+        return None
+    keep = a if survivor(a.created, a.id, b.created, b.id) == a.id else b
+    other = b if keep is a else a
+    latest = other if other.last_detection > keep.last_detection else keep
+    if mode == "survivor":
+        return keep, other, keep
+    if mode == "detected":
+        return latest, (other if latest is keep else keep), latest
+    if mode == "merged":
+        return keep, other, latest
+    raise ValueError(f"unknown report_one mode {mode!r}")
+
+
+def publish_one_of_each(pairs: Iterable[Pair], tracks: dict, look_alike, mode: str
+                        ) -> tuple[set[int], dict[int, np.ndarray]]:
+    """The tracks not to report, and the boxes to report instead of a track's own, for the
+    stacked ``pairs`` still waiting for ``min_time`` (:func:`published_of_pair` per pair).
+
+    ``tracks`` maps an id to its track (with ``state``, ``box``); a pair with a deleted track
+    (merged this frame), a track already hidden by another pair, or that fails
+    ``look_alike(a, b)`` (two people by appearance) is left alone."""
+    hidden: set[int] = set()
+    boxes: dict[int, np.ndarray] = {}
+    if mode == "none":
+        return hidden, boxes
+    for a_id, b_id in pairs:
+        a, b = tracks[a_id], tracks[b_id]
+        if "deleted" in (a.state, b.state) or a.id in hidden or b.id in hidden \
+                or not look_alike(a, b):
+            continue
+        shown, gone, box_from = published_of_pair(a, b, mode)
+        hidden.add(gone.id)
+        if box_from is not shown:
+            boxes[shown.id] = np.array(box_from.box, dtype=float)
+    return hidden, boxes
 
 
 def merge_into(keep, gone) -> None:

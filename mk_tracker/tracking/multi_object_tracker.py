@@ -38,7 +38,9 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
 6. **Update and lifecycle** (:mod:`mk_tracker.tracking.track`); then two reported tracks
    stacked on one person for ``duplicates.min_time`` without being detected as two people
    (and, with ``duplicates.min_similarity``, alike by their appearance models) are merged
-   into the older one (:mod:`mk_tracker.tracking.duplicate_tracks`).
+   into the older one (:mod:`mk_tracker.tracking.duplicate_tracks`); until then such a pair
+   is reported as one track (``duplicates.report_one``; the other is in
+   ``FrameResult.suppressed_ids``).
 
 The refiner is any object with ``start(image, box) -> target``,
 ``refine(image, target, predicted_center=None) -> result`` (with ``box``, ``similarity``
@@ -52,7 +54,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
@@ -60,8 +62,9 @@ import numpy as np
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
-from mk_tracker.tracking.duplicate_tracks import (due_pairs, merge_into, stacked_pairs,
-                                                  survivor, update_stacked_since)
+from mk_tracker.tracking.duplicate_tracks import (due_pairs, merge_into, publish_one_of_each,
+                                                  stacked_pairs, survivor,
+                                                  update_stacked_since)
 from mk_tracker.tracking.group_measurement import (constrain_inside, explained_fraction,
                                                    find_groups)
 from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectTrackerConfig
@@ -153,14 +156,17 @@ class FrameResult:
     events: list[str] = field(default_factory=list)
 
     max_reported_coast_time: float = float("inf")
+    #: live tracks stacked on another one of the same person, not reported
+    suppressed_ids: set[int] = field(default_factory=set)
 
     def reported(self) -> list[TrackOutput]:
         """Tracks to draw or score: confirmed ones, and occluded (coasting) ones for at most
         ``max_reported_coast_time`` seconds since their last detection (always for tracks
-        started by hand, which have no detector)."""
-        return [t for t in self.tracks if t.state == TrackState.CONFIRMED.value
+        started by hand, which have no detector); not those in ``suppressed_ids``."""
+        return [t for t in self.tracks if t.id not in self.suppressed_ids and (
+                t.state == TrackState.CONFIRMED.value
                 or (t.state == TrackState.OCCLUDED.value
-                    and (t.manual or t.time_since_detection <= self.max_reported_coast_time))]
+                    and (t.manual or t.time_since_detection <= self.max_reported_coast_time)))]
 
 
 @dataclass
@@ -247,6 +253,8 @@ class MultiObjectTracker:
         self.last_stamp: float | None = None
         #: pairs of track ids stacked on one another since (stamp), duplicates.*
         self._stacked_since: dict[tuple[int, int], float] = {}
+        #: this frame's published box of a track whose stacked twin was detected last
+        self._published_box: dict[int, np.ndarray] = {}
         self._frame_interval = 0.0       # seconds between the last two frames
         self.frame_size: tuple[int, int] | None = None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
@@ -456,6 +464,10 @@ class MultiObjectTracker:
                 result.deleted_ids.append(t.id)
         self.tracks = [t for t in self.tracks if t.state is not TrackState.DELETED]
         result.tracks = [t.output() for t in self.tracks]
+        if self._published_box:
+            result.tracks = [replace(o, box=tuple(float(v) for v in self._published_box[o.id]))
+                             if o.id in self._published_box else o for o in result.tracks]
+            self._published_box = {}
         for t in self.tracks:
             k = track_kernels(t)
             if k is not None:
@@ -494,6 +506,14 @@ class MultiObjectTracker:
             self.totals["merged_duplicates"] += 1
             result.events.append(f"track {gone.id} merged into track {keep.id} "
                                  "(stacked on one person)")
+        # pairs still waiting are published as one (duplicate_tracks.publish_one_of_each)
+        hidden, boxes = publish_one_of_each(
+            [p for p in self._stacked_since if p[0] in by_id and p[1] in by_id], by_id,
+            lambda a, b: cfg.min_similarity <= 0.0 or self._look_alike(a, b, image,
+                                                                       cfg.min_similarity),
+            cfg.report_one)
+        result.suppressed_ids |= hidden
+        self._published_box = boxes
 
     def _look_alike(self, a: Track, b: Track, image: np.ndarray, floor: float) -> bool:
         """Each track's appearance model matches the other's box with at least ``floor``

@@ -9,6 +9,7 @@ import pytest
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import ParameterError, updated, validate_config
 from mk_tracker.tracking.duplicate_tracks import (DuplicateConfig, due_pairs, merge_into,
+                                                  publish_one_of_each, published_of_pair,
                                                   stacked_pairs, survivor,
                                                   update_stacked_since)
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
@@ -146,7 +147,8 @@ def _one_person_two_tracks(trk, frames_after=12):
 
 
 def test_two_tracks_stacked_on_one_detection_become_the_older_one():
-    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0})
+    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0,
+                    "duplicates.report_one": "none"})      # both reported while waiting
     id_b, id_a, out = _one_person_two_tracks(MultiObjectTracker(cfg))
     # 0.3 s of stacking at 25 fps: still two tracks in the first 7 frames (0.28 s), one
     # from the frame at 0.32 s on (the 9th: 8 intervals of 0.04 s after the first)
@@ -198,3 +200,101 @@ def test_tracks_started_by_hand_are_never_merged():
     assert manual in ids and len(ids) == 2
     assert trk.totals["merged_duplicates"] == 0
 
+
+
+# -- a pair waiting for min_time is published as one (duplicates.report_one) -------------------
+
+class _T:
+    def __init__(self, tid, created, last_detection):
+        self.id, self.created, self.last_detection = tid, created, last_detection
+
+
+@pytest.mark.parametrize("mode, expected", [
+    ("survivor", (3, 8, 3)),          # the older track keeps its id and its own box
+    ("detected", (8, 3, 8)),          # the one detected last, with its box
+    ("merged", (3, 8, 8)),            # older id, box of the one detected last (merge_into)
+])
+def test_published_of_pair_by_mode(mode, expected):
+    old, young = _T(3, 1.0, 2.0), _T(8, 1.5, 2.5)      # the younger was detected last
+    for a, b in ((old, young), (young, old)):            # the order of the pair is irrelevant
+        shown, hidden, box_from = published_of_pair(a, b, mode)
+        assert (shown.id, hidden.id, box_from.id) == expected
+    assert published_of_pair(old, young, "none") is None
+    # the survivor detected last: every mode shows it with its own box
+    recent_old = _T(3, 1.0, 3.0)
+    for mode in ("survivor", "detected", "merged"):
+        shown, hidden, box_from = published_of_pair(young, recent_old, mode)
+        assert (shown.id, hidden.id, box_from.id) == (3, 8, 3)
+    with pytest.raises(ValueError, match="unknown"):
+        published_of_pair(old, young, "both")
+
+
+def test_publish_one_of_each_pair_hides_one_track_per_waiting_pair():
+    def t(tid, created, last, state="confirmed"):
+        u = _T(tid, created, last)
+        u.state, u.box = state, (tid * 10.0, 0.0, 5.0, 10.0)
+        return u
+    tracks = {1: t(1, 0.0, 1.0), 2: t(2, 0.5, 2.0), 3: t(3, 0.7, 1.5), 4: t(4, 0.1, 0.9),
+              5: t(5, 0.2, 3.0, "deleted"), 6: t(6, 0.3, 1.0), 7: t(7, 0.4, 1.2)}
+    pairs = [(1, 2), (2, 3), (4, 5), (6, 7)]
+    alike = lambda a, b: (a.id, b.id) != (6, 7)        # noqa: E731  6 and 7: two people
+    hidden, boxes = publish_one_of_each(pairs, tracks, alike, "merged")
+    # (1, 2): 1 shown with 2's box (2 detected last), 2 hidden; (2, 3): 2 is hidden already,
+    # so 3 stays; (4, 5): 5 was merged away this frame; (6, 7): they look different
+    assert hidden == {2}
+    assert boxes.keys() == {1} and tuple(boxes[1]) == (20.0, 0.0, 5.0, 10.0)
+    hidden, boxes = publish_one_of_each(pairs, tracks, alike, "detected")
+    # (1, 2): 2 (detected at 2.0) shown, 1 hidden; (2, 3): 2 again, detected after 3 (1.5)
+    assert hidden == {1, 3} and boxes == {}
+    assert publish_one_of_each(pairs, tracks, alike, "none") == (set(), {})
+
+
+def test_report_one_is_a_validated_choice():
+    with pytest.raises(ParameterError):
+        validate_config(updated(MultiObjectTrackerConfig(), {"duplicates.report_one": "all"}))
+
+
+@pytest.mark.parametrize("mode", ["survivor", "detected", "merged"])
+def test_a_waiting_pair_is_reported_once_until_it_is_merged(mode):
+    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0,
+                    "duplicates.report_one": mode})
+    id_b, id_a, out = _one_person_two_tracks(MultiObjectTracker(cfg))
+    # while both were detected apart both were reported (asserted in the helper); from the
+    # first frame with A's box alone the pair waits 8 frames, reported as one track
+    for r in out[:8]:
+        (t,) = r.reported()
+        assert {o.id for o in r.tracks} >= {id_a, id_b}        # both are still tracked
+        assert r.suppressed_ids == {id_a, id_b} - {t.id}
+        # A (the younger, id_a) is detected: "detected" shows it; the others the older id
+        assert t.id == (id_a if mode == "detected" else id_b)
+        centre = t.box[0] + t.box[2] / 2
+        if mode == "survivor":       # B's own box: coasting from x = 104 + 15 = 119
+            assert centre > 117.0
+        else:                        # A's box, centred at 100 + 15 = 115
+            assert centre == pytest.approx(115.0, abs=0.5)
+    assert any("merged" in e for e in out[8].events)
+    for r in out[8:]:
+        (t,) = r.reported()
+        assert t.id == id_b and not r.suppressed_ids
+
+
+def test_two_people_who_look_different_are_both_reported_while_stacked():
+    cfg = config(**{"duplicates.min_similarity": 0.3, "duplicates.report_one": "merged"})
+    trk = MultiObjectTracker(cfg, refiner=LabelRefiner({100.0: "red", 104.0: "blue"}))
+    id_b, id_a, out = _one_person_two_tracks(trk)
+    for r in out:
+        assert {t.id for t in r.reported()} == {id_a, id_b} and not r.suppressed_ids
+
+
+def test_the_hidden_track_is_reported_again_once_both_are_detected():
+    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0,
+                    "duplicates.min_time": 10.0})                # never merged here
+    trk = MultiObjectTracker(cfg)
+    id_b, id_a, out = _one_person_two_tracks(trk, frames_after=4)
+    assert cfg.duplicates.report_one == "detected"               # the default
+    for r in out:                                                # A detected: only A shown
+        assert [t.id for t in r.reported()] == [id_a] and r.suppressed_ids == {id_b}
+    # both detected again (two people): both reported at once
+    r = trk.step(IMG, 34 * DT, [FrameDetection((100, 100, 30, 60), 0.9),
+                                FrameDetection((104, 100, 30, 60), 0.9)])
+    assert {t.id for t in r.reported()} == {id_a, id_b} and not r.suppressed_ids
