@@ -28,12 +28,13 @@ from test_environment import REFERENCE_HASHES, REFERENCE_HEADER_HASH, ros_graph_
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE_DIR = REPO / "interfaces" / "mk_tracker_msgs"
 
-# Pinned by the first build of version 0.1.0 (see the module docstring).
+# Pinned by the first build of version 0.1.0, TrackedObject and TrackedObjectArray again by
+# version 0.2.0 (TrackedObject.published added; see the module docstring).
 PINNED_HASHES = {
     "msg/TrackedObject":
-        "RIHS01_0c45553707e8052eb30dc8843611324a8d326e2cde2b00f0689510b912e73abc",
+        "RIHS01_2f4cfa6e22ff9edec4f4fa4c3726b6654aaafb5f61b19e7b5c1c8e1a8730aef0",
     "msg/TrackedObjectArray":
-        "RIHS01_d1334eb1365677c7542844c616edc877e3b12e2685561c5e9be9114382a0061d",
+        "RIHS01_af3029113ba5643a7a9acdabe5432ceef25c2492f6a5f1346c559d312323cec6",
     "srv/StartTrack":
         "RIHS01_c3657d39baf260bea8ab350ba625766f35f87649cdbfa943756469496db55871",
     "srv/StopTrack":
@@ -46,7 +47,7 @@ EXPECTED_FIELDS = {
         "velocity_y": "double", "velocity_covariance": "double[4]",
         "position_covariance": "double[4]", "age": "builtin_interfaces/Duration",
         "time_since_detected": "builtin_interfaces/Duration", "hits": "uint32",
-        "started_by_hand": "boolean"},
+        "started_by_hand": "boolean", "published": "boolean"},
     "TrackedObjectArray": {"header": "std_msgs/Header",
                            "tracks": "sequence<mk_tracker_msgs/TrackedObject>"},
 }

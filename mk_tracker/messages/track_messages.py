@@ -33,7 +33,8 @@ class TrackedObjectFields:
     ``detection`` is exactly what ``tracks`` publishes for the track (id = track id, score =
     the track score clipped to [0, 1]); ``state`` a :data:`STATE_CODES` value; ``velocity``
     px/s; the covariances row-major 2x2; ``age`` and ``time_since_detected`` as
-    ``(sec, nanosec)`` of a builtin_interfaces/Duration.
+    ``(sec, nanosec)`` of a builtin_interfaces/Duration; ``published``: the track is on
+    the ``tracks`` topic this frame.
     """
 
     detection: Detection
@@ -45,6 +46,7 @@ class TrackedObjectFields:
     time_since_detected: tuple[int, int]
     hits: int
     started_by_hand: bool
+    published: bool
 
 
 def duration_fields(seconds: float) -> tuple[int, int]:
@@ -63,8 +65,10 @@ def _finite(values: Iterable[float]) -> bool:
     return all(math.isfinite(float(v)) for v in values)
 
 
-def tracked_object_fields(track: Any, class_id: str) -> TrackedObjectFields | None:
-    """One track (a :class:`~mk_tracker.tracking.track.TrackOutput`) -> its fields.
+def tracked_object_fields(track: Any, class_id: str, published: bool
+                          ) -> TrackedObjectFields | None:
+    """One track (a :class:`~mk_tracker.tracking.track.TrackOutput`) -> its fields;
+    ``published``: it is on the ``tracks`` topic this frame.
 
     None for a track that has no message: a deleted one, or one whose box, velocity,
     covariances or times are not finite (a diverged filter is left out, as ``tracks``
@@ -86,14 +90,17 @@ def tracked_object_fields(track: Any, class_id: str) -> TrackedObjectFields | No
         position_covariance=tuple(float(v) for v in track.position_covariance),
         age=duration_fields(track.age),
         time_since_detected=duration_fields(track.time_since_detection),
-        hits=int(track.hits), started_by_hand=bool(track.manual))
+        hits=int(track.hits), started_by_hand=bool(track.manual), published=bool(published))
 
 
-def tracked_objects(tracks: Iterable[Any], class_id: str) -> list[TrackedObjectFields]:
-    """Every track that has a message (:func:`tracked_object_fields`), in the given order."""
+def tracked_objects(tracks: Iterable[Any], class_id: str, published: Iterable[int]
+                    ) -> list[TrackedObjectFields]:
+    """Every track that has a message (:func:`tracked_object_fields`), in the given order;
+    ``published``: the ids on the ``tracks`` topic this frame."""
+    on_topic = {int(i) for i in published}
     out = []
     for track in tracks:
-        fields = tracked_object_fields(track, class_id)
+        fields = tracked_object_fields(track, class_id, int(track.id) in on_topic)
         if fields is not None:
             out.append(fields)
     return out
@@ -133,5 +140,5 @@ def make_tracked_object_array(objects: Iterable[TrackedObjectFields], header: An
             velocity_covariance=list(o.velocity_covariance),
             position_covariance=list(o.position_covariance),
             age=duration(o.age), time_since_detected=duration(o.time_since_detected),
-            hits=o.hits, started_by_hand=o.started_by_hand)
+            hits=o.hits, started_by_hand=o.started_by_hand, published=o.published)
         for o in objects])

@@ -451,7 +451,8 @@ class TrackerNode(Node):
         self._tracks_pub.publish(tracks_msg)
         if self._detailed_pub.get_subscription_count():   # built only for a reader
             self._detailed_pub.publish(make_tracked_object_array(
-                tracked_objects(result.tracks, class_id), msg.header, self._types,
+                tracked_objects(result.tracks, class_id, (t.id for t in reported)),
+                msg.header, self._types,
                 self._track_types))
         if self.node_config.publish_debug_image and self._debug.wanted():
             self._publish_debug(bgr, msg.header, reported, kernel_drawings(result), dets,

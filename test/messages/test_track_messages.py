@@ -45,7 +45,7 @@ def test_state_codes_are_the_message_constants():
 
 
 def test_one_track_becomes_its_fields():
-    [f] = tracked_objects([_output()], "person")
+    [f] = tracked_objects([_output()], "person", [7])
     assert f.detection == Detection((10.0, 20.0, 30.0, 60.0), 1.0, "person", "7")
     assert f.state == 2
     assert f.velocity == (12.5, -4.0)
@@ -55,6 +55,9 @@ def test_one_track_becomes_its_fields():
     assert f.time_since_detected == (0, 500_000_000)
     assert f.hits == 9
     assert f.started_by_hand is False
+    assert f.published is True
+    # not among the ids on `tracks` this frame: not published
+    assert tracked_objects([_output()], "person", [6, 8])[0].published is False
 
 
 def test_every_state_is_published_but_deleted_and_non_finite_tracks_are_not():
@@ -64,15 +67,15 @@ def test_every_state_is_published_but_deleted_and_non_finite_tracks_are_not():
               _output(id=6, box=(math.nan, 0.0, 10.0, 10.0)),
               _output(id=8, velocity=(math.inf, 0.0)),
               _output(id=9, velocity_covariance=(math.nan, 0.0, 0.0, 1.0))]
-    out = tracked_objects(tracks, "person")
-    assert [(f.detection.id, f.state) for f in out] == [("1", 0), ("2", 1), ("3", 2),
-                                                         ("4", 3)]
+    out = tracked_objects(tracks, "person", [2, 3])
+    assert [(f.detection.id, f.state, f.published) for f in out] == [
+        ("1", 0, False), ("2", 1, True), ("3", 2, True), ("4", 3, False)]
 
 
 def test_the_detection_is_the_one_tracks_publishes():
     tracks = [_output(id=3, state="confirmed", score=0.42),
               _output(id=4, state="occluded", score=-0.1, manual=True)]
-    assert [f.detection for f in tracked_objects(tracks, "pedestrian")] == \
+    assert [f.detection for f in tracked_objects(tracks, "pedestrian", [3, 4])] == \
         tracks_to_detections(tracks, "pedestrian")
 
 
@@ -98,7 +101,7 @@ def test_message_array_holds_the_fields_and_the_header():
     types = ros_message_types()
     header = types.Header(stamp=types.Time(sec=5, nanosec=6), frame_id="rgb")
     fields = tracked_objects([_output(manual=True), _output(id=8, state="tentative")],
-                             "person")
+                             "person", [7])
     msg = make_tracked_object_array(fields, header, types, ros_track_message_types())
     assert msg.header.frame_id == "rgb" and msg.header.stamp.sec == 5
     first, second = msg.tracks
@@ -115,6 +118,7 @@ def test_message_array_holds_the_fields_and_the_header():
     assert (first.time_since_detected.sec, first.time_since_detected.nanosec) == \
         (0, 500_000_000)
     assert first.hits == 9 and first.started_by_hand and not second.started_by_hand
+    assert first.published and not second.published
 
 
 # -- the tracker side ---------------------------------------------------------------------------
@@ -127,8 +131,8 @@ def test_tentative_tracks_reach_the_detailed_output_but_not_tracks():
     tracker = MultiObjectTracker(MultiObjectTrackerConfig(use_multi_kernel=False))
     result = tracker.step(_textured(), 0.0, [FrameDetection((50, 60, 20, 40), 0.9)])
     assert result.reported() == []
-    [f] = tracked_objects(result.tracks, "person")
-    assert f.state == STATE_CODES["tentative"]
+    [f] = tracked_objects(result.tracks, "person", (t.id for t in result.reported()))
+    assert f.state == STATE_CODES["tentative"] and not f.published
     assert f.hits == 1 and f.age == (0, 0) and not f.started_by_hand
 
 
@@ -142,6 +146,7 @@ def test_stop_track_removes_a_live_track_and_refuses_an_unknown_id():
     assert tracker.stop_track(12345) is False
     result = tracker.step(image, 0.04)
     assert [t.id for t in result.tracks] == [kept]
-    assert [f.started_by_hand for f in tracked_objects(result.tracks, "person")] == [True]
+    assert [(f.started_by_hand, f.published) for f in tracked_objects(
+        result.tracks, "person", (t.id for t in result.reported()))] == [(True, True)]
     # ids are never reused
     assert tracker.start_track(image, 0.08, (200, 100, 30, 60)) > stopped

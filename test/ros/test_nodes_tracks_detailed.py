@@ -127,6 +127,8 @@ def test_a_person_goes_tentative_confirmed_occluded_confirmed(peer, node_group):
         assert since == pytest.approx(expected_since, abs=1e-6), i
         # `tracks` (unchanged) carries no tentative track, and the same box for a reported one
         published = read_detection_array(tracks)
+        # `published` says whether the track is on `tracks` this frame
+        assert track.published == bool(published), (i, STATE_NAMES[track.state])
         if track.state == TrackedObject.TENTATIVE:
             assert published == []
         if published:

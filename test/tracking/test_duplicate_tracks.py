@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mk_tracker.messages.track_messages import STATE_CODES, tracked_objects
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import ParameterError, updated, validate_config
 from mk_tracker.tracking.duplicate_tracks import (DuplicateConfig, due_pairs, merge_into,
@@ -294,6 +295,12 @@ def test_the_hidden_track_is_reported_again_once_both_are_detected():
     assert cfg.duplicates.report_one == "detected"               # the default
     for r in out:                                                # A detected: only A shown
         assert [t.id for t in r.reported()] == [id_a] and r.suppressed_ids == {id_b}
+        # ~/tracks_detailed still lists the hidden twin, marked as not published
+        detailed = {f.detection.id: f for f in tracked_objects(
+            r.tracks, "person", (t.id for t in r.reported()))}
+        # (live: coasting, as nothing refines it without multiple kernels)
+        assert detailed[str(id_b)].state == STATE_CODES["occluded"]
+        assert not detailed[str(id_b)].published and detailed[str(id_a)].published
     # both detected again (two people): both reported at once
     r = trk.step(IMG, 34 * DT, [FrameDetection((100, 100, 30, 60), 0.9),
                                 FrameDetection((104, 100, 30, 60), 0.9)])
