@@ -29,11 +29,29 @@ __all__ = ["FootprintSplitting"]
 
 @dataclass
 class _Candidate:
+    """One object found in a pass.  ``level``: the mean newest-frame value (as stored) of
+    its footprint pixels; ``local``: the local background its footprint was found against
+    (median of the non-support pixels of the footprint's search patch); both NaN when not
+    computed (tracking passes, swept support)."""
+
     centroid: tuple[float, float]
     box: tuple[float, float, float, float]
     score: float
     pixel_count: int
+    level: float = math.nan
+    local: float = math.nan
 
+
+def _footprint_levels(frame: np.ndarray, support: np.ndarray,
+                      footprint: tuple[tuple[int, int], np.ndarray]) -> tuple[float, float]:
+    """``(level, local)`` of :class:`_Candidate` for the footprint ``((y0, x0), mask)``,
+    ``mask`` covering the footprint's search patch."""
+    (y0, x0), mask = footprint
+    patch = (slice(y0, y0 + mask.shape[0]), slice(x0, x0 + mask.shape[1]))
+    values = frame[patch]
+    rest = values[~support[patch]]
+    local = float(_median(rest)) if rest.size else math.nan
+    return float(values[mask].mean()), local
 
 
 class FootprintSplitting:
@@ -95,7 +113,8 @@ class FootprintSplitting:
                 return []
             now = describe_pixels(fc + x0, fr + y0)
             parts = [(now.centroid, now.box, now.pixel_count)]
-        return [_Candidate(centroid, box, score, n) for centroid, box, n in parts]
+        levels = _footprint_levels(frame, result.support, fp)
+        return [_Candidate(centroid, box, score, n, *levels) for centroid, box, n in parts]
 
     def _size_candidates(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
                          cols: np.ndarray, bounds: tuple[int, int, int, int],
@@ -114,12 +133,13 @@ class FootprintSplitting:
             return []
         score = float(min(1.0, result.variance[rows, cols].mean() / 0.5))
         now = describe_pixels(fc + x0, fr + y0)
+        levels = _footprint_levels(frame, result.support, fp)
         x, y, w, h = now.box
         expected = self.heights.height_at(y + h) if self._whole_height(y, h) else None
         people = 1 if expected is None else people_in_width(w, c.person_aspect * expected,
                                                             c.split_ratio)
         if people == 1:
-            return [_Candidate(now.centroid, now.box, score, now.pixel_count)]
+            return [_Candidate(now.centroid, now.box, score, now.pixel_count, *levels)]
         first, end = int(fc.min()), int(fc.max()) + 1
         out = []
         expected_width = c.person_aspect * expected
@@ -129,7 +149,7 @@ class FootprintSplitting:
             if pr.size < c.min_object_pixels:
                 continue
             part = describe_pixels(pc + x0 + first + a, pr + y0)
-            out.append(_Candidate(part.centroid, part.box, score, part.pixel_count))
+            out.append(_Candidate(part.centroid, part.box, score, part.pixel_count, *levels))
         return out
 
     def _valley_parts(self, frame: np.ndarray, footprint: tuple[tuple[int, int], np.ndarray]

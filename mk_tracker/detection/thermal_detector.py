@@ -32,6 +32,16 @@ Where the paper is silent, and what we add (each switchable):
   pixels that touch the support are the object.  Clusters whose footprints share pixels
   are merged (a large object's support can fall apart into bands), and a cluster with no
   footprint is the trail an object has left and is dropped.
+* **Background footprints** (``drop_background_footprints``).  Beside a large warm object
+  (a person near the camera) the band of support it swept on its trailing side is
+  surrounded mostly by the object's own unchanged pixels, so the *local* background of
+  that band is the object, and the plain background next to it passes the footprint test
+  (on the colder side).  In full-frame passes an object whose footprint's mean is within
+  the similarity radius of (3.6) of the scene background (the median of the newest frame's
+  non-support pixels) while its local background is not, is dropped; without this rule
+  such a ghost took the upper or lower half of the person through the tracking passes'
+  Voronoi cells (one person at 640x480 reported as two for 60 frames,
+  docs/benchmark_groups.md).
 * **Linked support** (``link_gap``): support pixels closer than ``link_gap`` px always belong
   to one object, in addition to (3.13).  With (3.13) alone, ``epsilon_d`` must be of the
   order of (half an object)^2, i.e. a size prior; the link rule and the footprint merge
@@ -107,13 +117,14 @@ import numpy as np
 from mk_tracker.tracking.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.detection.block_support import SupportResult, _support, support_in_frame
-from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell,
+from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell, _median,
                                             _object_kernel, _owned_support,
                                             _similarity_radius, footprint_mask,
                                             footprint_stats)
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
 from mk_tracker.parameters import parameter, validate_config
-from mk_tracker.detection.footprint_split import FootprintSplitting, _Candidate
+from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate,
+                                                 _footprint_levels)
 from mk_tracker.detection.person_size import PersonHeightModel
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
                                                    link_groups, merge_linked)
@@ -171,6 +182,12 @@ class ThermalDetectorConfig:
     range_max: float = parameter(255.0, "raw value mapped to 1 (normalization=fixed)")
     merge_by_footprint: bool = parameter(True, "merge clusters whose newest-frame footprints "
                                          "touch (needs current_frame_refinement)")
+    drop_background_footprints: bool = parameter(
+        True, "full-frame passes: drop an object whose newest-frame footprint is, by its "
+        "mean, similar (kernel (3.6) >= 1/2) to the scene background (median of the "
+        "non-support pixels) while the local background it was found against is not: "
+        "plain background that only stands out against a large warm neighbour, e.g. the "
+        "band a near person swept; not in the paper; needs current_frame_refinement")
     split_by_valleys: bool = parameter(False, "split a footprint where people touch, along "
                                        "the intensity valleys between peaks that each stand "
                                        "out of the valley by the kernel's similarity radius "
@@ -444,7 +461,31 @@ class ThermalDetector(FootprintSplitting):
                 cand = self._candidate(frame, result, rows[g], cols[g], bounds, footprint=fp)
                 if cand is not None:
                     candidates.append(cand)
+            if c.current_frame_refinement and c.drop_background_footprints and candidates:
+                candidates = self._without_background(frame, result.support, candidates)
         return self._reassociate(candidates)
+
+    def _without_background(self, frame: np.ndarray, support: np.ndarray,
+                            candidates: list[_Candidate]) -> list[_Candidate]:
+        """``drop_background_footprints``: the candidates whose footprint is not the scene's
+        background seen against a neighbour.  A footprint is the set of pixels dissimilar,
+        by (3.6), to the *local* background around a cluster's support; beside a large warm
+        object (a person near the camera) the trailing band of support it swept is
+        surrounded mostly by that object's unchanged pixels, so the local background is
+        the object and the plain background next to it becomes a "footprint" (a ghost,
+        which then takes half of the person in the tracking passes' Voronoi cells).  With
+        the scene background ``b`` (median of the newest frame's non-support pixels) and
+        the similarity radius ``r`` of (3.6), a candidate is such a ghost when its
+        footprint's mean is similar to the scene (``|level - b| <= r``) while its local
+        background is not (``|local - b| > r``): an object seen against the plain
+        background, however faint, is kept."""
+        rest = frame[~support]
+        if rest.size == 0:
+            return candidates
+        scene = float(_median(rest[::max(1, rest.size // 8192)]))
+        radius = float(self._radius())
+        return [cand for cand in candidates
+                if not (abs(cand.level - scene) <= radius < abs(cand.local - scene))]
 
     def _merge_by_footprint(self, frame: np.ndarray, support: np.ndarray, rows: np.ndarray,
                             cols: np.ndarray, groups: list[np.ndarray],
@@ -521,8 +562,9 @@ class ThermalDetector(FootprintSplitting):
             if stats is not _UNSET:
                 if stats is None or stats[2].pixel_count < c.min_object_pixels:
                     return None
-                now = stats[2]
-                return _Candidate(now.centroid, now.box, score, now.pixel_count)
+                (y0, x0), state, now = stats
+                levels = _footprint_levels(frame, result.support, ((y0, x0), state == 1))
+                return _Candidate(now.centroid, now.box, score, now.pixel_count, *levels)
             fp = self._footprint(frame, result.support, rows, cols, bounds, cell)
         if fp is None:
             return None          # support the object has left: a trailing "ghost", no object
@@ -531,7 +573,8 @@ class ThermalDetector(FootprintSplitting):
         if fr.size < c.min_object_pixels:
             return None
         now = describe_pixels(fc + x0, fr + y0)
-        return _Candidate(now.centroid, now.box, score, now.pixel_count)
+        return _Candidate(now.centroid, now.box, score, now.pixel_count,
+                          *_footprint_levels(frame, result.support, fp))
 
     def _reassociate(self, candidates: list[_Candidate]) -> list[ThermalDetection]:
         """Full pass: keep the filters of objects found again, start new ones, and let the
