@@ -112,5 +112,11 @@ class MultiObjectTrackerConfig:
         0.2, "FrameResult.reported() includes an occluded (coasting) track for at most this "
         "many seconds after its last detection; it stays tracked (and in tracks) for longer",
         minimum=0.0, maximum=1e4)
+    max_reported_coast_std: float = parameter(
+        0.0, "FrameResult.reported() also drops an occluded (coasting) track once the std "
+        "of its predicted centre exceeds this fraction of its box (max of sqrt(P_xx) / w "
+        "and sqrt(P_yy) / h of the Kalman covariance (4.3)): such a box is likely off the "
+        "person by the IoU it needs to count; 0 = only max_reported_coast_time",
+        minimum=0.0, maximum=100.0)
     max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
                                 "not started", minimum=1, maximum=100000)
