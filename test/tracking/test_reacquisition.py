@@ -158,3 +158,61 @@ def test_a_track_keeps_its_last_detection_box_itself_not_the_filtered_one():
     assert t.size[0] != 35.0                         # the smoothed size lags behind
     trk.step(IMG, 6 * DT, [])                        # a missed frame leaves it as it was
     assert tuple(t.detected_box) == (120.0, 100.0, 35.0, 60.0)
+
+
+class SwitchRefiner:
+    """No refinement (always lost); appearance similarity 0.9 while ``match`` is set, else
+    0.1 (a person coming back part-occluded, then fully in view)."""
+
+    def __init__(self):
+        self.match = False
+
+    def start(self, image, box):
+        return object()
+
+    def refine(self, image, state, predicted_center=None):
+        return type("R", (), {"box": None, "similarity": 0.0, "lost": True})()
+
+    def appearance_similarity(self, image, state, box):
+        return 0.9 if self.match else 0.1
+
+
+def _comes_back(takeover: float) -> list[set[int]]:
+    """Track 1 walks right at 100 px/s for 15 frames (last detection at x = 156), is
+    unseen for 25 frames (lost after 0.2 s), then a detection at x = 200 for 12 frames
+    (inside the last-detection gate from its first frame, 1.04 s after the last detection:
+    d2 = 44^2 / (60^2 (0.05^2 + (0.3 * 1.04)^2)) = 5.4 < 13.8), whose appearance matches the lost track from the 6th frame on.  Returns the
+    reported ids of those 12 frames."""
+    refiner = SwitchRefiner()
+    trk = MultiObjectTracker(config(reacquire_takeover_time=takeover), refiner=refiner)
+    for i in range(15):
+        trk.step(IMG, i * DT, [FrameDetection((100 + 4.0 * i, 100, 30, 60), 0.9)])
+    for i in range(15, 40):
+        trk.step(IMG, i * DT, [])
+    ids = []
+    for k in range(12):
+        refiner.match = k >= 5
+        r = trk.step(IMG, (40 + k) * DT, [FrameDetection((200.0, 100, 30, 60), 0.9)])
+        ids.append({t.id for t in r.reported()})
+    return ids
+
+
+def test_a_young_track_hands_its_person_back_to_the_lost_track_that_matches():
+    """reacquire_takeover_time 1 s: the new track (id 2, confirmed on its 3rd detection) is
+    0.2 s old when the appearance starts to match; the lost track 1 takes the detection and
+    track 2 ends."""
+    ids = _comes_back(1.0)
+    assert ids[:2] == [set(), set()]                  # tentative (min_hits 3)
+    assert ids[2:5] == [{2}] * 3
+    assert ids[5:] == [{1}] * 7
+
+
+def test_without_takeover_the_new_id_stays():
+    ids = _comes_back(0.0)
+    assert ids[2:] == [{2}] * 10
+
+
+def test_an_older_track_is_not_taken_over():
+    """Track 2 is confirmed 0.08 s after its birth and 0.2 s old at the match: a takeover
+    time of 0.1 s has passed, so the id stays 2."""
+    assert _comes_back(0.1)[2:] == [{2}] * 10
