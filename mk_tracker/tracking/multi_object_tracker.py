@@ -374,13 +374,8 @@ class MultiObjectTracker:
         # A person reappearing part-occluded may first be seen by a new tentative track (its
         # appearance does not match yet); its detections stay candidates until it is
         # confirmed, and when one re-acquires a lost track the tentative track is dropped.
-        # With reacquire_takeover_time, a young confirmed track offers its detection too:
-        # the person came back before their appearance matched, and takes the old id back
-        # once it does (one ID switch instead of a new identity for the rest of the stay).
         lost = [t for t in live if t.state is TrackState.LOST]
-        tentative = {t.id: t for t in live if t.state is TrackState.TENTATIVE
-                     or (t.state in OUTPUT_STATES and not t.manual and lost
-                         and stamp - t.created <= self.config.reacquire_takeover_time)}
+        tentative = {t.id: t for t in live if t.state is TrackState.TENTATIVE}
         remaining = [k for k in single
                      if k not in matched_track or matched_track[k] in tentative]
         held: set[int] = set()             # tentative tracks not confirmed this frame
@@ -388,15 +383,15 @@ class MultiObjectTracker:
             matches, contested = self._reacquire(lost, [dets[k] for k in remaining], image_bgr)
             for k in contested:
                 tid = matched_track.get(remaining[k])
-                if tid in tentative and tentative[tid].state is TrackState.TENTATIVE and \
-                        stamp - tentative[tid].created < self.config.reacquire_hold_time:
+                if tid in tentative and stamp - tentative[tid].created < \
+                        self.config.reacquire_hold_time:
                     held.add(tid)
             for r, k in matches:
                 previous = matched_track.get(remaining[k])
                 if previous is not None:
-                    result.events.append(f"{tentative[previous].state.value} track "
-                                         f"{previous} is lost track {lost[r].id} coming back")
                     tentative[previous].state = TrackState.DELETED
+                    result.events.append(f"tentative track {previous} is lost track "
+                                         f"{lost[r].id} coming back")
                 matched_track[remaining[k]] = lost[r].id
                 result.events.append(f"track {lost[r].id} re-acquired")
         live = [t for t in live if t.state is not TrackState.DELETED]

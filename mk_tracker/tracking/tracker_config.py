@@ -85,11 +85,6 @@ class MultiObjectTrackerConfig:
         "leave-one-sequence-out fold of benchmarks/bench_multi_object.py): never held; on "
         "TUD-Stadtmitte the held tracks never took a lost id back and their people went "
         "unreported for 15 frames each", minimum=0.0, maximum=1e4)
-    reacquire_takeover_time: float = parameter(
-        0.0, "A confirmed track younger than this many seconds still offers its detection "
-        "to the lost tracks; when one re-acquires it (gate, size and appearance as for any "
-        "re-acquisition) the young track ends and the person goes on under the lost id.  "
-        "0 = only tentative tracks offer theirs", minimum=0.0, maximum=1e4)
     reacquire_max_size_ratio: float = parameter(
         1.6, "Largest height ratio between a lost track and a re-acquiring detection",
         minimum=1.0, maximum=100.0)
