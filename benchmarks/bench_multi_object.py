@@ -300,6 +300,12 @@ DEFAULTS_NOTE = [
     "* Holding only while the detection's appearance similarity to the lost track is at "
     "least 0.2 or 0.3: in-sample on the four sequences like no hold at all (mean MOTA + "
     "IDF1 1.539 / 1.542 vs 1.542).  Not kept.",
+    "* Instead of the hold, a takeover: a confirmed track younger than 1 s still offers "
+    "its detection to the lost tracks, and ends when one of them re-acquires it by "
+    "appearance (`reacquire_takeover_time`; at the defaults crowd-30 0.642 / 0.548 -> "
+    "0.646 / 0.585).  As a grid dimension (0, 1 s; 64 settings, `--people 15`) three folds "
+    "chose it, but it helps only crowd-15, the fold that did not: held out 0.720 / 0.784 "
+    "vs 0.721 / 0.784.  Deleted.",
     "",
     "Mechanisms tried in earlier sessions and their held-out means (MOTA / IDF1), measured "
     "before `duplicates.*` and `lifecycle.still_speed` existed, with the grid of that time "
