@@ -89,3 +89,14 @@ def test_a_small_person_stops_being_reported_sooner():
     small = sum(rep for rep, _ in _coasting_frames(0.1, (20.0, 40.0)))
     large = sum(rep for rep, _ in _coasting_frames(0.1, (60.0, 120.0)))
     assert 0 < small < large < 40
+
+
+def test_a_coasting_track_of_unknown_uncertainty_is_not_reported():
+    """A non-finite covariance says nothing about where the person is: no crash, and the
+    coasting box is left out (a confirmed one is still reported)."""
+    tracks = [output(1, "occluded", (0, 0, 30, 80), math.nan, 16.0),
+              output(2, "occluded", (0, 0, 30, 80), math.inf, 16.0),
+              output(3, "confirmed", (0, 0, 30, 80), math.nan, math.nan)]
+    result = FrameResult(stamp=1.0, tracks=tracks, max_reported_coast_time=1.0,
+                         max_reported_coast_std=0.15)
+    assert [t.id for t in result.reported()] == [3]
