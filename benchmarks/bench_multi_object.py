@@ -306,6 +306,12 @@ DEFAULTS_NOTE = [
     "0.646 / 0.585).  As a grid dimension (0, 1 s; 64 settings, `--people 15`) three folds "
     "chose it, but it helps only crowd-15, the fold that did not: held out 0.720 / 0.784 "
     "vs 0.721 / 0.784.  Deleted.",
+    "* Confirmation in seconds: a tentative track also confirmed on its second detection "
+    "once 0.075 s old (`lifecycle.min_confirm_time`: min_hits 3 at 25-30 fps, 2 at 7 fps). "
+    " As a grid dimension (0, 0.075; 64 settings, `--people 15`) a tie on every fold: it "
+    "acts only with `min_hits` 3, which no fold chose.  At the shipped defaults (`min_hits` "
+    "3) far-7fps 0.909 / 0.952 -> 0.932 / 0.965, the 25-fps sequences, BU-TIV-lab (30 fps) "
+    "and the groups unchanged; not a held-out win, so deleted.",
     "",
     "Mechanisms tried in earlier sessions and their held-out means (MOTA / IDF1), measured "
     "before `duplicates.*` and `lifecycle.still_speed` existed, with the grid of that time "
