@@ -688,8 +688,8 @@ class MultiObjectTracker:
         Also returns the detections inside some lost track's Kalman gate (whatever their
         appearance): a tentative track on one of those is not confirmed for up to
         ``reacquire_hold_time``, so the lost person coming back part-occluded gets a few
-        frames to match its appearance (0 by default: on TUD-Stadtmitte the held tracks
-        never took a lost id back and went unreported meanwhile).  The
+        frames to match its appearance (0 by default: on TUD-Stadtmitte the three
+        longest-held tracks never took a lost id back and went unreported meanwhile).  The
         last-detection gate does not hold tentative tracks: where a person left the image
         another one often enters, and holding those cost MOTA on the 7 fps RGB sequence.
         """

@@ -83,8 +83,8 @@ class MultiObjectTrackerConfig:
         "to this many seconds, so the lost person can take its id back once its appearance "
         "matches (it may come back part-occluded).  0 (default, chosen by every "
         "leave-one-sequence-out fold of benchmarks/bench_multi_object.py): never held; on "
-        "TUD-Stadtmitte the held tracks never took a lost id back and their people went "
-        "unreported for 15 frames each", minimum=0.0, maximum=1e4)
+        "TUD-Stadtmitte the three longest-held tracks never took a lost id back, and their "
+        "people went unreported for 15-16 frames each", minimum=0.0, maximum=1e4)
     reacquire_max_size_ratio: float = parameter(
         1.6, "Largest height ratio between a lost track and a re-acquiring detection",
         minimum=1.0, maximum=100.0)
