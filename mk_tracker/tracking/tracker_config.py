@@ -79,9 +79,12 @@ class MultiObjectTrackerConfig:
         0.5, "Weight of the gated distance (d2 / gate) next to 1 - appearance similarity in "
         "the re-acquisition cost", minimum=0.0, maximum=100.0)
     reacquire_hold_time: float = parameter(
-        0.6, "A new track on a detection inside a lost track's gate stays tentative for up "
+        0.0, "A new track on a detection inside a lost track's gate stays tentative for up "
         "to this many seconds, so the lost person can take its id back once its appearance "
-        "matches (it may come back part-occluded)", minimum=0.0, maximum=1e4)
+        "matches (it may come back part-occluded).  0 (default, chosen by every "
+        "leave-one-sequence-out fold of benchmarks/bench_multi_object.py): never held; on "
+        "TUD-Stadtmitte the three longest-held tracks never took a lost id back, and their "
+        "people went unreported for 15-16 frames each", minimum=0.0, maximum=1e4)
     reacquire_max_size_ratio: float = parameter(
         1.6, "Largest height ratio between a lost track and a re-acquiring detection",
         minimum=1.0, maximum=100.0)
@@ -112,5 +115,12 @@ class MultiObjectTrackerConfig:
         0.2, "FrameResult.reported() includes an occluded (coasting) track for at most this "
         "many seconds after its last detection; it stays tracked (and in tracks) for longer",
         minimum=0.0, maximum=1e4)
+    max_reported_coast_std: float = parameter(
+        0.12, "FrameResult.reported() also drops an occluded (coasting) track once the std "
+        "of its predicted centre exceeds this fraction of its box (max of sqrt(P_xx) / w "
+        "and sqrt(P_yy) / h of the Kalman covariance (4.3)): such a box is likely off the "
+        "person by the IoU it needs to count (chosen by 3 of 4 leave-one-sequence-out "
+        "folds of benchmarks/bench_multi_object.py); 0 = only max_reported_coast_time",
+        minimum=0.0, maximum=100.0)
     max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
                                 "not started", minimum=1, maximum=100000)

@@ -102,9 +102,11 @@ def test_every_constant_is_a_validated_parameter():
 # -- in the tracker ---------------------------------------------------------------------------
 
 def config(**changes) -> MultiObjectTrackerConfig:
-    """Defaults with ``changes``; a coasting track stays reported for 1 s (the default 0.2 s
-    would hide the undetected duplicate from ``reported()`` before the rule acts)."""
-    return updated(MultiObjectTrackerConfig(), {"max_reported_coast_time": 1.0, **changes})
+    """Defaults with ``changes``; a coasting track stays reported for 1 s, whatever its
+    uncertainty (the default 0.2 s and ``max_reported_coast_std`` would hide the undetected
+    duplicate from ``reported()`` before the rule acts)."""
+    return updated(MultiObjectTrackerConfig(), {"max_reported_coast_time": 1.0,
+                                                "max_reported_coast_std": 0.0, **changes})
 
 
 class LabelRefiner:

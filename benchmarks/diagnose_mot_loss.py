@@ -1,0 +1,266 @@
+"""Where our multi-object MOTA goes, next to SORT's (issue #16 item 2).
+
+MOTA = 1 - (FN + FP + IDSW) / GT.  This script runs our tracker (the shipped defaults, or
+``--set name=value`` overrides) and the SORT-style peer on the same detections as
+``benchmarks/bench_multi_object.py`` (its loading functions), scores every frame with
+motmetrics (IoU >= 0.5, ``acc.mot_events``) and splits each of our errors by its cause,
+read from the tracker's own state in that frame:
+
+False positives (a reported box of ours matched to nobody):
+
+* ``coasting``: the track had no detection this frame (state ``occluded``, reported for
+  ``max_reported_coast_time``) -- split into ``person gone`` (IoU < 0.1 with every person)
+  and ``off a person`` (IoU 0.1-0.5);
+* ``refinement only``: ``confirmed`` without a detection (the multiple-kernel refinement
+  saw it), same split;
+* ``detected, box off, detection on``: the track got a detection this frame that matches
+  a missed person at IoU >= 0.5, but the reported (Kalman-filtered) box does not;
+* ``detected, detection off too``: the detection itself overlaps the person by < 0.5;
+* ``detected, on a false detection``: the detection lies on no person (IoU < 0.1);
+* ``duplicate``: IoU >= 0.5 with a person matched by another id.
+
+Misses (a person matched to no box of ours):
+
+* with a detection of that person (IoU >= 0.5) that frame: ``our box off`` (a reported box
+  of ours at IoU 0.1-0.5, counted again among the false positives), ``tentative`` (our
+  track on it is not confirmed yet), ``covered by a neighbour's box`` (the nearest reported
+  box is matched to another person), ``detection unused`` (none of the above);
+* without one: ``coast dropped, would match`` (a live track of ours, not reported -- coasting
+  beyond ``max_reported_coast_time`` or lost -- has a box at IoU >= 0.5), ``coast dropped,
+  off`` (such a box at 0.1-0.5), ``neighbour's box``, ``nothing`` (no box near).
+
+Every reported box is also counted as matched / unmatched by its kind (detected, group
+member, refinement only, coasting by the std of its centre per box side, the quantity of
+``max_reported_coast_std``), which says which kind of box is worth reporting at all: an
+unmatched box costs one false positive, a matched one saves one miss.
+
+ID switches are split by whether the person was matched in the frame before (a hand-over
+between neighbours) or came back after a gap.  The SORT-style peer's FP / FN / IDSW are
+split only by "a detection of the person existed".
+
+    nice -n 10 .venv/bin/python benchmarks/diagnose_mot_loss.py [--sequences TUD-Campus ...] \
+        [--set lifecycle.min_hits=2 ...]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from collections import Counter  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_multi_object as bmo  # noqa: E402
+from mk_tracker.boxes import iou_matrix  # noqa: E402
+from mk_tracker.evaluation.metrics import MotRow, mot_accumulator  # noqa: E402
+from mk_tracker.parameters import updated  # noqa: E402
+from mk_tracker.tracking.multi_object_tracker import (FrameDetection,  # noqa: E402
+                                                      MultiObjectTracker,
+                                                      MultiObjectTrackerConfig,
+                                                      coast_position_std)
+from setting_values import setting_value  # noqa: E402
+
+MATCHED = ["MATCH", "SWITCH", "TRANSFER", "ASCEND", "MIGRATE"]
+
+
+def _iou(box, others) -> np.ndarray:
+    if not len(others):
+        return np.zeros(0)
+    return iou_matrix(np.array([box], float), np.array(others, float))[0]
+
+
+def run_ours(config, frames):
+    """Our tracker over ``frames``; returns the reported rows and, per frame, every live
+    track as ``{id: (state, box, detected this frame, detection box or None, reported)}``."""
+    tracker = MultiObjectTracker(config)
+    hyp, states = [], []
+    seen_det: dict[int, int] = {}
+    for k, (image, stamp, dets, _) in enumerate(frames):
+        res = tracker.step(image, stamp, [FrameDetection(tuple(d[:4]), d[4], stamp)
+                                          for d in dets])
+        reported = {t.id for t in res.reported()}
+        by_id = {t.id: t for t in tracker.tracks}
+        info = {}
+        for t in res.tracks:
+            tr = by_id.get(t.id)
+            detected = t.time_since_detection == 0.0 and t.hits > 0
+            det_box = None
+            if detected and tr is not None and id(tr.detected_box) != seen_det.get(t.id):
+                det_box = tuple(float(v) for v in tr.detected_box)   # not a group member
+            if tr is not None:
+                seen_det[t.id] = id(tr.detected_box)
+            info[t.id] = (t.state, t.box, detected, det_box, t.id in reported,
+                          coast_position_std(t), t.time_since_detection)
+            if t.id in reported:
+                hyp.append(MotRow(k + 1, t.id, tuple(t.box)))
+        states.append(info)
+    return hyp, states
+
+
+def events(frames, hyp):
+    gt_rows = [r for _, _, _, g in frames for r in g]
+    ev = mot_accumulator(gt_rows, hyp).mot_events.reset_index()
+    match = {(int(e.FrameId), int(e.OId)): int(e.HId)
+             for _, e in ev[ev.Type.isin(MATCHED)].iterrows()}
+    return ev, match, len(gt_rows)
+
+
+def diagnose_ours(frames, hyp, states):
+    ev, match, n_gt = events(frames, hyp)
+    carried = {(f, h) for (f, _), h in match.items()}
+    fp, fn, sw = Counter(), Counter(), Counter()
+    for _, e in ev[ev.Type == "FP"].iterrows():
+        f, h = int(e.FrameId), int(e.HId)
+        gts = frames[f - 1][3]
+        state, box, detected, det_box = states[f - 1][h][:4]
+        ious = _iou(box, [g.box for g in gts])
+        top = int(np.argmax(ious)) if len(ious) else None
+        best = float(ious[top]) if top is not None else 0.0
+        if best >= 0.5 and (f, gts[top].id) in match:
+            fp["duplicate"] += 1
+        elif not detected:
+            kind = "coasting" if state == "occluded" else "refinement only"
+            fp[f"{kind}, {'person gone' if best < 0.1 else 'off a person'}"] += 1
+        elif det_box is None:
+            fp["detected (group member), box off"] += 1
+        else:
+            dious = _iou(det_box, [g.box for g in gts])
+            dtop = int(np.argmax(dious)) if len(dious) else None
+            dbest = float(dious[dtop]) if dtop is not None else 0.0
+            if dbest >= 0.5 and (f, gts[dtop].id) not in match:
+                fp["detected, box off, detection on"] += 1
+            elif dbest < 0.1:
+                fp["detected, on a false detection"] += 1
+            else:
+                fp["detected, detection off too"] += 1
+    for _, e in ev[ev.Type == "MISS"].iterrows():
+        f, o = int(e.FrameId), int(e.OId)
+        gts = {g.id: g.box for g in frames[f - 1][3]}
+        box = gts[o]
+        dets = [d[:4] for d in frames[f - 1][2]]
+        detected = len(dets) and _iou(box, dets).max() >= 0.5
+        info = states[f - 1]
+        rep = {h: v[1] for h, v in info.items() if v[4]}
+        rep_iou = {h: float(_iou(box, [b])[0]) for h, b in rep.items()}
+        near = max(rep_iou, key=rep_iou.get) if rep_iou else None
+        near_v = rep_iou[near] if near is not None else 0.0
+        hidden = {h: float(_iou(box, [v[1]])[0]) for h, v in info.items()
+                  if not v[4] and v[0] in ("occluded", "lost", "confirmed")}
+        tent = [h for h, v in info.items() if v[0] == "tentative"
+                and float(_iou(box, [v[1]])[0]) >= 0.3]
+        if detected:
+            if near is not None and near_v >= 0.1 and (f, near) not in carried:
+                fn["detected: our box off"] += 1
+            elif tent:
+                fn["detected: tentative"] += 1
+            elif near is not None and near_v >= 0.1:
+                fn["detected: covered by a neighbour's box"] += 1
+            else:
+                fn["detected: detection unused"] += 1
+        else:
+            best_hidden = max(hidden.values(), default=0.0)
+            if best_hidden >= 0.5:
+                fn["undetected: coast dropped, would match"] += 1
+            elif near is not None and near_v >= 0.1 and (f, near) not in carried:
+                fn["undetected: our box off"] += 1
+            elif best_hidden >= 0.1:
+                fn["undetected: coast dropped, off"] += 1
+            elif near is not None and near_v >= 0.1:
+                fn["undetected: neighbour's box"] += 1
+            else:
+                fn["undetected: nothing"] += 1
+    kinds = Counter()
+    matched_h = {(f, h) for (f, _), h in match.items()}
+    for k, info in enumerate(states):
+        for h, v in info.items():
+            if not v[4]:
+                continue
+            if v[0] == "occluded":
+                kind = f"coasting, std {min(int(v[5] / 0.1), 5) / 10:.1f}+ w"
+            elif not v[2]:
+                kind = "refinement only"
+            elif v[3] is None:
+                kind = "group member"
+            else:
+                kind = "detected"
+            kinds[(kind, (k + 1, h) in matched_h)] += 1
+    for kind in sorted({k for k, _ in kinds}):
+        print(f"  reported {kind:28s}: {kinds[(kind, True)]:4d} matched, "
+              f"{kinds[(kind, False)]:4d} unmatched")
+    for _, e in ev[ev.Type == "SWITCH"].iterrows():
+        f, o = int(e.FrameId), int(e.OId)
+        sw["hand-over (matched the frame before)" if (f - 1, o) in match
+           else "after a gap"] += 1
+    return n_gt, fp, fn, sw
+
+
+def diagnose_peer(frames, hyp):
+    ev, match, n_gt = events(frames, hyp)
+    fn = Counter()
+    for _, e in ev[ev.Type == "MISS"].iterrows():
+        f, o = int(e.FrameId), int(e.OId)
+        box = {g.id: g.box for g in frames[f - 1][3]}[o]
+        dets = [d[:4] for d in frames[f - 1][2]]
+        fn["detected" if len(dets) and _iou(box, dets).max() >= 0.5 else "undetected"] += 1
+    return n_gt, int((ev.Type == "FP").sum()), fn, int((ev.Type == "SWITCH").sum())
+
+
+def report(name, frames, config) -> list[str]:
+    hyp, states = run_ours(config, frames)
+    n_gt, fp, fn, sw = diagnose_ours(frames, hyp, states)
+    shyp, _, _ = bmo.run_tracker(bmo.SortTracker(), frames)
+    _, s_fp, s_fn, s_sw = diagnose_peer(frames, shyp)
+    o_fp, o_fn, o_sw = sum(fp.values()), sum(fn.values()), sum(sw.values())
+    lines = [f"## {name} ({n_gt} gt boxes)", "",
+             "| | ours | SORT | ours - SORT (MOTA points) |", "|---|---|---|---|",
+             f"| MOTA | {1 - (o_fp + o_fn + o_sw) / n_gt:.3f} | "
+             f"{1 - (s_fp + sum(s_fn.values()) + s_sw) / n_gt:.3f} | |",
+             f"| FP | {o_fp} | {s_fp} | {-(o_fp - s_fp) / n_gt:+.3f} |",
+             f"| FN | {o_fn} | {sum(s_fn.values())} | "
+             f"{-(o_fn - sum(s_fn.values())) / n_gt:+.3f} |",
+             f"| FN with a detection | {sum(v for k, v in fn.items() if k.startswith('detected'))}"
+             f" | {s_fn['detected']} | |",
+             f"| ID switches | {o_sw} | {s_sw} | {-(o_sw - s_sw) / n_gt:+.3f} |", "",
+             "| our error | cause | count | MOTA points |", "|---|---|---|---|"]
+    for label, counter in (("FP", fp), ("FN", fn), ("IDSW", sw)):
+        for cause, n in counter.most_common():
+            lines.append(f"| {label} | {cause} | {n} | {n / n_gt:.3f} |")
+    return lines + [""]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data")
+    parser.add_argument("--sequences", nargs="+", default=["TUD-Campus", "TUD-Stadtmitte"])
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    args = parser.parse_args(argv)
+    changes = {}
+    for item in args.set:
+        name, _, value = item.partition("=")
+        changes[name] = setting_value(value)
+    config = updated(MultiObjectTrackerConfig(), changes)
+    print(f"# Our errors by cause, next to SORT's\n\nsetting: defaults"
+          f"{' + ' + str(changes) if changes else ''}\n")
+    for name in args.sequences:
+        if name.startswith("TUD"):
+            frames, _ = bmo.tud_frames(args.data / "mot" / name)
+        elif name.startswith("crowd-"):
+            frames, _ = bmo.crowd_frames(int(name.split("-")[1]), 1, 300, 0.5, 0.1, 0.3, 2.0)
+        else:
+            frames, _ = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0)
+        print("\n".join(report(name, frames, config)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,102 @@
+"""Which tracks FrameResult.reported() gives out: the coasting bounds in time and in the
+centre's uncertainty relative to the box (``max_reported_coast_std``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mk_tracker.parameters import updated
+from mk_tracker.tracking.multi_object_tracker import (FrameDetection, FrameResult,
+                                                      MultiObjectTracker,
+                                                      MultiObjectTrackerConfig,
+                                                      coast_position_std)
+from mk_tracker.tracking.track import TrackOutput
+
+IMG = np.zeros((480, 640, 3), np.uint8)
+DT = 1.0 / 25.0
+
+
+def output(track_id, state, box, pxx, pyy, since=0.1, manual=False) -> TrackOutput:
+    return TrackOutput(id=track_id, state=state, box=box, score=0.0, velocity=(0.0, 0.0),
+                       age=1.0, time_since_detection=since, hits=5, manual=manual,
+                       position_covariance=(pxx, 0.0, 0.0, pyy))
+
+
+def test_coast_position_std_is_the_larger_of_the_std_per_box_side():
+    # sqrt(9) / 30 = 0.1 against sqrt(16) / 80 = 0.05
+    assert coast_position_std(output(1, "occluded", (0, 0, 30, 80), 9.0, 16.0)) \
+        == pytest.approx(0.1)
+    # sqrt(1) / 30 = 0.033 against sqrt(64) / 40 = 0.2
+    assert coast_position_std(output(1, "occluded", (0, 0, 30, 40), 1.0, 64.0)) \
+        == pytest.approx(0.2)
+    assert coast_position_std(output(1, "occluded", (0, 0, 0, 40), 1.0, 1.0)) == math.inf
+
+
+def test_reported_drops_only_coasting_tracks_above_the_bound():
+    tracks = [output(1, "occluded", (0, 0, 30, 80), 9.0, 16.0),       # 0.10: kept
+              output(2, "occluded", (0, 0, 30, 40), 1.0, 64.0),       # 0.20: dropped
+              output(3, "confirmed", (0, 0, 30, 40), 400.0, 400.0),   # seen: kept
+              output(4, "occluded", (0, 0, 30, 40), 1.0, 64.0, manual=True),  # by hand
+              output(5, "occluded", (0, 0, 30, 80), 9.0, 16.0, since=0.5),    # too long
+              output(6, "lost", (0, 0, 30, 80), 0.0, 0.0)]
+    result = FrameResult(stamp=1.0, tracks=tracks, max_reported_coast_time=0.3,
+                         max_reported_coast_std=0.15)
+    assert [t.id for t in result.reported()] == [1, 3, 4]
+    # 0 = no bound on the uncertainty: the time bound alone
+    result.max_reported_coast_std = 0.0
+    assert [t.id for t in result.reported()] == [1, 2, 3, 4]
+
+
+def _coasting_frames(limit: float, size: tuple[float, float]) -> list[tuple[bool, float]]:
+    """A person walking right at 100 px/s, detected for 20 frames, then never again; per
+    coasting frame (reported?, the std per box side computed here from the output)."""
+    trk = MultiObjectTracker(updated(MultiObjectTrackerConfig(), {
+        "use_multi_kernel": False, "max_reported_coast_time": 10.0,
+        "lifecycle.max_coast_time": 10.0, "lifecycle.max_undetected_time": 0.0,
+        "max_reported_coast_std": limit}))
+    w, h = size
+    for i in range(20):
+        trk.step(IMG, i * DT, [FrameDetection((100 + 4.0 * i, 200, w, h), 0.9)])
+    frames = []
+    for i in range(20, 60):
+        r = trk.step(IMG, i * DT, [])
+        (t,) = r.tracks
+        assert t.state == "occluded"
+        pxx, _, _, pyy = t.position_covariance
+        std = max(math.sqrt(pxx) / t.box[2], math.sqrt(pyy) / t.box[3])
+        frames.append((t.id in {u.id for u in r.reported()}, std))
+    return frames
+
+
+def test_a_coasting_track_is_reported_while_its_centre_is_certain_to_the_bound():
+    frames = _coasting_frames(0.1, (30.0, 60.0))
+    reported = [rep for rep, _ in frames]
+    # the uncertainty grows while coasting (4.3), so the reported frames come first
+    assert reported[0] and not reported[-1]
+    assert reported == sorted(reported, reverse=True)
+    for rep, std in frames:
+        assert rep == (std <= 0.1)
+    # without the bound the same track is reported in every coasting frame (time bound 10 s)
+    assert all(rep for rep, _ in _coasting_frames(0.0, (30.0, 60.0)))
+
+
+def test_a_small_person_stops_being_reported_sooner():
+    """The same motion and Kalman uncertainty in px: a box a third as large loses the
+    overlap it needs three times sooner in px, so it is dropped after fewer frames."""
+    small = sum(rep for rep, _ in _coasting_frames(0.1, (20.0, 40.0)))
+    large = sum(rep for rep, _ in _coasting_frames(0.1, (60.0, 120.0)))
+    assert 0 < small < large < 40
+
+
+def test_a_coasting_track_of_unknown_uncertainty_is_not_reported():
+    """A non-finite covariance says nothing about where the person is: no crash, and the
+    coasting box is left out (a confirmed one is still reported)."""
+    tracks = [output(1, "occluded", (0, 0, 30, 80), math.nan, 16.0),
+              output(2, "occluded", (0, 0, 30, 80), math.inf, 16.0),
+              output(3, "confirmed", (0, 0, 30, 80), math.nan, math.nan)]
+    result = FrameResult(stamp=1.0, tracks=tracks, max_reported_coast_time=1.0,
+                         max_reported_coast_std=0.15)
+    assert [t.id for t in result.reported()] == [3]
