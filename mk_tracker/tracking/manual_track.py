@@ -40,6 +40,7 @@ from mk_tracker.tracking.kernel_layouts import (COLUMN_SPACING, column_best, col
                                                 has_columns)
 from mk_tracker.tracking.multi_kernel import (SUPPORTED_KERNEL_COUNTS, VISIBILITY_STATISTICS,
                                               MultiKernelConfig)
+from mk_tracker.tracking.redetection import LEARNT_MEASURES
 from mk_tracker.tracking.track import LifecycleConfig
 
 if TYPE_CHECKING:
@@ -163,20 +164,23 @@ class ManualTrackConfig:
     similarity_reference_rate: float = parameter(
         0.0, "Failure detection of a track started by hand against its own history (replaces "
         "multi_kernel.similarity_reference_rate): each kernel's similarity is its "
-        "Bhattacharyya coefficient against the mean and spread learnt at this rate over the "
-        "frames the track was seen, so occlusion_similarity, recovery_similarity and the "
+        "learnt_measure (-J_i or B_i) against the mean and spread learnt at this rate over "
+        "the frames the track was seen, so occlusion_similarity, recovery_similarity and the "
         "measurement quality compare with what this target has scored so far "
         "(mk_tracker.tracking.redetection); 0 = the absolute exp(-J_i)",
         minimum=0.0, maximum=1.0)
+    learnt_measure: str = parameter(
+        "kl", "What the learnt level of a track started by hand is learnt on "
+        "(replaces multi_kernel.learnt_measure): bhattacharyya or kl", choices=LEARNT_MEASURES)
     failure_sigmas: float = parameter(
         4.0, "Learnt spreads below its learnt mean at which a kernel's similarity reaches 0, "
         "for a track started by hand (replaces multi_kernel.failure_sigmas)",
         minimum=0.1, maximum=20.0)
     similarity_spread_prior: float = parameter(
-        0.15, "Spread of a kernel's Bhattacharyya coefficient assumed before anything was "
-        "learnt, for a track started by hand (replaces multi_kernel.similarity_spread_prior: "
-        "on real video the coefficient drops from 1 to 0.8-0.9 within the first frames by "
-        "pose and noise)", minimum=0.0, maximum=1.0)
+        0.5, "Spread of the learnt measure assumed before anything was learnt, for a track "
+        "started by hand (replaces multi_kernel.similarity_spread_prior: on real video the "
+        "first frames after the start drift from the model by pose and noise)",
+        minimum=0.0, maximum=10.0)
     redetection_similarity: float = parameter(
         0.0, "Confirmation level of a re-detected candidate of a track started by hand "
         "(replaces multi_kernel.redetection_similarity; the larger of it and "
@@ -221,6 +225,7 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    redetection_similarity=m.redetection_similarity,
                    similarity_reference_rate=m.similarity_reference_rate,
                    failure_sigmas=m.failure_sigmas,
+                   learnt_measure=m.learnt_measure,
                    similarity_spread_prior=m.similarity_spread_prior)
 
 

@@ -55,8 +55,9 @@ Search additions (not in the paper; off by default, on for tracks started by han
 kernel's mean-shift vector (C.3) only sees pixels under the kernel, so a target that moved
 further than about one kernel half-axis from the start is not found.  The additions live in
 :mod:`mk_tracker.tracking.redetection`: (a) failure detection against the track's own history
-(``similarity_reference_rate``: every decision uses each kernel's Bhattacharyya coefficient
-against the mean and spread learnt over the frames the track was seen); (b) a coarse-to-fine start
+(``similarity_reference_rate``: every decision uses each kernel's ``-J_i`` or Bhattacharyya
+coefficient against the mean and spread learnt over the frames the track was seen); (b) a
+coarse-to-fine start
 on a grid around the prediction (``multi_start_radius``), tried when the search from the
 prediction leaves the target unseen (``multi_start_similarity``); (c) re-detection after a
 failure (``recovery_similarity``): a colour back-projection scan of a window that grows with
@@ -90,8 +91,8 @@ from mk_tracker.tracking.projected_gradient import (_compiled_step, constraint_j
                                                     projected_gradient_step)
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_layout, kernels_bounding_box
 from mk_tracker.parameters import parameter, validate_config
-from mk_tracker.tracking.redetection import (grid_start, redetect, relative_similarities,
-                                             update_reference)
+from mk_tracker.tracking.redetection import (LEARNT_MEASURES, grid_start, redetect,
+                                             relative_similarities, update_reference)
 
 
 class TrackingInputError(ValueError):
@@ -220,21 +221,24 @@ class MultiKernelConfig:
     similarity_reference_rate: float = parameter(
         0.0, "Failure detection against the track's own history (not in the paper; "
         "mk_tracker.tracking.redetection): > 0 reports each kernel's similarity as its "
-        "Bhattacharyya coefficient B_i against the mean m_i and spread sd_i learnt at this "
-        "rate over the frames the track was seen, clip(1 - (m_i - B_i) / (k sd_i), 0, 1), "
-        "and every test (lost, coarse-to-fine start, re-search) uses it; 0 = the absolute "
-        "exp(-J_i)", minimum=0.0, maximum=1.0)
+        "learnt_measure v_i against the mean m_i and spread sd_i learnt at this rate over "
+        "the frames the track was seen, clip(1 - (m_i - v_i) / (k sd_i), 0, 1), and every "
+        "test (lost, coarse-to-fine start, re-search) uses it; 0 = the absolute exp(-J_i)",
+        minimum=0.0, maximum=1.0)
+    learnt_measure: str = parameter(
+        "kl", "What similarity_reference_rate learns the level on: each kernel's negated K-L "
+        "cost -J_i (Appendix C) or its Bhattacharyya coefficient B_i",
+        choices=LEARNT_MEASURES)
     failure_sigmas: float = parameter(
         4.0, "k of similarity_reference_rate: a kernel's similarity is 0 at k learnt spreads "
-        "below its learnt mean Bhattacharyya coefficient", minimum=0.1, maximum=20.0)
+        "below its learnt mean", minimum=0.1, maximum=20.0)
     similarity_spread_prior: float = parameter(
-        0.15, "Spread of a kernel's Bhattacharyya coefficient assumed before any frame was "
-        "learnt (the first frames after the start drop from 1 by pose and noise; 0 = only "
-        "the floor)", minimum=0.0, maximum=1.0)
+        0.5, "Spread of the learnt measure assumed before any frame was learnt (the first "
+        "frames after the start drift from the model by pose and noise; 0 = only the floor)",
+        minimum=0.0, maximum=10.0)
     similarity_spread_floor: float = parameter(
-        0.05, "Smallest learnt spread sd_i of a kernel's Bhattacharyya coefficient (a "
-        "steady target would otherwise fail on any small change)", minimum=1e-3,
-        maximum=1.0)
+        0.05, "Smallest learnt spread sd_i of the learnt measure (a steady target would "
+        "otherwise fail on any small change)", minimum=1e-3, maximum=1.0)
     recovery_candidates: int = parameter(
         3, "Back-projection peaks (at least one box apart) at which the failure re-search "
         "evaluates the kernel layout (Algorithm 1 then runs from the best)",
@@ -335,10 +339,10 @@ class TargetState:
     similarity: float = 1.0
     lost: bool = False
     frames: int = 0
-    #: per kernel: the Bhattacharyya coefficient learnt from the frames the track was seen
+    #: per kernel: the mean learnt_measure over the frames the track was seen
     #: (:func:`mk_tracker.tracking.redetection.update_reference`); None = all 1
     reference: np.ndarray | None = None
-    #: per kernel: the learnt variance of that coefficient; None = all 0
+    #: per kernel: its learnt variance; None = similarity_spread_prior^2
     reference_var: np.ndarray | None = None
     #: consecutive frames whose result said the track failed (re-search window growth)
     failed_frames: int = 0
@@ -539,8 +543,9 @@ class MultiKernelTracker:
           target's back-projection and Algorithm 1 runs from its best confirmed peak
           (:func:`~mk_tracker.tracking.redetection.redetect`);
         * ``similarity_reference_rate`` > 0: those tests, the lost test and the reported
-          ``kernel_similarities`` use the Bhattacharyya coefficients against the level
-          learnt from the track's history (:meth:`decision_similarities`); the model and scale gates
+          ``kernel_similarities`` use each kernel's ``-J_i`` (or ``B_i``) against the
+          level learnt from the track's history (:meth:`decision_similarities`); the model
+          and scale gates
           keep ``exp(-J_i)``.
 
         See the module docstring for how the state is mutated.  Never raises for a bad
@@ -606,7 +611,8 @@ class MultiKernelTracker:
         state.frames += 1
         if cfg.similarity_reference_rate > 0 and not failing:
             update_reference(state, ev.p, sims, cfg.recovery_similarity,
-                             cfg.similarity_reference_rate, cfg.similarity_spread_prior)
+                             cfg.similarity_reference_rate, cfg.similarity_spread_prior,
+                             ev.costs, cfg.learnt_measure)
         # the model and scale gates keep the paper's similarity exp(-J_i)
         mean_sim = float(ev.similarities.mean())
         sims = ev.similarities
@@ -694,13 +700,15 @@ class MultiKernelTracker:
                               n_layouts: int = 1) -> np.ndarray:
         """The per-kernel similarities every decision uses (lost, coarse-to-fine start,
         re-search) and the result reports: ``exp(-J_i)`` (Sec. III-A), or with
-        ``similarity_reference_rate`` > 0 the Bhattacharyya coefficients against the
-        level learnt from the track's history (:func:`~mk_tracker.tracking.redetection.relative_similarities`)."""
+        ``similarity_reference_rate`` > 0 each kernel's ``-J_i`` (or ``B_i``) against the
+        level learnt from the track's history
+        (:func:`~mk_tracker.tracking.redetection.relative_similarities`)."""
         if self.config.similarity_reference_rate > 0:
             cfg = self.config
             return relative_similarities(state, ev.p, n_layouts, cfg.failure_sigmas,
                                          cfg.similarity_spread_floor,
-                                         cfg.similarity_spread_prior)
+                                         cfg.similarity_spread_prior, ev.costs,
+                                         cfg.learnt_measure)
         return ev.similarities
 
     def _recover(self, image: np.ndarray, state: TargetState,

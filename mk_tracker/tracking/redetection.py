@@ -10,21 +10,22 @@ adds, around that core and for tracks started by hand
 :meth:`mk_tracker.tracking.multi_kernel.MultiKernelTracker.refine` calls:
 
 * **Failure detection against the track's own history**
-  (:func:`kernel_bhattacharyya`, :func:`relative_similarities`, :func:`update_reference`).
-  The similarity of kernel ``i`` is the Bhattacharyya coefficient
-  ``B_i = sum_u sqrt(p_u(x_i) q_iu)`` of its candidate and target histograms (Comaniciu,
-  Ramesh & Meer 2003, the similarity whose gradient the mean shift follows).  An absolute
-  level does not carry over between videos: on OTB Woman a box exactly on her scores
-  ``exp(-J)`` 0.02-0.15 and ``B`` 0.3-0.6 after 20 frames of panning and light change, a box
-  one width off scores ``exp(-J)`` ~0.001 and ``B`` ~0.1, while on a steady generator person
-  ``B`` stays at 0.95-0.99 and background scores ~0.5 (docs/failure_analysis.md).  So each
-  kernel learns the mean ``m_i`` and spread ``sd_i`` of its ``B_i`` over the frames in which
-  the track was judged seen (exponential weights, rate ``similarity_reference_rate``), and
-  reports ``s_i = clip(1 - (m_i - B_i) / (k sd_i), 0, 1)``: 1 at its usual value, 0 at ``k``
-  (``failure_sigmas``) spreads below it.  The track has failed when the weighted statistic
-  ``sum_i W_i s_i / N`` of (7)-(8) falls below ``recovery_similarity``: a drop that is
-  sudden against what this target has scored so far (occlusion, drift onto background),
-  while a slow change of its look moves the learnt level with it.
+  (:func:`kernel_values`, :func:`relative_similarities`, :func:`update_reference`; off by
+  default).  An absolute level does not carry over between videos: on OTB Woman a box
+  exactly on her scores ``exp(-J)`` 0.02-0.15 after 20 frames of panning and light change
+  (below the 0.4 occlusion level, so the track coasts for the rest of the clip), a box one
+  width off ~0.001 (docs/failure_analysis.md).  So each kernel learns the mean ``m_i`` and
+  spread ``sd_i`` of a per-kernel value ``v_i`` over the frames in which the track was judged
+  seen (exponential weights, rate ``similarity_reference_rate``, prior spread
+  ``similarity_spread_prior``) and reports ``s_i = clip(1 - (m_i - v_i) / (k sd_i), 0, 1)``:
+  1 at its usual value, 0 at ``k`` (``failure_sigmas``) spreads below it.  ``v_i`` is the
+  negated K-L cost ``-J_i`` of Appendix C (``learnt_measure`` ``"kl"``) or the Bhattacharyya
+  coefficient ``B_i = sum_u sqrt(p_u q_iu)`` (Comaniciu, Ramesh & Meer 2003).  The track has
+  failed when the weighted statistic ``sum_i W_i s_i / N`` of (7)-(8) falls below
+  ``recovery_similarity``.  Held out it did not win (docs/benchmark_single_target.md,
+  "Findings"): with ``-J`` it brings Woman from 227 to 12 px but lets tracks on TUD follow a
+  look-alike neighbour that the absolute level made them coast through; ``B`` separates
+  target and background too little (background scores 0.5-0.85 of the target's ``B``).
 * **Coarse-to-fine start** (:func:`grid_start`): the whole layout is scored at a grid of
   translations of the predicted start in one batched evaluation; Algorithm 1 runs again from
   the best point when it beats where the search from the prediction ended (a low frame rate,
@@ -32,9 +33,10 @@ adds, around that core and for tracks started by hand
   ties (Sec. IV-D).
 * **Re-detection** (:func:`back_projection_peaks`, :func:`redetect`): after a failure, a
   window around the start box -- ``recovery_margin`` box sizes on each side, plus
-  ``recovery_growth`` box sizes for every earlier frame of the failure, clipped to the image
-  (so a long failure scans the whole frame) -- is back-projected through the target's ratio histogram ``q / (q + p)`` (``q`` the mean of the kernel models,
-  ``p`` the window's histogram: the posterior that a pixel of that colour is the target's,
+  ``recovery_growth`` box sizes for every earlier frame of the failure (off by default: it
+  lost held out), clipped to the image (so a long failure scans the whole frame) -- is
+  back-projected through the target's ratio histogram ``q / (q + p)`` (``q`` the mean of the
+  kernel models, ``p`` the window's histogram: the posterior that a pixel of that colour is the target's,
   Swain & Ballard's ratio histogram), averaged over a box of the target's size; the highest
   peaks, a box apart, are candidates.  The layout is evaluated at each, Algorithm 1 refines
   from the best, and the result is kept only when the multiple-kernel similarity confirms it
@@ -61,8 +63,8 @@ from mk_tracker.tracking.kernel_layouts import kernels_bounding_box
 if TYPE_CHECKING:
     from mk_tracker.tracking.multi_kernel import MultiKernelTracker, TargetState
 
-__all__ = ["kernel_bhattacharyya", "relative_similarities", "update_reference",
-           "grid_start", "back_projection_peaks", "redetect", "scan_margin"]
+__all__ = ["LEARNT_MEASURES", "kernel_values", "kernel_bhattacharyya", "relative_similarities",
+           "update_reference", "grid_start", "back_projection_peaks", "redetect", "scan_margin"]
 
 
 def kernel_bhattacharyya(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -73,9 +75,28 @@ def kernel_bhattacharyya(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.clip(np.sqrt(np.maximum(p, 0.0) * np.maximum(q, 0.0)).sum(axis=-1), 0.0, 1.0)
 
 
+#: per-kernel values a level can be learnt on: the Bhattacharyya coefficient ``B_i`` or the
+#: negated K-L cost ``-J_i`` of Appendix C (both larger = more alike)
+LEARNT_MEASURES = ("bhattacharyya", "kl")
+
+
+def kernel_values(p: np.ndarray, models: np.ndarray, costs: np.ndarray | None,
+                  measure: str) -> np.ndarray:
+    """``B_i`` (``"bhattacharyya"``) or ``-J_i`` (``"kl"``, from ``costs``; ``-inf`` for a
+    kernel without pixels) per row."""
+    if measure == "kl":
+        if costs is None:
+            raise ValueError("the kl measure needs the kernels' costs")
+        return -np.asarray(costs, dtype=np.float64)
+    if measure != "bhattacharyya":
+        raise ValueError(f"measure must be one of {LEARNT_MEASURES}, got {measure!r}")
+    return kernel_bhattacharyya(p, models)
+
+
 def relative_similarities(state: "TargetState", p: np.ndarray, n_layouts: int = 1,
                           sigmas: float = 4.0, spread_floor: float = 0.05,
-                          spread_prior: float = 0.0) -> np.ndarray:
+                          spread_prior: float = 0.0, costs: np.ndarray | None = None,
+                          measure: str = "bhattacharyya") -> np.ndarray:
     """The kernels' similarities against the level learnt from the track's history, for
     candidate histograms ``p`` of ``n_layouts`` copies of the state's kernel layout (rows
     ordered layout by layout):
@@ -86,34 +107,42 @@ def relative_similarities(state: "TargetState", p: np.ndarray, n_layouts: int = 
     weighted mean and variance of ``B_i`` over the frames the track was seen
     (:func:`update_reference`; before any, ``m_i = 1`` -- the model is the first candidate --
     and ``v_i = spread_prior^2``) and ``k = sigmas``: 1 at or above the usual coefficient, 0
-    at ``k`` spreads below it (the failure level), linear in between."""
+    at ``k`` spreads below it (the failure level), linear in between.  With ``measure``
+    ``"kl"`` the same is learnt on ``-J_i`` (starting from 0, the cost of the model itself)."""
     models = np.tile(state.models, (n_layouts, 1))
-    mean, spread = _reference(state, spread_floor, spread_prior)
-    bc = kernel_bhattacharyya(p, models)
-    drop = np.tile(mean, n_layouts) - bc
-    return np.clip(1.0 - drop / (float(sigmas) * np.tile(spread, n_layouts)), 0.0, 1.0)
+    mean, spread = _reference(state, spread_floor, spread_prior, measure)
+    value = kernel_values(p, models, costs, measure)
+    drop = np.tile(mean, n_layouts) - value
+    with np.errstate(invalid="ignore"):
+        out = 1.0 - drop / (float(sigmas) * np.tile(spread, n_layouts))
+    return np.clip(np.nan_to_num(out, nan=0.0, neginf=0.0), 0.0, 1.0)
 
 
-def _reference(state: "TargetState", spread_floor: float, spread_prior: float
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """``(m_i, sd_i)``: the learnt mean coefficient and its spread (at least
-    ``spread_floor``); before any learning 1 and ``spread_prior``."""
-    mean, var = _learnt(state, spread_prior)
+def _reference(state: "TargetState", spread_floor: float, spread_prior: float,
+               measure: str = "bhattacharyya") -> tuple[np.ndarray, np.ndarray]:
+    """``(m_i, sd_i)``: the learnt mean value and its spread (at least ``spread_floor``);
+    before any learning the model's own value (1, or 0 for ``-J``) and ``spread_prior``."""
+    mean, var = _learnt(state, spread_prior, measure)
     return mean, np.maximum(np.sqrt(np.maximum(var, 0.0)), max(float(spread_floor), 1e-6))
 
 
-def _learnt(state: "TargetState", spread_prior: float) -> tuple[np.ndarray, np.ndarray]:
+def _learnt(state: "TargetState", spread_prior: float, measure: str = "bhattacharyya"
+            ) -> tuple[np.ndarray, np.ndarray]:
     n = state.num_kernels
     mean = getattr(state, "reference", None)
     var = getattr(state, "reference_var", None)
-    mean = np.ones(n) if mean is None or np.size(mean) != n else np.asarray(mean, float)
+    start = 0.0 if measure == "kl" else 1.0
+    mean = np.full(n, start) if mean is None or np.size(mean) != n else \
+        np.asarray(mean, float)
     var = np.full(n, float(spread_prior) ** 2) if var is None or np.size(var) != n else \
         np.asarray(var, float)
     return mean.copy(), var.copy()
 
 
 def update_reference(state: "TargetState", p: np.ndarray, relative: np.ndarray,
-                     level: float, rate: float, spread_prior: float = 0.0) -> None:
+                     level: float, rate: float, spread_prior: float = 0.0,
+                     costs: np.ndarray | None = None,
+                     measure: str = "bhattacharyya") -> None:
     """Learn each seen kernel's coefficient (``s_i >= level``; the caller calls this only in
     frames where the track as a whole is seen): with ``d = B_i - m_i``,
     ``m_i <- m_i + rate d`` and ``v_i <- (1 - rate)(v_i + rate d^2)`` (the exponentially
@@ -121,9 +150,9 @@ def update_reference(state: "TargetState", p: np.ndarray, relative: np.ndarray,
     ``(1 - rate)^n`` after ``n`` learnt frames)."""
     if rate <= 0.0:
         return
-    mean, var = _learnt(state, spread_prior)
-    d = kernel_bhattacharyya(p, state.models) - mean
-    seen = np.asarray(relative) >= level
+    mean, var = _learnt(state, spread_prior, measure)
+    d = kernel_values(p, state.models, costs, measure) - mean
+    seen = (np.asarray(relative) >= level) & np.isfinite(d)
     mean[seen] += rate * d[seen]
     var[seen] = (1.0 - rate) * (var[seen] + rate * d[seen] ** 2)
     state.reference = mean

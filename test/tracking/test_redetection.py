@@ -103,14 +103,22 @@ def test_the_scan_window_grows_with_the_frames_of_the_failure():
 
 # -- failure detection inside refine ----------------------------------------------------------
 
-def test_a_seen_target_scores_one_and_a_covered_one_fails():
+@pytest.mark.parametrize("measure, seen", [
+    # the same pixels as the model: B = 1 = the start mean -> 1
+    ("bhattacharyya", 1.0),
+    # -J of the same pixels is the smoothing's cost log(1 / (1 - eps)) = 0.01005 (eps 0.01;
+    # eps / m = 2e-5 is negligible), against the start mean 0 and spread 0.5, k 4:
+    # 1 - 0.01005 / 2
+    ("kl", 1.0 - 0.01005 / 2.0),
+])
+def test_a_seen_target_scores_one_and_a_covered_one_fails(measure, seen):
     cfg = MultiKernelConfig(similarity_reference_rate=0.1, recovery_similarity=0.5,
-                            recovery_margin=1.0)
+                            recovery_margin=1.0, learnt_measure=measure, failure_sigmas=4.0,
+                            similarity_spread_prior=0.5)
     tracker = MultiKernelTracker(cfg)
     state = tracker.start(_frame([(100, 60)]), (100.0, 60.0, TW, TH))
     res = tracker.refine(_frame([(100, 60)], seed=1), state)
-    # the same pixels as the model: B = 1 = the reference -> relative 1, seen
-    assert res.kernel_similarities == pytest.approx([1.0, 1.0], abs=1e-9)
+    assert res.kernel_similarities == pytest.approx([seen, seen], abs=1e-4)
     assert state.failed_frames == 0
     # the target is gone (grey only, and nothing of its colours within the scan)
     tracker.refine(_frame([], seed=2), state)
@@ -177,3 +185,27 @@ def test_of_two_objects_the_one_with_the_target_colours_is_taken():
     img[60:100, 140:160] = (40, 200, 40)
     res = tracker.refine(img, state)
     assert _centre(res) == pytest.approx((230.0, 80.0), abs=1.5)
+
+
+def test_the_level_can_be_learnt_on_the_kl_cost():
+    from mk_tracker.tracking.redetection import kernel_values
+    models = [[0.5, 0.0, 0.5], [0.5, 0.0, 0.5]]
+    p = np.array([[0.5, 0.5, 0.0], [0.5, 0.0, 0.5]])
+    costs = np.array([0.5, 3.0])
+    # nothing learnt: the mean of -J is 0 (the model's own cost), the spread the prior 0.5;
+    # k = 2: 1 - 0.5 / 1.0 = 0.5 and 1 - 3 / 1 < 0 -> 0
+    s = relative_similarities(_State(models), p, sigmas=2.0, spread_floor=0.05,
+                              spread_prior=0.5, costs=costs, measure="kl")
+    assert s == pytest.approx([0.5, 0.0])
+    # a kernel without pixels (infinite cost) scores 0, and is not learnt
+    state = _State(models)
+    s = relative_similarities(state, p, sigmas=2.0, spread_prior=0.5,
+                              costs=np.array([0.0, np.inf]), measure="kl")
+    assert s == pytest.approx([1.0, 0.0])
+    update_reference(state, p, relative=np.array([1.0, 1.0]), level=0.3, rate=0.5,
+                     spread_prior=0.5, costs=np.array([0.2, np.inf]), measure="kl")
+    # kernel 0: d = -0.2: mean -0.1, variance 0.5 * (0.25 + 0.5 * 0.04) = 0.135
+    assert state.reference == pytest.approx([-0.1, 0.0])
+    assert state.reference_var == pytest.approx([0.135, 0.25])
+    with pytest.raises(ValueError, match="costs"):
+        kernel_values(p, np.asarray(models), None, "kl")
