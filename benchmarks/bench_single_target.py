@@ -1282,14 +1282,13 @@ The tables above are the evidence.
   level learnt from the track's own history (each kernel's Bhattacharyya coefficient `B_i`
   or negated K-L cost `-J_i` against its learnt mean and spread, `similarity_reference_rate`,
   `learnt_measure`, `failure_sigmas`, `similarity_spread_prior`) and a re-detection window
-  that grows with the time lost (`recovery_growth`, `recovery_margin`,
-  `redetection_similarity`).  Real sequences, held out, err / P@20 / AUC (wins over CSRT):
+  that grows with the time lost (`recovery_growth`, `recovery_margin`).  Real sequences, held out, err / P@20 / AUC (wins over CSRT):
 
   | grid (each with rate 0, the shipped behaviour, as a candidate) | held out | wins |
   |---|---|---|
   | `B_i` over a learnt reference (rate 0 / 0.02 / 0.1; `recovery_similarity` 0.25 / 0.5; growth 0 / 0.5) | 72.2 / 0.49 / 0.38 | 10 of 26 |
   | `B_i` against learnt mean and spread (rate 0 / 0.05 / 0.2; 2 / 4 spreads; growth 0 / 0.5) | 81.5 / 0.49 / 0.36 | 8 of 26 |
-  | the same, confirmation 0 / 0.75, first window 0.5 / 2 box sizes (growth 0.5) | 81.5 / 0.49 / 0.36 | 8 of 26 |
+  | the same, a confirmation level of 0 / 0.75 for re-detections (no effect anywhere: deleted), first window 0.5 / 2 box sizes (growth 0.5) | 81.5 / 0.49 / 0.36 | 8 of 26 |
   | the same, prior spread 0.1 / 0.2 (4 spreads; growth 0 / 0.5) | 85.4 / 0.49 / 0.37 | 10 of 26 |
   | `-J_i` against learnt mean and spread (rate 0 / 0.05 / 0.2; prior spread 0.5 / 1; 4 / 8 spreads) | 63.5 / **0.59** / **0.44** | 11 of 26 |
   | the same, prior spread 0.25 / 0.5; 2 / 3 / 4 spreads | 64.7 / 0.56 / 0.42 | 11 of 26 |

@@ -17,7 +17,7 @@ mechanisms are in :mod:`mk_tracker.tracking.redetection`, called by
 switch on for tracks started by hand only).  Failure detection against a level learnt from
 the track's history (``similarity_reference_rate``, ``failure_sigmas``,
 ``similarity_spread_prior``) and a re-detection window growing with the time lost
-(``recovery_growth``, ``recovery_margin``, ``redetection_similarity``) are there too, off by
+(``recovery_growth``, ``recovery_margin``) are there too, off by
 default: they lost in the leave-one-clip-out protocol (docs/benchmark_single_target.md).
 
 Column re-centring (``ManualTrackConfig.column_recentre``): a two-column layout (4-6 kernels,
@@ -181,10 +181,6 @@ class ManualTrackConfig:
         "started by hand (replaces multi_kernel.similarity_spread_prior: on real video the "
         "first frames after the start drift from the model by pose and noise)",
         minimum=0.0, maximum=10.0)
-    redetection_similarity: float = parameter(
-        0.0, "Confirmation level of a re-detected candidate of a track started by hand "
-        "(replaces multi_kernel.redetection_similarity; the larger of it and "
-        "recovery_similarity applies)", minimum=0.0, maximum=1.0)
     recovery_margin: float = parameter(
         2.0, "Re-detection window of a track started by hand in its first failed frame, box "
         "sizes on every side of the start box (replaces multi_kernel.recovery_margin)",
@@ -222,7 +218,6 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    recovery_similarity=m.recovery_similarity,
                    recovery_growth=m.recovery_growth,
                    recovery_margin=m.recovery_margin,
-                   redetection_similarity=m.redetection_similarity,
                    similarity_reference_rate=m.similarity_reference_rate,
                    failure_sigmas=m.failure_sigmas,
                    learnt_measure=m.learnt_measure,

@@ -209,11 +209,6 @@ class MultiKernelConfig:
     recovery_margin: float = parameter(
         2.0, "Scan region of the failure re-search: the start box grown by this many box "
         "sizes on every side, clipped to the image", minimum=0.1, maximum=100.0)
-    redetection_similarity: float = parameter(
-        0.0, "A re-detected candidate is kept only when its weighted visibility sum_i W_i "
-        "rho_i / N ((7)-(8)) reaches the larger of this and recovery_similarity (a stricter "
-        "confirmation than the failure test, so a look-alike neighbour is not taken)",
-        minimum=0.0, maximum=1.0)
     recovery_growth: float = parameter(
         0.0, "The re-search window grows by this many box sizes on every side for each "
         "earlier frame of the same failure (so a long failure scans the whole frame); "

@@ -40,8 +40,7 @@ adds, around that core and for tracks started by hand
   Swain & Ballard's ratio histogram), averaged over a box of the target's size; the highest
   peaks, a box apart, are candidates.  The layout is evaluated at each, Algorithm 1 refines
   from the best, and the result is kept only when the multiple-kernel similarity confirms it
-  (weighted similarity at least ``recovery_similarity`` and ``redetection_similarity``, and
-  above the first search's).
+  (weighted similarity at least ``recovery_similarity`` and above the first search's).
 
 The back-projection looks each pixel's ratio up through the tracker's own bin table
 (:func:`~mk_tracker.tracking.kernel_histograms.bin_lookup_tables`: the same bins as
@@ -265,7 +264,7 @@ def redetect(tracker: "MultiKernelTracker", image: np.ndarray, state: "TargetSta
     with the highest mean decision similarity, if that already beats ``score`` (the first
     search's), Algorithm 1 runs in its own search region.  Returns ``((x, ev, iterations,
     history), search)`` when the result is confirmed -- weighted decision similarity (7)-(8)
-    at least ``recovery_similarity`` and ``redetection_similarity``, and mean above
+    at least ``recovery_similarity`` and mean above
     ``score`` -- else None."""
     from mk_tracker.tracking.multi_kernel import _region, visibility_similarity
     cfg = tracker.config
@@ -296,7 +295,7 @@ def redetect(tracker: "MultiKernelTracker", image: np.ndarray, state: "TargetSta
         return None
     res = tracker._algorithm1(search, region, x, state)
     found = tracker.decision_similarities(res[1], state)
-    level = max(cfg.recovery_similarity, cfg.redetection_similarity)
-    if visibility_similarity(found, None, "weighted") >= level and float(found.mean()) > score:
+    if visibility_similarity(found, None, "weighted") >= cfg.recovery_similarity \
+            and float(found.mean()) > score:
         return res, search
     return None
