@@ -1297,8 +1297,8 @@ The tables above are the evidence.
   The `-J_i` level is the only variant with better held-out P@20 and AUC, and every
   fold chose it, but it raises the mean error by 12 px and loses two sequences
   to CSRT, and its in-sample figures jump between neighbouring grid points (19.7 / 66.3 /
-  56.0 px at 4 / 3 / 2 spreads): kept off.  It brings OTB Woman from 226.9 to 12.3 px held
-  out (the track had said `occluded` in 99% of her frames) and TUD-Stadtmitte person 9 at
+  56.0 px at 4 / 3 / 2 spreads): kept off.  In the first `-J_i` grid it brings OTB Woman from
+  226.9 to 12.3 px held out (43.5 in the second, whose Woman fold chose rate 0.05) (the track had said `occluded` in 99% of her frames) and TUD-Stadtmitte person 9 at
   6.25 fps from 70.1 to 42.2, but lets tracks on TUD-Stadtmitte follow a look-alike that the
   absolute level made them coast through (person 6 85.5 -> 172.1 px, person 7 at 6.25 fps
   18.7 -> 260.2, person 3 at 6.25 fps 57.8 -> 305.8).  `B_i` separates the target from a
