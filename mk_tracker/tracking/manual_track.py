@@ -12,8 +12,13 @@ lifecycle and multiple-kernel configurations.
 
 Search (issue #16): a coarse-to-fine start around the Kalman prediction and a failure
 re-search by colour back-projection (``multi_start_radius``, ``recovery_similarity``; the
-mechanisms are in :mod:`mk_tracker.tracking.multi_kernel`, which these settings switch on
-for tracks started by hand only).
+mechanisms are in :mod:`mk_tracker.tracking.redetection`, called by
+:meth:`~mk_tracker.tracking.multi_kernel.MultiKernelTracker.refine`, which these settings
+switch on for tracks started by hand only).  Failure detection against a level learnt from
+the track's history (``similarity_reference_rate``, ``failure_sigmas``,
+``similarity_spread_prior``) and a re-detection window growing with the time lost
+(``recovery_growth``, ``recovery_margin``) are there too, off by
+default: they lost in the leave-one-clip-out protocol (docs/benchmark_single_target.md).
 
 Column re-centring (``ManualTrackConfig.column_recentre``): a two-column layout (4-6 kernels,
 Fig. 14b) has a stable wrong optimum with one column on the person and the other on
@@ -35,6 +40,7 @@ from mk_tracker.tracking.kernel_layouts import (COLUMN_SPACING, column_best, col
                                                 has_columns)
 from mk_tracker.tracking.multi_kernel import (SUPPORTED_KERNEL_COUNTS, VISIBILITY_STATISTICS,
                                               MultiKernelConfig)
+from mk_tracker.tracking.redetection import LEARNT_MEASURES
 from mk_tracker.tracking.track import LifecycleConfig
 
 if TYPE_CHECKING:
@@ -150,10 +156,39 @@ class ManualTrackConfig:
         0.25, "Failure re-search of a track started by hand (replaces "
         "multi_kernel.recovery_similarity): when the search's weighted visibility is below "
         "this (chosen by the leave-one-clip-out protocol over 0.4), a region of "
-        "multi_kernel.recovery_margin box sizes around it is scanned with the target's "
+        "recovery_margin box sizes around it is scanned with the target's "
         "colour back-projection, the layout is evaluated at its peaks and Algorithm 1 runs "
         "from the best one, kept if the multiple-kernel similarity confirms it; 0 = never",
         minimum=0.0, maximum=1.0)
+
+    similarity_reference_rate: float = parameter(
+        0.0, "Failure detection of a track started by hand against its own history (replaces "
+        "multi_kernel.similarity_reference_rate): each kernel's similarity is its "
+        "learnt_measure (-J_i or B_i) against the mean and spread learnt at this rate over "
+        "the frames the track was seen, so occlusion_similarity, recovery_similarity and the "
+        "measurement quality compare with what this target has scored so far "
+        "(mk_tracker.tracking.redetection); 0 = the absolute exp(-J_i)",
+        minimum=0.0, maximum=1.0)
+    learnt_measure: str = parameter(
+        "kl", "What the learnt level of a track started by hand is learnt on "
+        "(replaces multi_kernel.learnt_measure): bhattacharyya or kl", choices=LEARNT_MEASURES)
+    failure_sigmas: float = parameter(
+        4.0, "Learnt spreads below its learnt mean at which a kernel's similarity reaches 0, "
+        "for a track started by hand (replaces multi_kernel.failure_sigmas)",
+        minimum=0.1, maximum=20.0)
+    similarity_spread_prior: float = parameter(
+        0.5, "Spread of the learnt measure assumed before anything was learnt, for a track "
+        "started by hand (replaces multi_kernel.similarity_spread_prior: on real video the "
+        "first frames after the start drift from the model by pose and noise)",
+        minimum=0.0, maximum=10.0)
+    recovery_margin: float = parameter(
+        2.0, "Re-detection window of a track started by hand in its first failed frame, box "
+        "sizes on every side of the start box (replaces multi_kernel.recovery_margin)",
+        minimum=0.1, maximum=100.0)
+    recovery_growth: float = parameter(
+        0.0, "Re-detection window growth of a track started by hand (replaces "
+        "multi_kernel.recovery_growth): box sizes added on every side of the scan per "
+        "earlier frame of the same failure", minimum=0.0, maximum=100.0)
 
 
 def manual_track_kalman(config: "MultiObjectTrackerConfig") -> KalmanConfig:
@@ -180,7 +215,13 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    # track unseen (the occlusion test of the lifecycle)
                    multi_start_similarity=(m.occlusion_similarity if m.multi_start_radius > 0
                                            else config.multi_kernel.multi_start_similarity),
-                   recovery_similarity=m.recovery_similarity)
+                   recovery_similarity=m.recovery_similarity,
+                   recovery_growth=m.recovery_growth,
+                   recovery_margin=m.recovery_margin,
+                   similarity_reference_rate=m.similarity_reference_rate,
+                   failure_sigmas=m.failure_sigmas,
+                   learnt_measure=m.learnt_measure,
+                   similarity_spread_prior=m.similarity_spread_prior)
 
 
 def columns_cover(res: Any, floor: float) -> bool:

@@ -53,20 +53,18 @@ exceeds ``scale_similarity_gate`` = 0.8: with the paper's mean > 0.3, an occlude
 Search additions (not in the paper; off by default, on for tracks started by hand, see
 :mod:`mk_tracker.tracking.manual_track`; issue #16).  Algorithm 1 is a local descent: each
 kernel's mean-shift vector (C.3) only sees pixels under the kernel, so a target that moved
-further than about one kernel half-axis from the start (a low frame rate, a fast walker, a
-Kalman prediction whose velocity is not yet learnt) is not found.  (a) Coarse-to-fine start
-(``multi_start_radius``): the whole layout is scored at a grid of translations of the
-predicted start in one batched evaluation, and when the best grid point scores higher than
-where Algorithm 1 ended from the prediction, Algorithm 1 runs again from it; the result with
-the higher mean similarity (5) is kept, so the Kalman prediction (Sec. IV-D) stays the first
-start and wins ties.  With ``multi_start_similarity`` < 1 the grid is tried only when the
-search from the prediction leaves the target unseen (weighted visibility (7)-(8) below it).  (b) Failure re-search (``recovery_similarity``): when the weighted
-visibility (7)-(8) of the result says the target is not seen, a region of
-``recovery_margin`` box sizes is scanned with the back-projection ``q / (q + p)`` of the
-target's colour model ``q`` against the region's histogram ``p``; the layout is evaluated at
-the scan's peaks and Algorithm 1 runs from the best one, whose result is kept only if the
-multiple-kernel similarity confirms it.  (c) :meth:`MultiKernelTracker.start` lays the
-kernels out on the part of a box inside the image (a person entering at an edge).
+further than about one kernel half-axis from the start is not found.  The additions live in
+:mod:`mk_tracker.tracking.redetection`: (a) failure detection against the track's own history
+(``similarity_reference_rate``: every decision uses each kernel's ``-J_i`` or Bhattacharyya
+coefficient against the mean and spread learnt over the frames the track was seen); (b) a
+coarse-to-fine start
+on a grid around the prediction (``multi_start_radius``), tried when the search from the
+prediction leaves the target unseen (``multi_start_similarity``); (c) re-detection after a
+failure (``recovery_similarity``): a colour back-projection scan of a window that grows with
+the time lost (``recovery_margin``, ``recovery_growth``), confirmed by the multiple-kernel
+similarity and refined by Algorithm 1.  The Kalman prediction (Sec. IV-D) stays the first
+start and wins ties.  (d) :meth:`MultiKernelTracker.start` lays the kernels out on the part of
+a box inside the image (a person entering at an edge).
 
 State and mutation.  :meth:`MultiKernelTracker.refine` *mutates* the :class:`TargetState` it
 is given: on success the kernel centres move to the result; the scale and the models change
@@ -80,7 +78,6 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field, replace
 
-import cv2
 import numpy as np
 
 from mk_tracker.boxes import BoxLike, InvalidBoxError, as_box, clip_box
@@ -94,6 +91,8 @@ from mk_tracker.tracking.projected_gradient import (_compiled_step, constraint_j
                                                     projected_gradient_step)
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_layout, kernels_bounding_box
 from mk_tracker.parameters import parameter, validate_config
+from mk_tracker.tracking.redetection import (LEARNT_MEASURES, grid_start, redetect,
+                                             relative_similarities, update_reference)
 
 
 class TrackingInputError(ValueError):
@@ -210,6 +209,31 @@ class MultiKernelConfig:
     recovery_margin: float = parameter(
         2.0, "Scan region of the failure re-search: the start box grown by this many box "
         "sizes on every side, clipped to the image", minimum=0.1, maximum=100.0)
+    recovery_growth: float = parameter(
+        0.0, "The re-search window grows by this many box sizes on every side for each "
+        "earlier frame of the same failure (so a long failure scans the whole frame); "
+        "0 = a fixed window of recovery_margin", minimum=0.0, maximum=100.0)
+    similarity_reference_rate: float = parameter(
+        0.0, "Failure detection against the track's own history (not in the paper; "
+        "mk_tracker.tracking.redetection): > 0 reports each kernel's similarity as its "
+        "learnt_measure v_i against the mean m_i and spread sd_i learnt at this rate over "
+        "the frames the track was seen, clip(1 - (m_i - v_i) / (k sd_i), 0, 1), and every "
+        "test (lost, coarse-to-fine start, re-search) uses it; 0 = the absolute exp(-J_i)",
+        minimum=0.0, maximum=1.0)
+    learnt_measure: str = parameter(
+        "kl", "What similarity_reference_rate learns the level on: each kernel's negated K-L "
+        "cost -J_i (Appendix C) or its Bhattacharyya coefficient B_i",
+        choices=LEARNT_MEASURES)
+    failure_sigmas: float = parameter(
+        4.0, "k of similarity_reference_rate: a kernel's similarity is 0 at k learnt spreads "
+        "below its learnt mean", minimum=0.1, maximum=20.0)
+    similarity_spread_prior: float = parameter(
+        0.5, "Spread of the learnt measure assumed before any frame was learnt (the first "
+        "frames after the start drift from the model by pose and noise; 0 = only the floor)",
+        minimum=0.0, maximum=10.0)
+    similarity_spread_floor: float = parameter(
+        0.05, "Smallest learnt spread sd_i of the learnt measure (a steady target would "
+        "otherwise fail on any small change)", minimum=1e-3, maximum=1.0)
     recovery_candidates: int = parameter(
         3, "Back-projection peaks (at least one box apart) at which the failure re-search "
         "evaluates the kernel layout (Algorithm 1 then runs from the best)",
@@ -310,6 +334,13 @@ class TargetState:
     similarity: float = 1.0
     lost: bool = False
     frames: int = 0
+    #: per kernel: the mean learnt_measure over the frames the track was seen
+    #: (:func:`mk_tracker.tracking.redetection.update_reference`); None = all 1
+    reference: np.ndarray | None = None
+    #: per kernel: its learnt variance; None = similarity_spread_prior^2
+    reference_var: np.ndarray | None = None
+    #: consecutive frames whose result said the track failed (re-search window growth)
+    failed_frames: int = 0
 
     @property
     def num_kernels(self) -> int:
@@ -500,13 +531,17 @@ class MultiKernelTracker:
         default; tracks started by hand turn them on, :mod:`mk_tracker.tracking.manual_track`):
 
         * ``multi_start_radius`` > 0: a coarse grid of start translations is scored first
-          (:meth:`_grid_start`) and Algorithm 1 also runs from its best point, so a target
-          that moved further than the kernels' reach (a low frame rate, a fast walker, a
-          prediction without a learnt velocity) is still found; the result with the higher
-          mean similarity (5) is kept;
+          (:func:`~mk_tracker.tracking.redetection.grid_start`) and Algorithm 1 also runs
+          from its best point; the result with the higher mean similarity (5) is kept;
         * ``recovery_similarity`` > 0: a result whose weighted visibility (7)-(8) is below it
-          triggers a scan of a wider region with the target's back-projection
-          (:meth:`_recovery_starts`) and Algorithm 1 from its peaks (:meth:`_recover`).
+          is a failure; a window growing with the failure's length is scanned with the
+          target's back-projection and Algorithm 1 runs from its best confirmed peak
+          (:func:`~mk_tracker.tracking.redetection.redetect`);
+        * ``similarity_reference_rate`` > 0: those tests, the lost test and the reported
+          ``kernel_similarities`` use each kernel's ``-J_i`` (or ``B_i``) against the
+          level learnt from the track's history (:meth:`decision_similarities`); the model
+          and scale gates
+          keep ``exp(-J_i)``.
 
         See the module docstring for how the state is mutated.  Never raises for a bad
         frame: a target outside the image, NaN pixels or a similarity below
@@ -536,24 +571,27 @@ class MultiKernelTracker:
         if search is None:
             return self._lost(state, x, axes, "nan_pixels")
         best = self._algorithm1(search, region, x, state)
+        first = self.decision_similarities(best[1], state)
         if cfg.multi_start_radius > 0 and \
-                visibility_similarity(best[1].similarities, None, "weighted") \
-                < cfg.multi_start_similarity:
-            alt_start, alt_score = self._grid_start(search, x, state, start_box[2])
+                visibility_similarity(first, None, "weighted") < cfg.multi_start_similarity:
+            alt_start, alt_score = grid_start(self, search, x, state, start_box[2])
             # the second run only when the grid point already beats where the first one ended
-            if alt_start is not None and alt_score > float(best[1].similarities.mean()):
+            if alt_start is not None and alt_score > float(first.mean()):
                 alt = self._algorithm1(search, region, alt_start, state)
-                if float(alt[1].similarities.mean()) > float(best[1].similarities.mean()):
-                    best = alt
-        if cfg.recovery_similarity > 0 and \
-                visibility_similarity(best[1].similarities, None, "weighted") \
-                < cfg.recovery_similarity:
-            found = self._recover(image, state, start_box, float(best[1].similarities.mean()))
+                alt_sims = self.decision_similarities(alt[1], state)
+                if float(alt_sims.mean()) > float(first.mean()):
+                    best, first = alt, alt_sims
+        failing = visibility_similarity(first, None, "weighted") < cfg.recovery_similarity
+        if cfg.recovery_similarity > 0 and failing:
+            found = self._recover(image, state, start_box, float(first.mean()))
             if found is not None:
                 best, search = found
+                first = self.decision_similarities(best[1], state)
+                failing = False
+        state.failed_frames = state.failed_frames + 1 if failing else 0
         x, ev, iterations, history = best
         n_k = state.num_kernels
-        sims = ev.similarities
+        sims = first
         w = adaptive_weights(sims) if cfg.adaptive_weights else np.ones(n_k)
         total = _weighted_cost(w, ev.costs)
         mean_sim = float(sims.mean())
@@ -566,6 +604,13 @@ class MultiKernelTracker:
         state.similarity = mean_sim
         state.lost = False
         state.frames += 1
+        if cfg.similarity_reference_rate > 0 and not failing:
+            update_reference(state, ev.p, sims, cfg.recovery_similarity,
+                             cfg.similarity_reference_rate, cfg.similarity_spread_prior,
+                             ev.costs, cfg.learnt_measure)
+        # the model and scale gates keep the paper's similarity exp(-J_i)
+        mean_sim = float(ev.similarities.mean())
+        sims = ev.similarities
         if mean_sim > cfg.similarity_gate:
             if cfg.model_update_rate > 0:
                 rate = cfg.model_update_rate
@@ -578,7 +623,8 @@ class MultiKernelTracker:
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
         return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
-                                similarity=mean_sim, kernel_similarities=sims, weights=w,
+                                similarity=state.similarity, kernel_similarities=first,
+                                weights=w,
                                 kernel_centres=state.centres.copy(), kernel_axes=axes.copy(),
                                 iterations=iterations, lost=False, cost=total,
                                 scale=state.scale, cost_history=history)
@@ -645,119 +691,25 @@ class MultiKernelTracker:
                 break
         return x, ev, iterations, history
 
-    def _grid_start(self, search: SearchRegion, x: np.ndarray, state: TargetState,
-                    box_width: float) -> tuple[np.ndarray | None, float]:
-        """The coarse stage of the coarse-to-fine search: the kernel layout at ``x`` translated
-        by every point of a ``(2k+1) x (2k+1)`` grid (spacing ``multi_start_radius * w / k``)
-        is evaluated in one batch, and the translation with the highest mean similarity
-        ``sum_i rho_i / N`` (5) is returned as kernel centres with that similarity; None
-        when that is the untranslated start (ties keep it: the Kalman prediction is the
-        prior, Sec. IV-D)."""
-        cfg = self.config
-        k = int(cfg.multi_start_steps)
-        spacing = cfg.multi_start_radius * float(box_width) / k
-        if not spacing > 0.0:
-            return None, 0.0
-        steps = np.arange(-k, k + 1, dtype=np.float64) * spacing
-        gx, gy = np.meshgrid(steps, steps)
-        offsets = np.stack([gx.reshape(-1), gy.reshape(-1)], axis=1)
-        centre = int(np.flatnonzero((offsets[:, 0] == 0) & (offsets[:, 1] == 0))[0])
-        order = np.r_[centre, np.delete(np.arange(len(offsets)), centre)]
-        offsets = offsets[order]                    # the untranslated start first
-        n_k, n_o = state.num_kernels, len(offsets)
-        centres = (x[None, :, :] + offsets[:, None, :]).reshape(-1, 2)
-        axes = np.tile(state.half_axes, (n_o, 1))
-        models = np.tile(state.models, (n_o, 1))
-        sims = self._evaluate(search, axes, centres, models).similarities.reshape(n_o, n_k)
-        means = sims.mean(axis=1)
-        best = int(np.argmax(means))                 # first maximum: the prediction on ties
-        if best == 0:
-            return None, float(means[0])
-        return x + offsets[best], float(means[best])
-
-    def _recovery_starts(self, image: np.ndarray, state: TargetState,
-                         box: tuple[float, float, float, float]
-                         ) -> tuple[list[np.ndarray], SearchRegion | None]:
-        """Candidate box centres for the failure re-search, best first, and the quantised
-        scan region (a :class:`SearchRegion` at the scan's stride).
-
-        The region ``box`` grown by ``recovery_margin`` box sizes is quantised every
-        ``ceil(w / recovery_scan_cells)`` px; each sample gets the back-projection weight
-        ``q(b) / (q(b) + p(b))``, with ``q`` the target's colour model (the mean of its kernel
-        models ``q_i``, Sec. III-A) and ``p`` the colour histogram of the scanned region: the
-        posterior probability that a pixel of that colour belongs to the target, equal priors
-        (a ratio histogram in the sense of Swain & Ballard).  The mean weight in a box of the
-        target's size around every sample is the scan score; its ``recovery_candidates``
-        highest peaks, each at least one box width / height from the others, are returned.
-        """
-        cfg = self.config
-        height, width = image.shape[:2]
-        region = _region(box, cfg.recovery_margin, width, height)
-        if region is None:
-            return [], None
-        stride = max(1, int(np.ceil(box[2] / cfg.recovery_scan_cells)))
-        bins = quantize_region(image, region, stride, cfg.colour_space, cfg.bins, self.backend)
-        if bins is None or bins.size == 0:
-            return [], None
-        q = state.models.mean(axis=0)
-        p = np.bincount(bins.reshape(-1), minlength=self.n_bins)[:self.n_bins].astype(
-            np.float64) / bins.size
-        ratio = q / np.maximum(q + p, 1e-12)
-        weight = ratio[bins].astype(np.float32)
-        kw = max(1, int(round(box[2] / stride)))
-        kh = max(1, int(round(box[3] / stride)))
-        score = cv2.boxFilter(weight, -1, (kw, kh), normalize=True,
-                              borderType=cv2.BORDER_CONSTANT)
-        out = []
-        for _ in range(cfg.recovery_candidates):
-            i, j = np.unravel_index(int(np.argmax(score)), score.shape)
-            if not score[i, j] > 0.0:
-                break
-            out.append(np.array([region[0] + j * stride, region[1] + i * stride],
-                                dtype=np.float64))
-            score[max(0, i - kh + 1):i + kh, max(0, j - kw + 1):j + kw] = -1.0
-        scan = SearchRegion(bins, (region[0], region[1]), stride, self.n_bins, cfg.profile,
-                            self.backend)
-        return out, scan
+    def decision_similarities(self, ev: KernelBatch, state: TargetState,
+                              n_layouts: int = 1) -> np.ndarray:
+        """The per-kernel similarities every decision uses (lost, coarse-to-fine start,
+        re-search) and the result reports: ``exp(-J_i)`` (Sec. III-A), or with
+        ``similarity_reference_rate`` > 0 each kernel's ``-J_i`` (or ``B_i``) against the
+        level learnt from the track's history
+        (:func:`~mk_tracker.tracking.redetection.relative_similarities`)."""
+        if self.config.similarity_reference_rate > 0:
+            cfg = self.config
+            return relative_similarities(state, ev.p, n_layouts, cfg.failure_sigmas,
+                                         cfg.similarity_spread_floor,
+                                         cfg.similarity_spread_prior, ev.costs,
+                                         cfg.learnt_measure)
+        return ev.similarities
 
     def _recover(self, image: np.ndarray, state: TargetState,
-                 start_box: tuple[float, float, float, float], mean_sim: float):
-        """The failure re-search: the kernel layout is placed at every
-        :meth:`_recovery_starts` peak and evaluated in one batch on the scan's samples; from
-        the peak with the highest mean similarity (5), if that already beats ``mean_sim``,
-        Algorithm 1 runs in its own search region.  Its result is returned as ``((x, ev, iterations, history), search)`` when its
-        weighted visibility (7)-(8) reaches ``recovery_similarity`` and its mean similarity
-        beats ``mean_sim`` (the first search's); else None."""
-        cfg = self.config
-        height, width = image.shape[:2]
-        axes = state.half_axes
-        centroid = np.array([start_box[0] + start_box[2] / 2.0,
-                             start_box[1] + start_box[3] / 2.0])
-        x0 = state.centres - state.center + centroid
-        peaks, scan = self._recovery_starts(image, state, start_box)
-        if not peaks:
-            return None
-        n_k, n_p = state.num_kernels, len(peaks)
-        centres = (x0[None, :, :] + (np.array(peaks) - centroid)[:, None, :]).reshape(-1, 2)
-        sims = self._evaluate(scan, np.tile(axes, (n_p, 1)), centres,
-                              np.tile(state.models, (n_p, 1))).similarities.reshape(n_p, n_k)
-        means = sims.mean(axis=1)
-        best = int(np.argmax(means))
-        if not means[best] > mean_sim:      # no peak beats the first search even coarsely
-            return None
-        x = x0 + (peaks[best] - centroid)
-        region = _region(kernels_bounding_box(x, axes), cfg.search_margin, width, height)
-        if region is None:
-            return None
-        search = self._search_region(image, region, self._stride(axes))
-        if search is None:
-            return None
-        res = self._algorithm1(search, region, x, state)
-        found = res[1].similarities
-        if visibility_similarity(found, None, "weighted") >= cfg.recovery_similarity \
-                and float(found.mean()) > mean_sim:
-            return res, search
-        return None
+                 start_box: tuple[float, float, float, float], score: float):
+        """The re-detection after a failure (:func:`mk_tracker.tracking.redetection.redetect`)."""
+        return redetect(self, image, state, start_box, score)
 
     def _update_scale(self, search: SearchRegion, state: TargetState, weights: np.ndarray,
                       ev: KernelBatch) -> None:

@@ -16,6 +16,7 @@ import pytest
 from mk_tracker.tracking.manual_track import ManualTrackConfig, manual_track_multi_kernel
 from mk_tracker.tracking.multi_kernel import MultiKernelConfig, MultiKernelTracker
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker, MultiObjectTrackerConfig
+from mk_tracker.tracking.redetection import back_projection_peaks, grid_start
 
 W, H = 320, 160
 TW, TH = 20, 40          # target size
@@ -91,11 +92,11 @@ def test_the_grid_start_keeps_the_prediction_when_the_target_is_there():
     search_img = _frame([(100, 60)], seed=1)
     region = (0, 0, W, H)
     search = tracker._search_region(search_img, region, 1)
-    assert tracker._grid_start(search, state.centres, state, TW)[0] is None
+    assert grid_start(tracker, search, state.centres, state, TW)[0] is None
     # a second copy of the target 1.5 w to the right scores the same: the tie keeps the
     # prediction (the first grid point examined)
     search2 = tracker._search_region(_frame([(100, 60), (130, 60)], seed=1), region, 1)
-    assert tracker._grid_start(search2, state.centres, state, TW)[0] is None
+    assert grid_start(tracker, search2, state.centres, state, TW)[0] is None
 
 
 # -- failure re-search -----------------------------------------------------------------------
@@ -132,7 +133,7 @@ def test_scan_peaks_are_ordered_and_a_box_apart():
     img = _frame([(40, 60), (240, 60)], seed=2)
     img[60:100, 250:260] = 120              # the right copy is half covered (grey)
     # scan region: the box grown by 6 box sizes, x in [30, 290), y clipped to [0, 160)
-    starts, _ = tracker._recovery_starts(img, state, (150.0, 60.0, TW, TH))
+    starts, _ = back_projection_peaks(tracker, img, state, (150.0, 60.0, TW, TH), 6.0)
     assert len(starts) == 2
     # stride ceil(20 / 10) = 2 px: the full copy's centre (50, 80) first, then the half
     # copy's visible half around (245, 80)
@@ -188,14 +189,15 @@ def test_search_region_margin_and_extra_pixels():
     assert _region((10.0, 10.0, 10.0, 20.0), 0.5, 100, 100) == (5, 0, 25, 40)
 
 
-def test_a_gated_grid_start_runs_only_when_the_first_search_fails():
+def test_a_gated_grid_start_runs_only_when_the_first_search_fails(monkeypatch):
+    import mk_tracker.tracking.multi_kernel as mk
     cfg = MultiKernelConfig(multi_start_radius=1.5, multi_start_similarity=0.4)
     calls = []
     for dx, expect_call in ((2, False), (30, True)):
         tracker = MultiKernelTracker(cfg)
         state = tracker.start(_frame([(100, 60)]), (100.0, 60.0, TW, TH))
-        original = tracker._grid_start
-        tracker._grid_start = lambda *a, _o=original: calls.append(dx) or _o(*a)
+        monkeypatch.setattr(mk, "grid_start",
+                            lambda *a, _o=grid_start, _dx=dx: calls.append(_dx) or _o(*a))
         res = tracker.refine(_frame([(100 + dx, 60)], seed=1), state)
         assert (dx in calls) is expect_call
         # either way the target is found: centre (110 + dx, 80)

@@ -161,7 +161,9 @@ def test_one_refiner_serves_both_when_the_kernel_settings_agree():
                                                "manual_track.scale_gate_statistic": "min",
                                                "manual_track.scale_similarity_gate": 0.8,
                                                "manual_track.multi_start_radius": 0.0,
-                                               "manual_track.recovery_similarity": 0.0})
+                                               "manual_track.recovery_similarity": 0.0,
+                                               "manual_track.recovery_growth": 0.0,
+                                               "manual_track.similarity_reference_rate": 0.0})
     trk = MultiObjectTracker(cfg)
     assert trk.manual_refiner is trk.refiner
 

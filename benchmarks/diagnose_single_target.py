@@ -1,0 +1,140 @@
+"""Where the hand-started tracker fails on the real sequences of the single-target benchmark.
+
+For every real sequence of :func:`bench_single_target.development_set` (or those named with
+``--sequences``) it runs our tracker (``MultiObjectTracker``, one track started by hand, the
+shipped ``manual_track`` defaults) and OpenCV CSRT (when opencv-contrib is installed) on the
+same frames, and prints one row per sequence: both mean centre errors, the **failure frame**
+(the first frame whose centre error exceeds one ground-truth box width), the track's state
+and score there, the ground truth's motion in that frame (px and box widths), whether the
+error ever came back under half a box width afterwards, and the share of frames the track
+reported "occluded".  The cause column of docs/failure_analysis.md is read from these
+figures and the frames (nothing here decides it)::
+
+    nice -n 10 .venv/bin/python benchmarks/diagnose_single_target.py --sequences Woman
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+from bench_single_target import (_contrib, _names, _selected, development_set,  # noqa: E402
+                                 opencv_tracker_factory, run)
+from mk_tracker.tracking.multi_object_tracker import (MultiObjectTracker,  # noqa: E402
+                                                      MultiObjectTrackerConfig)
+
+
+def _centre(box) -> np.ndarray:
+    return np.array([box[0] + box[2] / 2.0, box[1] + box[3] / 2.0])
+
+
+def trace(seq, config: MultiObjectTrackerConfig) -> list[tuple]:
+    """Per frame after the first: (box, state, score) of the hand-started track."""
+    tracker = MultiObjectTracker(config)
+    frames = seq.frames()
+    first = next(frames)
+    tid = tracker.start_track(first, 0.0, seq.init_box)
+    tracker.step(first, 0.0)
+    out, last = [], (tuple(seq.init_box), "deleted", 0.0)
+    for i, frame in enumerate(frames, start=1):
+        res = tracker.step(frame, i / seq.fps)
+        mine = [t for t in res.tracks if t.id == tid]
+        if mine:
+            last = (tuple(mine[0].box), mine[0].state, float(mine[0].score))
+        else:
+            last = (last[0], "deleted", 0.0)
+        out.append(last)
+    return out
+
+
+def diagnose(seq, rows: list[tuple]) -> dict:
+    errs, widths = [], []
+    for (box, _, _), truth in zip(rows, seq.truth[1:]):
+        if truth is None:
+            errs.append(np.nan)
+            widths.append(np.nan)
+            continue
+        errs.append(float(np.linalg.norm(_centre(box) - _centre(truth))))
+        widths.append(float(truth[2]))
+    errs, widths = np.array(errs), np.array(widths)
+    fail = np.flatnonzero(errs > widths)
+    occluded = float(np.mean([r[1] != "confirmed" for r in rows]))
+    out = {"err": float(np.nanmean(errs)), "occluded": occluded, "fail": None}
+    if fail.size:
+        f = int(fail[0])
+        truths = seq.truth
+        motion = np.nan
+        if truths[f] is not None and truths[f + 1] is not None:
+            motion = float(np.linalg.norm(_centre(truths[f + 1]) - _centre(truths[f])))
+        later = errs[f + 1:] < widths[f + 1:] / 2.0
+        back = np.flatnonzero(later)
+        first_w = float(seq.truth[0][2])
+        out["fail"] = {"frame": f + 2,             # 1-based frame number of the sequence
+                       "state": rows[f][1], "score": rows[f][2],
+                       "motion_px": motion, "motion_w": motion / widths[f],
+                       "scale": widths[f] / first_w,
+                       "back": None if not back.size else int(back[0]) + f + 3,
+                       "within_half_w_after": float(np.mean(later)) if later.size else 0.0,
+                       "state_before": rows[max(0, f - 3)][1]}
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sequences", default="", help="substrings of sequence names")
+    parser.add_argument("--all", action="store_true",
+                        help="also sequences where we beat CSRT")
+    parser.add_argument("--set", action="append", default=[],
+                        help="a manual_track setting, e.g. --set recovery_growth=0")
+    parser.add_argument("--generator", action="store_true",
+                        help="also the generator sequences")
+    parser.add_argument("--trace", action="store_true",
+                        help="print every frame's error, state and score")
+    args = parser.parse_args(argv)
+    csrt = _contrib("CSRT")
+    config = MultiObjectTrackerConfig()
+    overrides = {k: float(v) for k, v in (a.split("=", 1) for a in args.set)}
+    config = replace(config, manual_track=replace(config.manual_track, **overrides))
+    print("| sequence | ours err | CSRT err | failure frame | state (3 frames before) | "
+          "score | truth motion px (box widths) | width / first width | back under w/2 at | "
+          "frames within w/2 after | occluded share |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for clip, seq in development_set():
+        if (clip.startswith("generator") and not args.generator) or not _selected(seq.name, _names(args.sequences)):
+            continue
+        frames = list(seq.frames())
+        seq = replace(seq, frames=lambda: iter(frames))
+        rows = trace(seq, config)
+        d = diagnose(seq, rows)
+        if args.trace:
+            for i, ((box, state, score), truth) in enumerate(zip(rows, seq.truth[1:]), 2):
+                e = float("nan") if truth is None else \
+                    float(np.linalg.norm(_centre(box) - _centre(truth)))
+                print(f"  frame {i}: err {e:.1f} {state} {score:.2f} box "
+                      f"{' '.join(f'{v:.0f}' for v in box)}")
+        c_err = run(seq, opencv_tracker_factory(csrt))[0]["mean_center_error"] \
+            if csrt is not None else float("nan")
+        if not args.all and d["err"] <= c_err:
+            continue
+        f = d["fail"]
+        if f is None:
+            print(f"| {seq.name} | {d['err']:.1f} | {c_err:.1f} | none | | | | | | | "
+                  f"{d['occluded']:.2f} |", flush=True)
+            continue
+        print(f"| {seq.name} | {d['err']:.1f} | {c_err:.1f} | {f['frame']} / {len(seq.truth)} | "
+              f"{f['state']} ({f['state_before']}) | {f['score']:.2f} | "
+              f"{f['motion_px']:.1f} ({f['motion_w']:.2f}) | {f['scale']:.2f} | "
+              f"{f['back'] if f['back'] else 'never'} | {f['within_half_w_after']:.2f} | "
+              f"{d['occluded']:.2f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
