@@ -28,8 +28,9 @@ report with the command that produced it.
 
     .venv/bin/python benchmarks/bench_multi_object.py --out docs/benchmark_multi_object.md
 
-``--no-loso`` skips the grid (a quick run of every tracker at its defaults).  HOTA is reported
-when ``trackeval`` is installed (benchmarks/hota.py).
+``--no-loso`` skips the grid (a quick run of every tracker at its defaults).  HOTA is the
+package's :mod:`mk_tracker.evaluation.hota` (equal to TrackEval 1.3.0 to 6 decimals:
+benchmarks/hota_check.py).
 
 Single core: the script pins BLAS/OpenMP/OpenCV to one thread before importing numpy.
 """
@@ -507,7 +508,8 @@ def markdown(rows, command, args, loso=None) -> str:
              f"use ground-truth boxes of people at least {args.min_visible:.0%} visible, with "
              f"{args.noise:g} px noise, {args.miss:.0%} misses and {args.false_positives:g} "
              "false positives per frame on average.  Scores: motmetrics, IoU >= 0.5; HOTA: "
-             "trackeval 1.3.0 (mean over IoU 0.05..0.95).  Peers run at their library "
+             "mk_tracker.evaluation.hota (mean over IoU 0.05..0.95; equal to TrackEval "
+             "1.3.0 to 6 decimals, benchmarks/hota_check.py).  Peers run at their library "
              "defaults with the sequence's frame rate.", ""]
     if loso is not None:
         settings, scores, choices, held_rows, peer_rows = loso
