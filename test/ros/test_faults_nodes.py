@@ -198,7 +198,9 @@ def test_detector_killed_and_restarted_tracker_coasts_then_keeps_ids(domain, lau
     tracker = launch(TRACKER, *LOCKSTEP, "-p", "tracker.use_multi_kernel:=false",
                      "-p", "tracker.lifecycle.max_coast_time:=5.0",
                      "-p", "tracker.lifecycle.max_undetected_time:=5.0",
-                     "-p", "tracker.max_reported_coast_time:=5.0")
+                     "-p", "tracker.max_reported_coast_time:=5.0",
+                     # report the coasting boxes however uncertain (the check below)
+                     "-p", "tracker.max_reported_coast_std:=0.0")
     peer = Peer(domain)
     try:
         stream = Stream(peer)
