@@ -18,21 +18,28 @@ and every person who touches with them (docs/benchmark_groups.md).  Here, within
 2. **Pieces of one band are one person.**  Leading clusters are joined, closest pairs of
    support boxes first, while the union of their support boxes is no wider than
    ``seed_width_ratio`` and no taller than ``seed_height_ratio`` expected person widths and
-   heights at the union's bottom row (:class:`~mk_tracker.detection.person_size.PersonHeightModel`).
-   The leading band of one person is narrow (the motion over ``F_s`` frames) and as tall as
-   the person; two people side by side are a person width apart, two one above the other
-   are taller than one.  Without a learnt size the blob is one object (today's rule).
-3. **Cells.**  The blob's footprint is shared among the joined groups by Voronoi cells of
-   their support centroids (as the tracking passes share it among Kalman predictions,
-   (5.2)); a cell narrower than ``sliver_fraction`` expected widths, or lower than that
-   fraction of the expected height, is a sliver of a neighbour: its group is joined to the
-   nearest group and the cells are drawn again.
+   heights (:class:`~mk_tracker.detection.person_size.PersonHeightModel`) at the blob's
+   bottom row (the feet of its nearest person; a piece ends above its person's feet).
+   Pieces of one person's band are as tall as the person at most; two people side by side
+   are a person width apart, two one above the other are taller than one.  Without a
+   learnt size the blob is one object (today's rule).  A blob of one person is the union
+   of its clusters' footprints (a footprint searched again from their joined support would
+   be found against another local background, and can reach a neighbour).
+3. **Cells and slivers.**  The footprint of a blob of several people is shared among the
+   joined groups by Voronoi cells of their support centroids (as the tracking passes share
+   it among Kalman predictions, (5.2)); a cell narrower than ``sliver_fraction`` expected
+   widths, or lower than ``sliver_height_fraction`` expected heights, is a sliver: its group
+   is joined to the group it stacks with best (narrowest union) and the cells are drawn
+   again.  Then, over all the pass's candidates, a sliver, or a candidate with more than
+   ``sliver_overlap`` of its box inside another's, is joined to the candidate with which
+   its box still fits one person (narrowest union first): a leg, a head, the two thin
+   edge bands of one person whose body was not found.
 4. **Previous objects** (Algorithm 2 keeps a Kalman filter per object): at a
    reconfiguration, two groups are never joined in step 2 when each holds the prediction
    of a different object of the last pass inside its support box grown by
    ``window_margin``: two people who walked apart stay two while they pass each other.
 
-Steps 1-3 are pure functions of boxes (:func:`leading_clusters`, :func:`join_pieces`,
+The rules of steps 1-3 are pure functions (:func:`leading_clusters`, :func:`join_pieces`,
 :func:`is_sliver`); :class:`CrowdSplitting` (a mixin of
 :class:`~mk_tracker.detection.thermal_detector.ThermalDetector`) applies them.  None of this is
 in the paper; it is off by default (docs/benchmark_groups.md has the figures).
@@ -47,6 +54,8 @@ import numpy as np
 
 from mk_tracker.detection.block_support import SupportResult
 from mk_tracker.detection.footprint import _VoronoiCell
+from mk_tracker.detection.footprint_split import _Candidate, _footprint_levels
+from mk_tracker.detection.pixel_clustering import describe_pixels
 
 __all__ = ["CrowdSplitting", "leading_clusters", "join_pieces", "is_sliver", "union_box"]
 
@@ -56,6 +65,19 @@ Box = tuple[float, float, float, float]          # x0, y0, x1, y1 (exclusive end
 def union_box(a: Box, b: Box) -> Box:
     """Smallest ``(x0, y0, x1, y1)`` box holding both."""
     return (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+
+
+def _corners(box: tuple[float, float, float, float]) -> Box:
+    """``(x, y, w, h)`` as ``(x0, y0, x1, y1)``."""
+    return (box[0], box[1], box[0] + box[2], box[1] + box[3])
+
+
+def _inside_fraction(a: tuple[float, float, float, float],
+                     b: tuple[float, float, float, float]) -> float:
+    """Fraction of box ``a`` ``(x, y, w, h)`` that lies inside box ``b``."""
+    w = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    h = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    return max(w, 0.0) * max(h, 0.0) / (a[2] * a[3]) if a[2] * a[3] > 0 else 1.0
 
 
 def _gap(a: Box, b: Box) -> float:
@@ -114,10 +136,12 @@ def join_pieces(boxes: Sequence[Box],
 
 
 def is_sliver(box_w: float, box_h: float, width: float, height: float,
-              fraction: float) -> bool:
+              fraction: float, height_fraction: float | None = None) -> bool:
     """Whether a part ``box_w x box_h`` is too narrow or too low to be a person of
-    ``width x height``: below ``fraction`` of either."""
-    return box_w < fraction * width or box_h < fraction * height
+    ``width x height``: narrower than ``fraction`` of the width or lower than
+    ``height_fraction`` (default: ``fraction``) of the height."""
+    hf = fraction if height_fraction is None else height_fraction
+    return box_w < fraction * width or box_h < hf * height
 
 
 class CrowdSplitting:
@@ -187,15 +211,78 @@ class CrowdSplitting:
                                 c.seed_height_ratio, apart)
             people = [np.concatenate([groups[lead[i]] for i in p]) for p in parts]
             if len(people) == 1:
-                # one person (or no size known yet): the blob as one object, trailing
-                # bands included, as the footprint merge gives it
-                every = np.concatenate([groups[k] for k in members])
-                cand = self._candidate(frame, result, rows[every], cols[every], bounds)
+                # one person (or no size known yet): the union of its clusters' footprints
+                # (a footprint searched again from the union of their support would be
+                # found against another local background, and can reach a neighbour)
+                cand = self._union_candidate(frame, result, rows, cols, groups, members,
+                                             prints)
                 if cand is not None:
                     out.append(cand)
                 continue
             out.extend(self._cells(frame, result, rows, cols, people, bounds, size))
-        return out
+        return self._without_slivers(out)
+
+    def _union_candidate(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
+                         cols: np.ndarray, groups: list[np.ndarray], members: list[int],
+                         prints: list[Any]) -> Any:
+        """One candidate from the footprints ``prints`` of clusters ``members``."""
+        y0 = min(prints[k][0][0] for k in members)
+        x0 = min(prints[k][0][1] for k in members)
+        y1 = max(prints[k][0][0] + prints[k][1].shape[0] for k in members)
+        x1 = max(prints[k][0][1] + prints[k][1].shape[1] for k in members)
+        mask = np.zeros((y1 - y0, x1 - x0), dtype=bool)
+        for k in members:
+            (py, px), m = prints[k]
+            mask[py - y0:py - y0 + m.shape[0], px - x0:px - x0 + m.shape[1]] |= m
+        fr, fc = np.nonzero(mask)
+        if fr.size < self.config.min_object_pixels:
+            return None
+        every = np.concatenate([groups[k] for k in members])
+        score = float(min(1.0, result.variance[rows[every], cols[every]].mean() / 0.5))
+        now = describe_pixels(fc + x0, fr + y0)
+        return _Candidate(now.centroid, now.box, score, now.pixel_count,
+                          *_footprint_levels(frame, result.support, ((y0, x0), mask)))
+
+    def _without_slivers(self, cands: list[Any]) -> list[Any]:
+        """Slivers joined to a neighbour: a candidate narrower or lower than
+        ``sliver_fraction`` of the expected person, whose box joined with another
+        candidate's still fits one person (``seed_width_ratio`` x ``seed_height_ratio``),
+        is one object with it (a leg, the two thin edge bands of one person whose body
+        was not found, a band's end); the narrowest such union first.  The expected size
+        is taken at the union's bottom row."""
+        c = self.config
+        cands = list(cands)
+        while len(cands) > 1:
+            best = None
+            for i, a in enumerate(cands):
+                for j, b in enumerate(cands):
+                    if j == i:
+                        continue
+                    u = union_box(_corners(a.box), _corners(b.box))
+                    size = self._expected_size(u[3])
+                    if size is None:
+                        continue
+                    if not (is_sliver(a.box[2], a.box[3], size[0], size[1],
+                                      c.sliver_fraction, c.sliver_height_fraction)
+                            or _inside_fraction(a.box, b.box) > c.sliver_overlap):
+                        continue
+                    uw, uh = u[2] - u[0], u[3] - u[1]
+                    if uw > c.seed_width_ratio * size[0] or uh > c.seed_height_ratio * size[1]:
+                        continue
+                    if best is None or (uw, uw * uh) < best[0]:
+                        best = ((uw, uw * uh), i, j, u)
+            if best is None:
+                break
+            _, i, j, u = best
+            a, b = cands[i], cands[j]
+            n = a.pixel_count + b.pixel_count
+            centroid = ((a.centroid[0] * a.pixel_count + b.centroid[0] * b.pixel_count) / n,
+                        (a.centroid[1] * a.pixel_count + b.centroid[1] * b.pixel_count) / n)
+            big = a if a.pixel_count >= b.pixel_count else b
+            merged = _Candidate(centroid, (u[0], u[1], u[2] - u[0], u[3] - u[1]),
+                                max(a.score, b.score), n, big.level, big.local)
+            cands = [x for k, x in enumerate(cands) if k not in (i, j)] + [merged]
+        return cands
 
     def _cells(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
                cols: np.ndarray, people: list[np.ndarray],
@@ -217,7 +304,8 @@ class CrowdSplitting:
                 if cand is None:
                     continue
                 w, h = cand.box[2:]
-                if is_sliver(w, h, size[0], size[1], c.sliver_fraction):
+                if is_sliver(w, h, size[0], size[1], c.sliver_fraction,
+                                            c.sliver_height_fraction):
                     if worst is None or w * h < worst[0]:
                         worst = (w * h, k)
             if worst is None:

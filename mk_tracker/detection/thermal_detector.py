@@ -247,7 +247,7 @@ class ThermalDetectorConfig:
         "pixels in its newest-frame footprint is where an object was (a trailing band), "
         "not a person", minimum=0.0, maximum=1.0)
     seed_width_ratio: float = parameter(
-        0.8, "split_clusters: clusters are one person's pieces while the union of their "
+        1.6, "split_clusters: clusters are one person's pieces while the union of their "
         "support boxes is at most this many expected person widths wide", minimum=0.0,
         maximum=10.0)
     seed_height_ratio: float = parameter(
@@ -255,8 +255,15 @@ class ThermalDetectorConfig:
         minimum=0.0, maximum=10.0)
     sliver_fraction: float = parameter(
         0.5, "split_clusters: a part narrower than this fraction of the expected person "
-        "width, or lower than this fraction of its height, is joined to the nearest part",
+        "width is a sliver, joined to a neighbour",
         minimum=0.0, maximum=1.0)
+    sliver_height_fraction: float = parameter(
+        0.5, "split_clusters: ... or lower than this fraction of the expected person "
+        "height", minimum=0.0, maximum=1.0)
+    sliver_overlap: float = parameter(
+        0.5, "split_clusters: a part with more than this fraction of its box inside "
+        "another part's box is joined to it as a sliver is (1: never)", minimum=0.0,
+        maximum=1.0)
     keep_objects_apart: bool = parameter(
         True, "split_clusters: at a reconfiguration, two clusters that each hold the "
         "Kalman prediction of a different object of the last pass are never one person")

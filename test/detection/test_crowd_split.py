@@ -138,3 +138,59 @@ def test_one_walker_is_one_detection_with_split_clusters():
     dets = _startup(config, frames, [(60.0, 40.0)] * 5)
     assert len(dets) == 1
     assert dets[0].box == pytest.approx((30.0, 20.0, 20.0, 40.0))
+
+
+def _cand(box, n=100, centroid=None):
+    from mk_tracker.detection.footprint_split import _Candidate
+    x, y, w, h = box
+    c = centroid if centroid is not None else (x + w / 2, y + h / 2)
+    return _Candidate(c, box, 0.5, n, 1.0, 0.0)
+
+
+def _sized_detector(**overrides):
+    det = ThermalDetector(ThermalDetectorConfig(split_clusters=True, person_aspect=0.25,
+                                                **overrides))
+    for _ in range(5):
+        det.heights.add(100.0, 40.0)      # every row: 40 px tall, so 10 px wide
+    return det
+
+
+def test_a_head_and_a_body_strip_are_one_person():
+    det = _sized_detector()
+    # a head 8 x 9 above a body strip 7 x 30: with 0.5 of 10 x 40 = 5 x 20, the head is a
+    # sliver (9 < 20), the strip is not (7 >= 5, 30 >= 20)
+    head = _cand((12.0, 60.0, 8.0, 9.0), n=50, centroid=(16.0, 64.0))
+    body = _cand((10.0, 69.0, 7.0, 30.0), n=150, centroid=(13.0, 84.0))
+    out = det._without_slivers([head, body])
+    assert len(out) == 1
+    # union 10..20 x 60..99: 10 x 39 fits 1.6 x 10 by 1.2 x 40; centroid pixel-weighted
+    assert out[0].box == (10.0, 60.0, 10.0, 39.0)
+    assert out[0].centroid == pytest.approx(((16 * 50 + 13 * 150) / 200,
+                                             (64 * 50 + 84 * 150) / 200))
+    assert out[0].pixel_count == 200
+
+
+def test_two_people_side_by_side_are_not_slivers_of_each_other():
+    det = _sized_detector()
+    a = _cand((0.0, 60.0, 10.0, 40.0))
+    b = _cand((11.0, 60.0, 10.0, 40.0))
+    assert det._without_slivers([a, b]) == [a, b]
+
+
+def test_a_sliver_too_far_to_fit_one_person_stays():
+    det = _sized_detector()
+    person = _cand((0.0, 60.0, 10.0, 40.0))
+    far = _cand((30.0, 60.0, 3.0, 40.0))      # union 33 px wide, above 1.6 x 10
+    assert det._without_slivers([person, far]) == [person, far]
+
+
+def test_a_box_mostly_inside_another_is_joined():
+    det = _sized_detector(sliver_overlap=0.5)
+    big = _cand((0.0, 60.0, 12.0, 40.0))
+    # 8 x 24 with 6 x 24 inside the big box: 0.75 inside; not a sliver by size
+    inner = _cand((6.0, 70.0, 8.0, 24.0))
+    out = det._without_slivers([big, inner])
+    assert [c.box for c in out] == [(0.0, 60.0, 14.0, 40.0)]
+    # at 1 (never) they stay two
+    det = _sized_detector(sliver_overlap=1.0)
+    assert len(det._without_slivers([big, inner])) == 2
