@@ -264,6 +264,12 @@ class ThermalDetectorConfig:
         0.5, "split_clusters: a part with more than this fraction of its box inside "
         "another part's box is joined to it as a sliver is (1: never)", minimum=0.0,
         maximum=1.0)
+    motion_slack: bool = parameter(
+        False, "split_clusters: the pieces' size limits grow by the distance the fastest "
+        "known object inside them (Kalman velocity) moved during the full pass's window")
+    cut_blobs_whole: bool = parameter(
+        False, "split_clusters: a blob whose footprint search patches reach the image's "
+        "bottom row (its people's feet may be cut off, so no size applies) stays one object")
     keep_objects_apart: bool = parameter(
         True, "split_clusters: at a reconfiguration, two clusters that each hold the "
         "Kalman prediction of a different object of the last pass are never one person")

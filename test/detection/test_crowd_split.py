@@ -194,3 +194,47 @@ def test_a_box_mostly_inside_another_is_joined():
     # at 1 (never) they stay two
     det = _sized_detector(sliver_overlap=1.0)
     assert len(det._without_slivers([big, inner])) == 2
+
+
+def test_join_pieces_slack_widens_both_limits():
+    # 20 px wide: above 1.6 x 10 = 16, within 16 + 5
+    boxes = [(0, 0, 10, 60), (10, 0, 20, 60)]
+    assert join_pieces(boxes, _known, 1.6, 1.2) == [[0], [1]]
+    assert join_pieces(boxes, _known, 1.6, 1.2, slack=5.0) == [[0, 1]]
+    # 80 px tall: above 1.2 x 60 = 72, within 72 + 8
+    tall = [(0, 0, 10, 40), (0, 40, 10, 80)]
+    assert join_pieces(tall, _known, 1.6, 1.2) == [[0], [1]]
+    assert join_pieces(tall, _known, 1.6, 1.2, slack=8.0) == [[0, 1]]
+
+
+def test_motion_slack_is_the_fastest_inside_object_times_the_window():
+    det = ThermalDetector(ThermalDetectorConfig(startup_frames=6))
+    for t in range(6):                          # stamps 0.0 .. 0.5 s: span 0.5 s
+        det._buffer.append((t, 0.1 * t))
+    # (x, y, vx, vy): 50 px/s and 30 * sqrt(2) px/s inside, 200 px/s outside
+    preds = np.array([[5.0, 5.0, 30.0, 40.0], [15.0, 5.0, 30.0, 30.0],
+                      [100.0, 5.0, 200.0, 0.0]])
+    boxes = [(0, 0, 10, 10), (10, 0, 20, 10)]
+    assert det._motion_slack(boxes, preds) == pytest.approx(50.0 * 0.5)
+    assert det._motion_slack(boxes, preds[2:]) == 0.0
+    assert det._motion_slack(boxes, np.zeros((0, 4))) == 0.0
+
+
+def test_known_objects_without_a_learnt_size_are_not_kept_apart():
+    # two walkers found as two (size known), then the size forgotten: the next full pass
+    # has two Kalman filters but no size, so the blob is one object (the rule without
+    # split_clusters)
+    from mk_tracker.detection.person_size import PersonHeightModel
+    config = ThermalDetectorConfig(split_clusters=True, person_aspect=0.25,
+                                   reconfigure_period=1, window_margin=0)
+    frames = _two_people_frames(n_frames=7, gap=3)
+    det = ThermalDetector(config)
+    for _ in range(5):
+        det.heights.add(60.0, 40.0)
+    for t, f in enumerate(frames[:6]):
+        dets = det.process(f, 0.1 * t, "mono8")
+    assert len(dets) == 2
+    det.heights = PersonHeightModel(config.size_memory)
+    dets = det.process(frames[6], 0.6, "mono8")
+    assert det.last_mode == "reconfiguration"
+    assert len(dets) == 1
