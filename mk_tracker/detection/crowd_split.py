@@ -155,13 +155,26 @@ def is_sliver(box_w: float, box_h: float, width: float, height: float,
 class CrowdSplitting:
     """``split_clusters`` in full-frame passes (mixin of the thermal detector)."""
 
+    def _add_aspect(self, width: float, height: float) -> None:
+        """One person-size sample's width / height, forgotten as the height model forgets
+        (``learn_aspect``)."""
+        self.aspects *= self.heights.decay
+        self.aspects += (1.0, width / height)
+
+    def _aspect(self) -> float:
+        """Width / height of one person: the samples' mean with ``learn_aspect`` (once
+        there are about 3), else ``person_aspect``."""
+        if self.config.learn_aspect and self.aspects[0] >= 2.5:
+            return float(self.aspects[1] / self.aspects[0])
+        return self.config.person_aspect
+
     def _expected_size(self, y_bottom: float) -> tuple[float, float] | None:
         """``(width, height)`` of a person whose feet are at row ``y_bottom``, from the
-        learnt height model and ``person_aspect``; None before it has samples."""
+        learnt height model and :meth:`_aspect`; None before it has samples."""
         h = self.heights.height_at(y_bottom)
         if h is None or not h > 0:
             return None
-        return self.config.person_aspect * h, h
+        return self._aspect() * h, h
 
     def _crowd_candidates(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
                           cols: np.ndarray, groups: list[np.ndarray],

@@ -75,6 +75,7 @@ class FootprintSplitting:
                 continue
             if is_person_shaped(w, h, c.person_aspect):
                 self.heights.add(y + h, h)
+                self._add_aspect(w, h)
             elif not group:
                 expected = self.heights.height_at(y + h)
                 group = expected is not None and people_in_width(

@@ -270,6 +270,10 @@ class ThermalDetectorConfig:
     cut_blobs_whole: bool = parameter(
         False, "split_clusters: a blob whose footprint search patches reach the image's "
         "bottom row (its people's feet may be cut off, so no size applies) stays one object")
+    learn_aspect: bool = parameter(
+        False, "split_clusters: the expected person width is the learnt height times the "
+        "mean width / height of the same samples (forgotten as the heights are) instead "
+        "of person_aspect")
     keep_objects_apart: bool = parameter(
         True, "split_clusters: at a reconfiguration, two clusters that each hold the "
         "Kalman prediction of a different object of the last pass are never one person")
@@ -365,6 +369,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting):
         self._ring: np.ndarray | None = None
         self._frames_seen = 0
         self.heights = PersonHeightModel(self.config.size_memory)
+        self.aspects = np.zeros(2)      # forgetting sums of (1, width / height) of samples
         self._group_seen = False        # a tracking pass saw a footprint of several people
 
     def reset(self) -> None:

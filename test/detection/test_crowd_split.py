@@ -238,3 +238,25 @@ def test_known_objects_without_a_learnt_size_are_not_kept_apart():
     dets = det.process(frames[6], 0.6, "mono8")
     assert det.last_mode == "reconfiguration"
     assert len(dets) == 1
+
+
+def test_learnt_aspect_is_the_forgetting_mean_of_the_samples():
+    det = ThermalDetector(ThermalDetectorConfig(split_clusters=True, learn_aspect=True,
+                                                person_aspect=0.27, size_memory=2.0))
+    # memory 2: each older sample's weight halves; fewer than 2.5 in weight: person_aspect
+    det._add_aspect(10.0, 40.0)
+    det._add_aspect(20.0, 40.0)
+    assert det._aspect() == 0.27                      # weight 1.5
+    det = ThermalDetector(ThermalDetectorConfig(split_clusters=True, learn_aspect=True,
+                                                size_memory=1e6))
+    for w in (10.0, 12.0, 14.0):
+        det._add_aspect(w, 40.0)
+    assert det._aspect() == pytest.approx(0.3, rel=1e-5)   # (0.25 + 0.3 + 0.35) / 3
+    for _ in range(3):
+        det.heights.add(100.0, 40.0)
+    assert det._expected_size(100.0) == pytest.approx((12.0, 40.0), rel=1e-5)
+    # off: person_aspect
+    det = ThermalDetector(ThermalDetectorConfig(split_clusters=True, person_aspect=0.25))
+    for w in (10.0, 12.0, 14.0):
+        det._add_aspect(w, 40.0)
+    assert det._aspect() == 0.25
