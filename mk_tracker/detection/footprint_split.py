@@ -58,14 +58,15 @@ class FootprintSplitting:
     """Footprint splitting and the person-size model's samples (mixin)."""
 
     def _learn_sizes(self, detections: list[Any]) -> list[Any]:
-        """split_by_person_size: person-size samples from the person-shaped detections;
+        """split_by_person_size or split_clusters: person-size samples from the
+        person-shaped detections;
         after a tracking pass, whether a detection is as wide as several people (two people
         met: the next full-frame pass, which splits it, comes ``group_recheck_frames``
         after the last one instead of ``reconfigure_period``).  A box that touches the top
         or bottom of the image is neither: its person is cut off, so neither its height
         nor the row of its feet is known."""
         c = self.config
-        if not c.split_by_person_size:
+        if not (c.split_by_person_size or (c.split_clusters and c.current_frame_refinement)):
             return detections
         group = False
         for d in detections:
@@ -74,6 +75,7 @@ class FootprintSplitting:
                 continue
             if is_person_shaped(w, h, c.person_aspect):
                 self.heights.add(y + h, h)
+                self._add_aspect(w, h)
             elif not group:
                 expected = self.heights.height_at(y + h)
                 group = expected is not None and people_in_width(

@@ -67,6 +67,13 @@ Where the paper is silent, and what we add (each switchable):
   tracking pass reports such a wide footprint (two people met), the next full-frame pass
   is brought forward to ``group_recheck_frames`` after the last one.  The valley split and
   the size split live in :mod:`mk_tracker.detection.footprint_split`.
+* **Cluster split** (``split_clusters``).  In full-frame passes, instead of the link rule
+  and the footprint merge, the K-means clusters (3.12)-(3.13) of one footprint are grouped
+  into people by the learnt person size: a cluster mostly outside its newest-frame
+  footprint is a trailing band (where a person was) and gives no object, the pieces of
+  one band are joined while they fit one person, the footprint is shared by Voronoi cells
+  and slivers are joined to a neighbour; the previous pass's objects are kept apart
+  (:mod:`mk_tracker.detection.crowd_split`).  Off by default (docs/benchmark_groups.md).
 * The (5.2) window is the object's box plus ``window_margin`` pixels plus the distance the
   Kalman velocity covers in the window's time span on each side, snapped to the ``rho``
   grid so that overlapping windows share blocks (their union is factored once).  Support
@@ -117,6 +124,7 @@ import numpy as np
 from mk_tracker.tracking.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.detection.block_support import SupportResult, _support, support_in_frame
+from mk_tracker.detection.crowd_split import CrowdSplitting
 from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell, _median,
                                             _object_kernel, _owned_support,
                                             _similarity_radius, footprint_mask,
@@ -227,6 +235,48 @@ class ThermalDetectorConfig:
         5, "split_by_person_size: when a tracking pass finds a footprint as wide as several "
         "people, the next full-frame pass (which splits it) runs this many frames after the "
         "last one instead of reconfigure_period", minimum=1, maximum=100000)
+    split_clusters: bool = parameter(
+        False, "full-frame passes: instead of link_gap and merge_by_footprint, group the "
+        "K-means clusters (3.12)-(3.13) of touching people into persons by the learnt "
+        "person size: trailing bands dropped, pieces of one band joined, the footprint "
+        "shared by Voronoi cells, slivers joined to a neighbour "
+        "(mk_tracker.detection.crowd_split); not in the paper; needs "
+        "current_frame_refinement")
+    trail_fraction: float = parameter(
+        0.5, "split_clusters: a cluster with fewer than this fraction of its support "
+        "pixels in its newest-frame footprint is where an object was (a trailing band), "
+        "not a person", minimum=0.0, maximum=1.0)
+    seed_width_ratio: float = parameter(
+        1.6, "split_clusters: clusters are one person's pieces while the union of their "
+        "support boxes is at most this many expected person widths wide", minimum=0.0,
+        maximum=10.0)
+    seed_height_ratio: float = parameter(
+        1.2, "split_clusters: ... and at most this many expected person heights tall",
+        minimum=0.0, maximum=10.0)
+    sliver_fraction: float = parameter(
+        0.5, "split_clusters: a part narrower than this fraction of the expected person "
+        "width is a sliver, joined to a neighbour",
+        minimum=0.0, maximum=1.0)
+    sliver_height_fraction: float = parameter(
+        0.5, "split_clusters: ... or lower than this fraction of the expected person "
+        "height", minimum=0.0, maximum=1.0)
+    sliver_overlap: float = parameter(
+        0.5, "split_clusters: a part with more than this fraction of its box inside "
+        "another part's box is joined to it as a sliver is (1: never)", minimum=0.0,
+        maximum=1.0)
+    motion_slack: bool = parameter(
+        False, "split_clusters: the pieces' size limits grow by the distance the fastest "
+        "known object inside them (Kalman velocity) moved during the full pass's window")
+    cut_blobs_whole: bool = parameter(
+        False, "split_clusters: a blob whose footprint search patches reach the image's "
+        "bottom row (its people's feet may be cut off, so no size applies) stays one object")
+    learn_aspect: bool = parameter(
+        False, "split_clusters: the expected person width is the learnt height times the "
+        "mean width / height of the same samples (forgotten as the heights are) instead "
+        "of person_aspect")
+    keep_objects_apart: bool = parameter(
+        True, "split_clusters: at a reconfiguration, two clusters that each hold the "
+        "Kalman prediction of a different object of the last pass are never one person")
     size_memory: float = parameter(500.0, "split_by_person_size: person-size samples "
                                    "remembered (exponential forgetting)", minimum=1.0,
                                    maximum=1e6)
@@ -274,7 +324,7 @@ def _overlap(a: tuple, b: tuple) -> bool:
             and min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]) > 0)
 
 
-class ThermalDetector(FootprintSplitting):
+class ThermalDetector(FootprintSplitting, CrowdSplitting):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
@@ -319,6 +369,7 @@ class ThermalDetector(FootprintSplitting):
         self._ring: np.ndarray | None = None
         self._frames_seen = 0
         self.heights = PersonHeightModel(self.config.size_memory)
+        self.aspects = np.zeros(2)      # forgetting sums of (1, width / height) of samples
         self._group_seen = False        # a tracking pass saw a footprint of several people
 
     def reset(self) -> None:
@@ -441,10 +492,13 @@ class ThermalDetector(FootprintSplitting):
             _, labels = cluster_support_pixels(np.column_stack([cols, rows]),
                                                max_objects=c.max_objects,
                                                merge_distance_sq=c.merge_distance_sq)
-            if c.link_gap > 0:
+            if c.link_gap > 0 and not (c.current_frame_refinement and c.split_clusters):
                 labels = merge_linked(labels, link_groups(result.support, c.link_gap)[rows, cols])
             groups = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)]
             groups = [g for g in groups if g.size >= c.min_object_pixels]
+            if c.current_frame_refinement and c.split_clusters:
+                candidates = self._crowd_candidates(frame, result, rows, cols, groups, bounds)
+                groups = []
             footprints: list[Any] = [_UNSET] * len(groups)
             if c.current_frame_refinement and c.merge_by_footprint and len(groups) > 1:
                 groups, footprints = self._merge_by_footprint(frame, result.support, rows,
