@@ -51,13 +51,12 @@ in the paper; it is off by default (docs/benchmark_groups.md has the figures).
 
 from __future__ import annotations
 
-import math
 from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from mk_tracker.detection.block_support import SupportResult
-from mk_tracker.detection.footprint import _VoronoiCell
+from mk_tracker.detection.footprint import _VoronoiCell, overlapping_footprints
 from mk_tracker.detection.footprint_split import _Candidate, _footprint_levels
 from mk_tracker.detection.pixel_clustering import describe_pixels
 
@@ -182,35 +181,24 @@ class CrowdSplitting:
         """Candidates of a full-frame pass from the K-means clusters ``groups`` (indices
         into ``rows``/``cols``), steps 1-4 of the module docstring."""
         c = self.config
-        owner = np.full(frame.shape, -1, dtype=np.int64)
-        parent = list(range(len(groups)))
-
-        def find(a: int) -> int:
-            while parent[a] != a:
-                parent[a] = parent[parent[a]]
-                a = parent[a]
-            return a
-
-        prints, now = [], []
-        for k, g in enumerate(groups):
-            fp = self._footprint(frame, result.support, rows[g], cols[g], bounds)
-            prints.append(fp)
+        prints, sets = overlapping_footprints(
+            frame.shape, len(groups),
+            lambda k: self._footprint(frame, result.support, rows[groups[k]],
+                                      cols[groups[k]], bounds))
+        now = []
+        for k, fp in enumerate(prints):
             if fp is None:
                 now.append(0.0)
                 continue
             (y0, x0), mask = fp
+            g = groups[k]
             now.append(float(mask[rows[g] - y0, cols[g] - x0].mean()))
-            region = owner[y0:y0 + mask.shape[0], x0:x0 + mask.shape[1]]
-            for other in np.unique(region[mask & (region >= 0)]):
-                parent[find(int(other))] = find(k)
-            region[mask] = k
-        blobs: dict[int, list[int]] = {}
-        for k in range(len(groups)):
-            if prints[k] is not None:        # no footprint: a trail, no object (as before)
-                blobs.setdefault(find(k), []).append(k)
+        # no footprint: a trail, no object (as before)
+        blobs = [kept for kept in ([k for k in s if prints[k] is not None] for s in sets)
+                 if kept]
         predictions = self._predictions()
         out: list[Any] = []
-        for members in blobs.values():
+        for members in blobs:
             if len(members) == 1:
                 k = members[0]
                 cand = self._candidate(frame, result, rows[groups[k]], cols[groups[k]],

@@ -25,10 +25,11 @@ this module, so numba's disk cache (keyed on this file) is never stale.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import cv2
 import numpy as np
+from scipy.cluster.hierarchy import DisjointSet
 
 from mk_tracker.numba_support import import_numba
 from mk_tracker.detection.pixel_clustering import PixelObject
@@ -251,6 +252,34 @@ def footprint_stats(frame: np.ndarray, offset: np.float32, support: np.ndarray,
     return (y0, x0), state, obj
 
 
+
+
+def overlapping_footprints(shape: tuple[int, int], count: int,
+                           footprint: Callable[[int], Any]) -> tuple[list, list[list[int]]]:
+    """Footprints of ``count`` clusters and the sets of clusters whose footprints share a
+    pixel (transitively): one object whose swept support fell apart into bands.
+
+    ``footprint(k)`` gives cluster ``k``'s ``((y0, x0), mask)`` in a ``shape`` frame, or
+    None.  Returns the footprints and the sets as lists of cluster indices, each in
+    increasing order, the sets ordered by their first member; a cluster without a
+    footprint is a set of its own.  The sets are SciPy's disjoint-set forest."""
+    owner = np.full(shape, -1, dtype=np.int64)
+    sets = DisjointSet(range(count))
+    prints = []
+    for k in range(count):
+        fp = footprint(k)
+        prints.append(fp)
+        if fp is None:
+            continue
+        (y0, x0), mask = fp
+        region = owner[y0:y0 + mask.shape[0], x0:x0 + mask.shape[1]]
+        for other in np.unique(region[mask & (region >= 0)]):
+            sets.merge(int(other), k)
+        region[mask] = k
+    members: dict[int, list[int]] = {}
+    for k in range(count):
+        members.setdefault(sets[k], []).append(k)
+    return prints, list(members.values())
 
 
 def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, k, state,

@@ -128,7 +128,7 @@ from mk_tracker.detection.crowd_split import CrowdSplitting
 from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell, _median,
                                             _object_kernel, _owned_support,
                                             _similarity_radius, footprint_mask,
-                                            footprint_stats)
+                                            footprint_stats, overlapping_footprints)
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate,
@@ -550,31 +550,12 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting):
 
         Returns the merged groups and, for each, its footprint when it was computed here
         (a group left alone) or ``_UNSET`` (a merged group: recomputed by the caller)."""
-        owner = np.full(frame.shape, -1, dtype=np.int64)
-        parent = list(range(len(groups)))
-
-        def find(a: int) -> int:
-            while parent[a] != a:
-                parent[a] = parent[parent[a]]
-                a = parent[a]
-            return a
-
-        prints = []
-        for k, g in enumerate(groups):
-            fp = self._footprint(frame, support, rows[g], cols[g], bounds)
-            prints.append(fp)
-            if fp is None:
-                continue
-            (y0, x0), mask = fp
-            region = owner[y0:y0 + mask.shape[0], x0:x0 + mask.shape[1]]
-            for other in np.unique(region[mask & (region >= 0)]):
-                parent[find(int(other))] = find(k)
-            region[mask] = k
-        merged: dict[int, list[int]] = {}
-        for k in range(len(groups)):
-            merged.setdefault(find(k), []).append(k)
-        out_groups = [np.concatenate([groups[k] for k in v]) for v in merged.values()]
-        out_prints = [prints[v[0]] if len(v) == 1 else _UNSET for v in merged.values()]
+        prints, merged = overlapping_footprints(
+            frame.shape, len(groups),
+            lambda k: self._footprint(frame, support, rows[groups[k]], cols[groups[k]],
+                                      bounds))
+        out_groups = [np.concatenate([groups[k] for k in v]) for v in merged]
+        out_prints = [prints[v[0]] if len(v) == 1 else _UNSET for v in merged]
         return out_groups, out_prints
 
     def _footprint(self, frame: np.ndarray, support: np.ndarray, rows: np.ndarray,

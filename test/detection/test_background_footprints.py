@@ -93,3 +93,21 @@ def test_footprint_levels_are_the_mean_of_the_footprint_and_the_median_off_suppo
     # footprint mean (60 + 70 + 120) / 3; off-support patch pixels 80, 100, 110, 120
     assert level == pytest.approx(250.0 / 3.0)
     assert local == pytest.approx(105.0)
+
+
+def test_overlapping_footprints_are_one_set_transitively():
+    from mk_tracker.detection.footprint import overlapping_footprints
+
+    def box(y0, x0, h, w):
+        return (y0, x0), np.ones((h, w), bool)
+
+    # 0 and 1 share rows 2-4 x columns 4-5; 1 and 3 share row 2 x columns 9-10 (so 0, 1
+    # and 3 are one set through 1); 2 is apart; 4 has no footprint and stays alone
+    fps = {0: box(0, 0, 5, 6), 1: box(2, 4, 3, 7), 2: box(10, 20, 4, 4), 3: box(0, 9, 3, 3),
+           4: None}
+    prints, sets = overlapping_footprints((20, 30), 5, fps.get)
+    assert prints == [fps[k] for k in range(5)]
+    assert sets == [[0, 1, 3], [2], [4]]
+    # touching edges without a shared pixel are not an overlap
+    _, sets = overlapping_footprints((20, 30), 2, {0: box(0, 0, 3, 3), 1: box(0, 3, 3, 3)}.get)
+    assert sets == [[0], [1]]
