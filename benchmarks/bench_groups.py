@@ -7,6 +7,8 @@ choice of defaults) is generated and processed by ``mk_tracker process`` with:
   + the multi-object tracker with multiple-kernel refinement of Chu et al. 2013);
 * ``kernel + size split``: the detector's ``split_by_person_size`` switched on (off by
   default: see docs/benchmark_groups.md);
+* ``kernel + cluster split``: the detector's ``split_clusters`` switched on (off by default,
+  the same page);
 * ``kernel, no groups``: the default detector with the tracker's group measurements off
   (``tracker.group.enabled: false``), the tracker as it was before issue #15;
 * ``threshold``: the threshold detector baseline driving the same tracker;
@@ -53,8 +55,10 @@ def configurations(base):
     no_groups = replace(base, tracker=replace(
         base.tracker, group=replace(base.tracker.group, enabled=False)))
     split = replace(base, detector=replace(base.detector, split_by_person_size=True))
+    clusters = replace(base, detector=replace(base.detector, split_clusters=True))
     return [("kernel", base, "thermal"),
             ("kernel + size split", split, "thermal"),
+            ("kernel + cluster split", clusters, "thermal"),
             ("kernel, no groups", no_groups, "thermal"),
             ("threshold", replace(base, method="threshold"), "thermal"),
             ("truth", base, "topic:/detections")]
@@ -105,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
                            "kernel + size split": detector_scores(
                                scene, "kernel", replace(base.detector,
                                                         split_by_person_size=True)),
+                           "kernel + cluster split": detector_scores(
+                               scene, "kernel", replace(base.detector, split_clusters=True)),
                            "threshold": detector_scores(scene, "threshold", base.threshold)}
                     for name, config, source in configs:
                         result = process_bag(truth if source.startswith("topic:") else bag,
