@@ -121,12 +121,21 @@ class _StartGuard:
     "Exception ignored" and goes on, which left a compile running for 15 s more in 1 of 10
     runs.  The guard's ``sys.unraisablehook`` therefore keeps such a swallowed interrupt quiet
     and raises it again 20 ms later (SIGALRM), until it lands in ordinary code.
+
+    An interrupt that lands inside the constructor of an llvmlite object (numba's compiler)
+    leaves that object half built; when it is collected, maybe only at the process's end,
+    its ``__del__`` fails with ``AttributeError: ... '_as_parameter_'`` and Python printed a
+    traceback after the clean "interrupted" line (1 in ~10 fresh-clone test runs).  Once a
+    start was interrupted the guard's hook stays installed for the rest of the process and
+    drops exactly that teardown error (:func:`half_built_llvm_object`); everything else still
+    reaches the previous hook.
     """
 
     RETRY_S = 0.02
 
     def __init__(self) -> None:
         self.starting = True
+        self.interrupted = False
         self._retry = hasattr(signal, "setitimer")
         self._signals = [signal.SIGINT, signal.SIGTERM] + (
             [signal.SIGALRM] if self._retry else [])
@@ -138,12 +147,15 @@ class _StartGuard:
 
     def _on_signal(self, signum: int, frame: Any) -> None:
         if self.starting:
+            self.interrupted = True
             raise StartupInterrupted()
 
     def _on_unraisable(self, unraisable: Any) -> None:
         if isinstance(unraisable.exc_value, StartupInterrupted) and self.starting:
             if self._retry:
                 signal.setitimer(signal.ITIMER_REAL, self.RETRY_S)
+            return
+        if self.interrupted and half_built_llvm_object(unraisable):
             return
         self._previous_hook(unraisable)
 
@@ -155,10 +167,21 @@ class _StartGuard:
 
     def restore(self) -> None:
         self.started()
-        sys.unraisablehook = self._previous_hook
+        if not self.interrupted:       # else: the half-built objects are collected later
+            sys.unraisablehook = self._previous_hook
         for sig, handler in self._previous.items():
             if handler is not None:
                 signal.signal(sig, handler)
+
+
+def half_built_llvm_object(unraisable: Any) -> bool:
+    """Whether a ``sys.unraisablehook`` report is the teardown of an llvmlite object whose
+    constructor an interrupt cut short: an ``AttributeError`` about ``_as_parameter_`` (the
+    handle its constructor never set) raised in an ``llvmlite`` ``__del__``."""
+    exc = getattr(unraisable, "exc_value", None)
+    where = getattr(getattr(unraisable, "object", None), "__module__", None) or ""
+    return (isinstance(exc, AttributeError) and "_as_parameter_" in str(exc)
+            and where.startswith("llvmlite"))
 
 
 def run_node(node_class: Callable[[], Node], name: str,

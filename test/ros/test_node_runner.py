@@ -242,3 +242,81 @@ def test_an_interrupt_swallowed_by_a_ctypes_callback_is_raised_again(keep_sigter
     err = capfd.readouterr().err
     assert "Exception ignored" not in err and "Traceback" not in err, err
     assert err.count("interrupted while starting") == 1, err
+
+
+def _llvm_like_half_built():
+    """An object whose ``__del__`` fails as a half-built llvmlite ObjectRef's does (its
+    constructor never set ``_as_parameter_``), defined in a module named like llvmlite's."""
+    scope = {"__name__": "llvmlite.binding.ffi"}
+    exec("class ObjectRef:\n"
+         "    def __del__(self):\n"
+         "        del self._as_parameter_\n", scope)
+    return scope["ObjectRef"]()
+
+
+@pytest.fixture
+def keep_unraisablehook():
+    import sys
+    previous = sys.unraisablehook
+    yield
+    sys.unraisablehook = previous
+
+
+def test_a_half_built_llvm_object_collected_after_an_interrupted_start_is_quiet(
+        keep_sigterm, keep_unraisablehook, capfd):
+    import gc
+    import sys
+
+    kept = []
+
+    class Compiling(Node):
+        def __init__(self):
+            super().__init__("runner_half_built_node")
+            kept.append(_llvm_like_half_built())     # cut short in its constructor
+            os.kill(os.getpid(), signal.SIGTERM)
+            _busy(5.0)
+
+    assert run_node(Compiling, "runner_half_built_node") == 0
+    # the guard's hook stays for the objects collected after the run ...
+    guard = getattr(sys.unraisablehook, "__self__", None)
+    assert type(guard).__name__ == "_StartGuard", sys.unraisablehook
+    passed_on = []
+    guard._previous_hook = passed_on.append            # what it would print
+    kept.clear()
+    gc.collect()
+    # ... and drops their teardown error, which Python would print as a traceback
+    assert passed_on == []
+    err = capfd.readouterr().err
+    assert err.count("interrupted while starting") == 1, err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+
+
+def test_the_guard_drops_only_that_teardown_error_and_only_after_an_interrupt():
+    import types
+
+    from mk_tracker.ros.node_runner import _StartGuard, half_built_llvm_object
+
+    llvm_del = _llvm_like_half_built().__class__.__del__
+    report = types.SimpleNamespace(
+        exc_value=AttributeError("'PassBuilder' object has no attribute '_as_parameter_'"),
+        object=llvm_del)
+    assert half_built_llvm_object(report)
+    other_attr = types.SimpleNamespace(exc_value=AttributeError("'X' has no attribute 'y'"),
+                                       object=llvm_del)
+    ours = types.SimpleNamespace(exc_value=report.exc_value,
+                                 object=test_report_timer_is_due_once_per_period)
+    assert not half_built_llvm_object(other_attr) and not half_built_llvm_object(ours)
+    guard = _StartGuard()
+    try:
+        passed = []
+        guard._previous_hook = passed.append
+        guard.started()
+        guard._on_unraisable(report)                  # no interrupt: reported
+        guard.interrupted = True
+        guard._on_unraisable(report)                  # after one: dropped
+        guard._on_unraisable(other_attr)              # anything else: reported
+        assert passed == [report, other_attr]
+    finally:
+        guard._previous_hook = __import__("sys").unraisablehook
+        guard.interrupted = False
+        guard.restore()
