@@ -125,7 +125,7 @@ class _StartGuard:
     An interrupt that lands inside the constructor of an llvmlite object (numba's compiler)
     leaves that object half built; when it is collected, maybe only at the process's end,
     its ``__del__`` fails with ``AttributeError: ... '_as_parameter_'`` and Python printed a
-    traceback after the clean "interrupted" line (1 in ~10 fresh-clone test runs).  Once a
+    traceback after the clean "interrupted" line (seen once, in a fresh-clone test run).  Once a
     start was interrupted the guard's hook stays installed for the rest of the process and
     drops exactly that teardown error (:func:`half_built_llvm_object`); everything else still
     reaches the previous hook.
