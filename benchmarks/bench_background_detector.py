@@ -84,19 +84,18 @@ def settings() -> list[dict]:
 
 def detection_scores(frames, truth, fps: float, config: BackgroundDetectorConfig) -> dict:
     det = BackgroundDetector(config)
-    stamps = iter(range(len(frames)))
-    return _scored(lambda img: [d.box for d in det.process(img, next(stamps) / fps,
-                                                            encoding="bgr8")], frames, truth)
+    return _scored(lambda k, img: [d.box for d in det.process(img, k / fps, encoding="bgr8")],
+                   frames, truth)
 
 
 def _scored(detect, frames, truth) -> dict:
     """Detection recall / precision / F1 (one-to-one at IoU >= 0.5, every frame) and the
-    median CPU ms per frame of ``detect``, a ``bgr -> boxes`` callable."""
+    median CPU ms per frame of ``detect``, a ``(frame index, bgr) -> boxes`` callable."""
     tp = fp = fn = 0
     times = []
     for k, img in enumerate(frames):
         t0 = time.thread_time()
-        out = detect(img)
+        out = detect(k, img)
         times.append(time.thread_time() - t0)
         gt, boxes = truth[k], [tuple(b[:4]) for b in out]
         good = 0
@@ -160,14 +159,16 @@ def load_sequences(tmp: Path) -> list[tuple]:
 
 def peer_detection_scores(frames, truth) -> dict:
     """Recall / precision / F1 / CPU ms of the plain MOG2 peer, matched as ours."""
-    return _scored(Mog2Components().detect, frames, truth)
+    peer = Mog2Components()
+    return _scored(lambda _k, img: peer.detect(img), frames, truth)
 
 
 def peer_tracking_scores(frames, fps: float, gt_file: Path, detector, trackers) -> dict:
     """MOTA / IDF1 / recall / precision of each peer tracker fed by ``detector`` (a
-    ``bgr -> [(x, y, w, h, score)]`` callable run once), scored against the ground truth
-    that ``mk_tracker process`` wrote for our run of the same bag (the same frames)."""
-    detections = [detector(img) for img in frames]
+    ``(frame index, bgr) -> [(x, y, w, h, score)]`` callable run once), scored against the
+    ground truth that ``mk_tracker process`` wrote for our run of the same bag (the same
+    frames)."""
+    detections = [detector(k, img) for k, img in enumerate(frames)]
     gt = read_mot_file(gt_file, ground_truth=True)
     out = {}
     for name, make in trackers.items():
@@ -268,15 +269,14 @@ def main(argv=None) -> int:
             if public:
                 rows.append(("public detections -> ours",
                              tracking_scores(bag, tmp / f"{name}-pub", "topic:/detections")))
-            ours = BackgroundDetector(BackgroundDetectorConfig())
-            stamps = iter(range(len(_frames)))
+            ours, plain = BackgroundDetector(BackgroundDetectorConfig()), Mog2Components()
 
-            def background_boxes(img):
-                return [(*d.box, d.score) for d in ours.process(img, next(stamps) / _fps,
+            def background_boxes(k, img):
+                return [(*d.box, d.score) for d in ours.process(img, k / _fps,
                                                                 encoding="bgr8")]
             peers = {"SORT": SortTracker, "norfair": NorfairPeer}
             gt_file = tmp / f"{name}-bg" / "gt.txt"
-            for det_name, det in (("plain MOG2 components", Mog2Components().detect),
+            for det_name, det in (("plain MOG2 components", lambda _k, img: plain.detect(img)),
                                   ("background, shipped defaults", background_boxes)):
                 for trk_name, s in peer_tracking_scores(_frames, _fps, gt_file, det,
                                                         peers).items():

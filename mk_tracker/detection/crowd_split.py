@@ -193,9 +193,8 @@ class CrowdSplitting:
             (y0, x0), mask = fp
             g = groups[k]
             now.append(float(mask[rows[g] - y0, cols[g] - x0].mean()))
-        # no footprint: a trail, no object (as before)
-        blobs = [kept for kept in ([k for k in s if prints[k] is not None] for s in sets)
-                 if kept]
+        # no footprint: a trail, no object (as before); such a cluster is a set of its own
+        blobs = [members for members in sets if prints[members[0]] is not None]
         predictions = self._predictions()
         out: list[Any] = []
         for members in blobs:
