@@ -424,7 +424,7 @@ def warm_up(trackers) -> None:
 
 def fast_path() -> str:
     """Which multiple-kernel code path this run measured."""
-    from mk_tracker.tracking import kernel_histograms
+    from mk_tracker.tracking.search_region import resolve_backend
     try:
         import numba
         have = f"numba {numba.__version__} importable"
@@ -433,10 +433,7 @@ def fast_path() -> str:
     env = os.environ.get("MK_TRACKER_NO_NUMBA")
     if env:
         have += f", MK_TRACKER_NO_NUMBA={env}"
-    resolve = getattr(kernel_histograms, "resolve_backend", None)
-    if resolve is None:
-        return f"numpy ({have}; this version of mk_tracker has no compiled backend)"
-    backend = resolve("auto")
+    backend = resolve_backend("auto")
     return (f"`{backend}` kernel evaluation (`MultiKernelTracker(backend='auto')`; {have})")
 
 

@@ -11,8 +11,8 @@ Implementations compared in the same process on the same frames:
 
 * ``compiled``: this working tree, numba kernels (the default when numba is installed);
 * ``numpy``: this working tree with the numpy reference path (``backend="numpy"``);
-* ``REV`` (with ``--baseline REV``): ``mk_tracker/tracking/kernel_histograms.py`` and
-  ``mk_tracker/tracking/multi_kernel.py`` as they were at git revision ``REV``, loaded under other
+* ``REV`` (with ``--baseline REV``): ``mk_tracker/tracking/kernel_histograms.py``,
+  ``search_region.py`` (where it exists) and ``multi_kernel.py`` as they were at git revision ``REV``, loaded under other
   module names (everything else is shared).
 
 With ``--opencv CSRT`` OpenCV's CSRT tracker is timed on the same frames (needs
@@ -61,14 +61,28 @@ KERNEL_COUNTS = (2, 1, 4)
 
 
 def load_baseline(rev: str, workdir: Path):
-    """``multi_kernel`` module of git revision ``rev`` (with its own kernel_histograms)."""
+    """``multi_kernel`` module of git revision ``rev`` with its own appearance-model modules
+    (``kernel_histograms``, and ``search_region`` where the revision has it), loaded under
+    other names; the rest of the package is shared with this working tree."""
     names = {}
-    for stem in ("kernel_histograms", "multi_kernel"):
-        text = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:mk_tracker/{stem}.py"],
-                              check=True, capture_output=True, text=True).stdout
+    stems = ("kernel_histograms", "search_region", "multi_kernel")     # dependency order
+    for stem in stems:
+        text = None
+        for path in (f"mk_tracker/tracking/{stem}.py", f"mk_tracker/{stem}.py"):
+            shown = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:{path}"],
+                                   capture_output=True, text=True)
+            if shown.returncode == 0:
+                text = shown.stdout
+                break
+        if text is None:
+            if stem == "search_region":          # before the split of kernel_histograms
+                continue
+            raise SystemExit(f"{stem}.py not found at revision {rev}")
+        for other in stems:
+            for package in ("mk_tracker.tracking", "mk_tracker"):
+                text = text.replace(f"from {package}.{other} import",
+                                    f"from baseline_{other} import")
         alias = f"baseline_{stem}"
-        text = text.replace("from mk_tracker.tracking.kernel_histograms import",
-                            "from baseline_kernel_histograms import")
         path = workdir / f"{alias}.py"
         path.write_text(text, encoding="utf-8")
         spec = importlib.util.spec_from_file_location(alias, path)

@@ -1,7 +1,7 @@
 """Whether the compiled (numba) paths of the detector and the tracker can be used.
 
 The sparse kernel covariance detector (:mod:`mk_tracker.detection.kernel_covariance`) and
-the multiple-kernel tracker's histograms (:mod:`mk_tracker.tracking.kernel_histograms`) run
+the multiple-kernel tracker's histograms (:mod:`mk_tracker.tracking.search_region`) run
 their inner loops as numba functions when numba can be imported, and fall back to numpy
 otherwise (or when the environment variable ``MK_TRACKER_NO_NUMBA`` is set).  They all ask
 :func:`import_numba`, so the nodes can say at start-up which path they will run

@@ -1,6 +1,6 @@
 """Compile (or load from numba's on-disk cache) the compiled kernels before the first frame.
 
-The multiple-kernel tracker (:mod:`mk_tracker.tracking.kernel_histograms`,
+The multiple-kernel tracker (:mod:`mk_tracker.tracking.search_region`,
 :mod:`mk_tracker.tracking.multi_kernel`) and the thermal detector (:mod:`mk_tracker.detection.kernel_covariance`,
 :mod:`mk_tracker.detection.sparse_factorization`, :mod:`mk_tracker.detection.thermal_detector`) run their inner
 loops as numba functions, compiled on first use: several seconds the first time on a

@@ -3,7 +3,8 @@
 # habit, not part of make test; results and the list of equivalent mutants: docs/mutation.md.
 #
 # Usage: bash scripts/mutation.sh [MODULE...]
-#   MODULE: boxes kalman association kernel_histograms sparse_factorization (default: all)
+#   MODULE: boxes kalman association kernel_histograms search_region sparse_factorization
+#   (default: all)
 # Environment: MUTATION_JOBS (parallel mutant runs, default 2);
 #   MUTATION_RERUN=1: keep build/mutation/MODULE from an earlier run and run only the
 #   mutants that its results.txt does not list as killed, against the current test files
@@ -42,6 +43,7 @@ declare -A SOURCE=(
   [kalman]=mk_tracker/kalman.py
   [association]=mk_tracker/tracking/association.py
   [kernel_histograms]=mk_tracker/tracking/kernel_histograms.py
+  [search_region]=mk_tracker/tracking/search_region.py
   [sparse_factorization]=mk_tracker/detection/sparse_factorization.py
 )
 declare -A TESTS=(
@@ -49,9 +51,10 @@ declare -A TESTS=(
   [kalman]="test/test_kalman.py"
   [association]="test/tracking/test_association.py"
   [kernel_histograms]="test/tracking/test_kernel_histograms.py"
+  [search_region]="test/tracking/test_kernel_histograms.py"
   [sparse_factorization]="test/detection/test_sparse_factorization.py"
 )
-ORDER=(boxes kalman association kernel_histograms sparse_factorization)
+ORDER=(boxes kalman association kernel_histograms search_region sparse_factorization)
 
 MODULES=("$@")
 [ "${#MODULES[@]}" -gt 0 ] || MODULES=("${ORDER[@]}")

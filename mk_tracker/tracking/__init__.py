@@ -21,7 +21,9 @@ detections of :mod:`mk_tracker.detection`.  The Kalman filter itself is
   dx_A + dx_B of (5) / (8) (Appendix A), safe when C_x^T C_x is singular.
 * :mod:`~mk_tracker.tracking.kernel_histograms` -- the appearance model: kernel-weighted
   colour histograms (Sec. III-A), the K-L cost and the mean-shift vector used as -J_x
-  (Appendix C), the scale ratio of (9)-(10).
+  (Appendix C), the scale ratio of (9)-(10); the numpy reference.
+* :mod:`~mk_tracker.tracking.search_region` -- the same numbers, fast: a quantised search
+  region and all kernels of a target evaluated in one call (numba loops, numpy fallback).
 * :mod:`~mk_tracker.tracking.kernel_layouts` -- where the kernels sit in a box (Sec. IV-A,
   Fig. 4; Sec. V-C, Fig. 14).
 * :mod:`~mk_tracker.tracking.track` -- one track's state and lifecycle (tentative,

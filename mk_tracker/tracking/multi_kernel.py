@@ -20,7 +20,7 @@ Rank deficiency of ``C_x^T C_x`` and how the step (5)/(8) copes with it: see
 
 Speed.  :meth:`MultiKernelTracker.refine` quantises only its search region and evaluates all
 kernels of the target per iteration in one call of
-:meth:`mk_tracker.tracking.kernel_histograms.SearchRegion.evaluate` (numba-compiled by default, numpy
+:meth:`mk_tracker.tracking.search_region.SearchRegion.evaluate` (numba-compiled by default, numpy
 with ``backend="numpy"`` or ``MK_TRACKER_NO_NUMBA=1``; both give the same results, tested).
 The iteration of Algorithm 1 is sensitive to rounding: the two backends (or a first box moved
 by 1e-9 px) give the same boxes for the first few to few tens of frames, then can drift apart
@@ -82,9 +82,10 @@ import numpy as np
 
 from mk_tracker.boxes import BoxLike, InvalidBoxError, as_box, clip_box
 from mk_tracker.tracking.kernel_histograms import (  # noqa: F401  (evaluate_kernel: re-exported)
-    COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES, InvalidImageError, KernelBackendError,
-    KernelBatch, SearchRegion, check_image, evaluate_kernel, number_of_bins,
-    quantize_region, resolve_backend)
+    COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES, InvalidImageError, KernelBatch, check_image,
+    evaluate_kernel, number_of_bins)
+from mk_tracker.tracking.search_region import (KernelBackendError, SearchRegion,
+                                               quantize_region, resolve_backend)
 from mk_tracker.tracking.projected_gradient import (_compiled_step, constraint_jacobian,
                                                     constraint_thresholds, constraint_values,
                                                     kernel_pairs, pair_distances,

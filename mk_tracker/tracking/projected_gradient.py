@@ -35,7 +35,7 @@ pattern are computed once and cached (a general matrix is factorised directly).
 
 Speed: :func:`_constrained_step_loops` computes ``C(x)``, ``dx_A`` and ``dx_B`` in closed form
 for these constraints, compiled with numba (``nogil``) by :func:`_compiled_step` (same
-switch as :mod:`mk_tracker.tracking.kernel_histograms`); the SVD path above is the
+switch as :mod:`mk_tracker.tracking.search_region`); the SVD path above is the
 reference, and the two agree to rounding (tested).
 """
 
@@ -45,7 +45,7 @@ from itertools import combinations
 
 import numpy as np
 
-from mk_tracker.tracking.kernel_histograms import compiled_kernels
+from mk_tracker.tracking.search_region import compiled_kernels
 
 __all__ = ["kernel_pairs", "pair_distances", "constraint_values", "constraint_jacobian",
            "constraint_thresholds", "constraint_projector", "projected_gradient_step"]
@@ -317,7 +317,7 @@ _COMPILED_STEP: list = []
 
 def _compiled_step():
     """:func:`_constrained_step_loops` compiled with numba, or None (no numba, or
-    ``MK_TRACKER_NO_NUMBA``; the same switch as :mod:`mk_tracker.tracking.kernel_histograms`)."""
+    ``MK_TRACKER_NO_NUMBA``; the same switch as :mod:`mk_tracker.tracking.search_region`)."""
     if not _COMPILED_STEP:
         if compiled_kernels() is None:
             _COMPILED_STEP.append(None)

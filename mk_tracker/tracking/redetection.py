@@ -56,7 +56,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from mk_tracker.tracking.kernel_histograms import SearchRegion, bin_lookup_tables, roi_has_nan
+from mk_tracker.tracking.kernel_histograms import bin_lookup_tables, roi_has_nan
+from mk_tracker.tracking.search_region import SearchRegion
 from mk_tracker.tracking.kernel_layouts import kernels_bounding_box
 
 if TYPE_CHECKING:

@@ -1,4 +1,6 @@
-"""Colour histograms, K-L cost, mean-shift vector and scale ratio (Chu 2013 App. C, (9)-(10))."""
+"""Colour histograms, K-L cost, mean-shift vector and scale ratio (Chu 2013 App. C, (9)-(10)):
+the numpy reference (mk_tracker.tracking.kernel_histograms) and the fast path that must equal
+it (mk_tracker.tracking.search_region)."""
 
 import numpy as np
 import pytest
@@ -204,9 +206,10 @@ def test_batched_evaluation_equals_one_kernel_at_a_time():
 
 # -- compiled fast path (numba) against the numpy reference --------------------------------
 
-from mk_tracker.tracking.kernel_histograms import (KernelBackendError, SearchRegion,  # noqa: E402
-                                          bin_lookup_tables, compiled_kernels,
-                                          quantize_region, resolve_backend)
+from mk_tracker.tracking.kernel_histograms import bin_lookup_tables  # noqa: E402
+from mk_tracker.tracking.search_region import (KernelBackendError, SearchRegion,  # noqa: E402
+                                               compiled_kernels, quantize_region,
+                                               resolve_backend)
 
 needs_numba = pytest.mark.skipif(compiled_kernels() is None,
                                  reason="numba not installed or MK_TRACKER_NO_NUMBA set")
@@ -243,7 +246,7 @@ def test_without_numba_auto_falls_back_and_compiled_is_refused():
     import os
     import subprocess
     import sys
-    code = ("from mk_tracker.tracking.kernel_histograms import *\n"
+    code = ("from mk_tracker.tracking.search_region import *\n"
             "assert compiled_kernels() is None and resolve_backend('auto') == 'numpy'\n"
             "try:\n    resolve_backend('compiled')\nexcept KernelBackendError:\n    print('refused')\n")
     env = dict(os.environ, MK_TRACKER_NO_NUMBA="1")
@@ -357,7 +360,7 @@ def test_search_region_equals_the_direct_per_kernel_evaluation():
 
 @pytest.mark.parametrize("backend", ["numpy", "auto"])
 def test_search_region_refuses_bins_and_models_that_do_not_fit(backend):
-    from mk_tracker.tracking.kernel_histograms import BinMismatchError
+    from mk_tracker.tracking.search_region import BinMismatchError
     bins = quantize(_blob_scene(), "hsv", BINS)
     with pytest.raises(BinMismatchError):
         SearchRegion(bins, (0, 0), 1, 64, backend=backend)          # indices up to 511
@@ -377,7 +380,7 @@ def test_search_region_refuses_bins_and_models_that_do_not_fit(backend):
 # with MK_TRACKER_NO_NUMBA=1), on inputs small enough for Python speed.
 
 def _plain_quantize(img, region, stride, colour_space, bins):
-    from mk_tracker.tracking import kernel_histograms as kh
+    from mk_tracker.tracking import search_region as kh
     x0, y0, x1, y1 = region
     out = np.empty((-(-(y1 - y0) // stride), -(-(x1 - x0) // stride)), np.int32)
     return kh._quantize_loops(img, y0, x0, stride, colour_space == "hsv",
@@ -413,7 +416,7 @@ def test_plain_quantize_loops_equal_the_numpy_quantisation(stride):
 
 
 def test_plain_kernel_loops_equal_the_numpy_reference():
-    from mk_tracker.tracking import kernel_histograms as kh
+    from mk_tracker.tracking import search_region as kh
     rng = np.random.default_rng(14)
     seen_empty = seen_full = 0
     for trial in range(16):
@@ -444,7 +447,7 @@ def test_plain_kernel_loops_equal_the_numpy_reference():
 def plain_compiled(monkeypatch):
     """The "compiled" backend with the uncompiled loops: its glue code (argument packing,
     the copy of read-only images, output shapes) runs in Python, numba or not."""
-    from mk_tracker.tracking import kernel_histograms as kh
+    from mk_tracker.tracking import search_region as kh
     monkeypatch.setattr(kh, "compiled_kernels", lambda: (kh._quantize_loops, kh._kernels_loops))
     return kh
 
@@ -490,7 +493,7 @@ def test_compiled_backend_glue_with_plain_loops_evaluates_like_numpy(plain_compi
 
 def test_warm_up_call_matches_the_loops_signatures():
     # the start-up warm-up of the numba loops must be a valid call of both loops
-    from mk_tracker.tracking import kernel_histograms as kh
+    from mk_tracker.tracking import search_region as kh
     kh._warm_up(kh._quantize_loops, kh._kernels_loops)
 
 
@@ -531,6 +534,7 @@ def test_roi_has_nan_only_for_float_rois_with_a_bad_value():
 # -- mutation testing (#18): details the tests above leave open -----------------------------
 
 from mk_tracker.tracking import kernel_histograms as _kh  # noqa: E402
+from mk_tracker.tracking import search_region as _sr  # noqa: E402
 
 
 def test_error_messages_name_the_bad_value():
@@ -574,7 +578,7 @@ def test_error_messages_name_the_bad_value():
 
 
 def test_compiled_refused_message_without_numba(monkeypatch):
-    monkeypatch.setattr(_kh, "compiled_kernels", lambda: None)
+    monkeypatch.setattr(_sr, "compiled_kernels", lambda: None)
     with pytest.raises(KernelBackendError) as info:
         resolve_backend("compiled")
     assert str(info.value) == ("the compiled backend needs numba, which is not installed "
@@ -851,7 +855,7 @@ def test_every_path_equals_the_definitions_on_small_kernels(weighting, profile):
                 n_k = len(centres)
                 b = _kh.KernelBatch(np.zeros((n_k, m)), np.zeros(n_k), np.zeros(n_k),
                                     np.zeros((n_k, 2)), np.zeros(n_k, np.int64), np.zeros(n_k))
-                _kh._kernels_loops(bins.astype(np.int32), 0, 0, 1, centres, axes, models,
+                _sr._kernels_loops(bins.astype(np.int32), 0, 0, 1, centres, axes, models,
                                    0.01, weighting == "bhattacharyya", profile == "gaussian",
                                    b.p, b.costs, b.similarities, b.mean_shift, b.n_pixels,
                                    b.scale_ratios)
@@ -906,7 +910,7 @@ def test_compiled_loops_take_exactly_the_pixels_inside_the_ellipse():
         models = np.full((n_k, 99), 1.0 / 99)
         p, costs, sims = np.zeros((n_k, 99)), np.zeros(n_k), np.zeros(n_k)
         ms, counts, ratios = np.zeros((n_k, 2)), np.zeros(n_k, np.int64), np.zeros(n_k)
-        _kh._kernels_loops(bins, origin[0], origin[1], stride, centres, axes, models, 0.01,
+        _sr._kernels_loops(bins, origin[0], origin[1], stride, centres, axes, models, 0.01,
                            False, False, p, costs, sims, ms, counts, ratios)
         for i in range(n_k):
             expected = _brute_force_pixels(shape, origin, stride, centres[i], axes[i])
@@ -920,13 +924,13 @@ def test_backend_numpy_never_uses_the_compiled_loops(monkeypatch):
 
     def quantize_loops(*args):
         calls.append("q")
-        return _kh._quantize_loops(*args)
+        return _sr._quantize_loops(*args)
 
     def kernels_loops(*args):
         calls.append("k")
-        return _kh._kernels_loops(*args)
+        return _sr._kernels_loops(*args)
 
-    monkeypatch.setattr(_kh, "compiled_kernels", lambda: (quantize_loops, kernels_loops))
+    monkeypatch.setattr(_sr, "compiled_kernels", lambda: (quantize_loops, kernels_loops))
     assert resolve_backend("numpy") == "numpy" and resolve_backend("auto") == "compiled"
     img = _blob_scene()[:20, :30]
     for backend in ("numpy", "compiled", "auto"):
@@ -949,10 +953,10 @@ def test_backend_numpy_never_uses_the_compiled_loops(monkeypatch):
 
 
 def test_no_numba_environment_variable_disables_the_compiled_kernels(monkeypatch):
-    monkeypatch.setattr(_kh, "_COMPILED", [])
+    monkeypatch.setattr(_sr, "_COMPILED", [])
     monkeypatch.setenv("MK_TRACKER_NO_NUMBA", "1")
-    assert _kh.compiled_kernels() is None
-    assert _kh._COMPILED == [None]
+    assert _sr.compiled_kernels() is None
+    assert _sr._COMPILED == [None]
 
 
 def test_search_region_backend_defaults_to_auto():

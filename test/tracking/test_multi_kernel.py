@@ -362,7 +362,7 @@ def _tracks(backend, n_kernels, frames):
                                                         state, (150, 75, 40, 100))
 
 
-@pytest.mark.skipif(__import__("mk_tracker.tracking.kernel_histograms", fromlist=["x"]
+@pytest.mark.skipif(__import__("mk_tracker.tracking.search_region", fromlist=["x"]
                                ).compiled_kernels() is None, reason="numba not available")
 @pytest.mark.parametrize("n_kernels", [1, 2, 4])
 def test_compiled_and_numpy_trackers_give_the_same_results(n_kernels):
@@ -414,7 +414,7 @@ def test_compiled_closed_form_step_equals_the_svd_step(n_kernels):
                                fromlist=["x"])._compiled_step() is None,
                     reason="numba not available")
 def test_no_frame_compiles_code_read_only_or_padded_images_included():
-    from mk_tracker.tracking.kernel_histograms import compiled_kernels
+    from mk_tracker.tracking.search_region import compiled_kernels
     from mk_tracker.tracking.projected_gradient import _compiled_step
     tracker = MultiKernelTracker(MultiKernelConfig(num_kernels=4), backend="compiled")
     dispatchers = [*compiled_kernels(), _compiled_step()]
