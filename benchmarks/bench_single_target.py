@@ -62,6 +62,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "benchmarks"))
 
 from mk_tracker.boxes import clip_box  # noqa: E402
 from mk_tracker.bags.datasets import DEFAULT_FRAME_RATE  # noqa: E402
@@ -74,6 +75,8 @@ from mk_tracker.tracking.manual_track import (ManualTrackConfig,  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import (MultiObjectTracker,  # noqa: E402
                                               MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.tracking.track import TrackState  # noqa: E402
+from mk_tracker.parameters import updated  # noqa: E402
+from setting_values import setting_value  # noqa: E402
 from mk_tracker.synthetic.presets import (approach_scene, crossing_scene,  # noqa: E402
                                           crowd_scene, occlusion_scene)
 
@@ -467,7 +470,11 @@ def main(argv=None) -> int:
     parser.add_argument("--legacy", action="store_true",
                         help="the older in-sample tables of every tracker variant instead of "
                         "the leave-one-clip-out protocol (writes a report only with --output)")
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="override a parameter of our tracker (YAML value) under every "
+                        "grid setting, e.g. multi_kernel.scale.acceptance=lower")
     args = parser.parse_args(argv)
+    BASE_CHANGES.update({n: setting_value(v) for n, _, v in (s.partition("=") for s in args.set)})
     if not args.legacy:
         return loso_main(args, argv)
     try:
@@ -1097,8 +1104,12 @@ def grid_configs() -> list[tuple[str, dict]]:
     return out
 
 
+#: ``--set NAME=VALUE`` overrides of the tracker's defaults, applied under every grid setting
+BASE_CHANGES: dict = {}
+
+
 def manual_config(setting: dict) -> MultiObjectTrackerConfig:
-    d = MultiObjectTrackerConfig()
+    d = updated(MultiObjectTrackerConfig(), BASE_CHANGES)
     return replace(d, manual_track=replace(d.manual_track, **setting))
 
 
