@@ -8,6 +8,8 @@ entries and fast walkers, a generator crowd) is run with every setting of a smal
 clip the setting with the best success AUC on the other clips is chosen and reported on it
 (:func:`loso_main`).  It writes ``docs/benchmark_single_target.md``; ``--json FILE`` also
 dumps every figure.  ``--legacy`` gives the older in-sample tables described below.
+``--set NAME=VALUE ...`` changes the tracker's defaults under every grid setting, so a
+candidate default is measured held out (``--output`` elsewhere keeps the committed report).
 
 Runs, in one process on the same frames, the projected-gradient multiple-kernel tracker
 (1/2/4/6 kernels, with and without projected gradient, the single-kernel mean shift baseline
