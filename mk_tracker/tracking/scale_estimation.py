@@ -11,14 +11,16 @@ derivative of the density estimate (1) with respect to the kernel bandwidth ``h`
 pixels near the kernel rims carry more weight ``q_u / p_u`` than those near the centres, i.e.
 when the target looks larger than the kernels.
 
-Why (10) alone runs away on a grey image (issue #19; measured in
-docs/benchmark_real_thermal.md, "The scale of an undetected track").  On LWIR the HSV
-histogram has only the ``value_bins`` intensity bins (hue and saturation are 0), and a
-person and the wall or the people beside them often fill the same one or two bins.  Then a
-larger kernel sees nearly the same histogram: the cost (7) of the grown kernels ties with
-(or is within rounding of) the cost at the old scale, so the check "not higher"
-(``acceptance="not_higher"``, the previous rule) keeps every step that ``r > 0`` proposes,
-5 % a frame (``max_scale_change``), and nothing pulls the box back.
+Why the box of an undetected track runs away on BU-TIV-lab's grey frames (issue #19;
+measured with ``benchmarks/diagnose_scale.py``, docs/scale_update.md).  On a grey frame the
+HSV histogram holds only the ``value_bins`` intensity bins.  A track's kernels keep the size of
+the box they were started on (a model refresh needs an isolated detection), which can be a
+large early detection: its model is then mostly wall, and a bigger kernel around the person
+matches it *better*, so (10) proposes growth and the cost check confirms it (the kept growing
+steps lowered the cost by a median 1 %; none was an exact tie).  The checks below and the
+multi-object tracker's ``refiner_size_from_detection`` / ``max_refined_size_ratio`` stop most
+of that growth, but cost BU-TIV-lab ids (the large boxes were stopping births), so all ship
+off.
 
 The checks here, each a parameter of :class:`ScaleEstimationConfig` (not in the paper
 unless said so):
@@ -26,11 +28,12 @@ unless said so):
 * ``acceptance="lower"``: a step is kept only when it *lowers* the weighted cost (7) by more
   than ``min_relative_gain`` of the cost at the old scale.  A tie, where the image gives no
   evidence about the size, keeps the old scale.
-* ``method="three_scale"``: the classic test of Comaniciu, Ramesh & Meer (IEEE TPAMI 2003,
-  Sec. 6.2.1): the cost is evaluated with kernels of scale ``s (1 - delta)``, ``s`` and
-  ``s (1 + delta)`` at the located centroid, the best one ``s*`` is taken (subject to the same
-  acceptance rule against ``s``) and the scale is smoothed, ``s_t = s + gamma (s* - s)``.
-  It needs two extra kernel evaluations per frame and no gradient.
+* ``method="three_scale"``: the classic test of Comaniciu, Ramesh & Meer (kernel-based
+  object tracking, 2003): the cost is evaluated with kernels of scale ``s (1 - delta)``,
+  ``s`` and ``s (1 + delta)``, the best one ``s*`` is taken (subject to the same acceptance
+  rule against ``s``) and the scale is smoothed, ``s_t = s + gamma (s* - s)``.  Unlike
+  theirs, the search is not repeated at each scale: the three are compared at the centroid
+  Algorithm 1 found, which costs two extra kernel evaluations per frame.
 * ``method="checked"``: the step of (10) is kept only when the three-scale test moves the
   same way (a rough check of the sign of (10) by finite differences).
 
