@@ -30,8 +30,8 @@ unless said so):
   evidence about the size, keeps the old scale.
 * ``method="three_scale"``: the classic test of Comaniciu, Ramesh & Meer (kernel-based
   object tracking, 2003): the cost is evaluated with kernels of scale ``s (1 - delta)``,
-  ``s`` and ``s (1 + delta)``, the best one ``s*`` is taken (subject to the same acceptance
-  rule against ``s``) and the scale is smoothed, ``s_t = s + gamma (s* - s)``.  Unlike
+  ``s`` and ``s (1 + delta)``, the best one ``s*`` is taken (a tie keeps ``s``; with
+  ``acceptance="lower"`` it must also beat ``s`` by the margin) and the scale is smoothed, ``s_t = s + gamma (s* - s)``.  Unlike
   theirs, the search is not repeated at each scale: the three are compared at the centroid
   Algorithm 1 found, which costs two extra kernel evaluations per frame.
 * ``method="checked"``: the step of (10) is kept only when the three-scale test moves the
