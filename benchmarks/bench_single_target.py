@@ -8,6 +8,8 @@ entries and fast walkers, a generator crowd) is run with every setting of a smal
 clip the setting with the best success AUC on the other clips is chosen and reported on it
 (:func:`loso_main`).  It writes ``docs/benchmark_single_target.md``; ``--json FILE`` also
 dumps every figure.  ``--legacy`` gives the older in-sample tables described below.
+``--set NAME=VALUE ...`` changes the tracker's defaults under every grid setting, so a
+candidate default is measured held out (``--output`` elsewhere keeps the committed report).
 
 Runs, in one process on the same frames, the projected-gradient multiple-kernel tracker
 (1/2/4/6 kernels, with and without projected gradient, the single-kernel mean shift baseline
@@ -62,6 +64,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "benchmarks"))
 
 from mk_tracker.boxes import clip_box  # noqa: E402
 from mk_tracker.bags.datasets import DEFAULT_FRAME_RATE  # noqa: E402
@@ -74,6 +77,8 @@ from mk_tracker.tracking.manual_track import (ManualTrackConfig,  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import (MultiObjectTracker,  # noqa: E402
                                               MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.tracking.track import TrackState  # noqa: E402
+from mk_tracker.parameters import updated  # noqa: E402
+from setting_values import setting_value  # noqa: E402
 from mk_tracker.synthetic.presets import (approach_scene, crossing_scene,  # noqa: E402
                                           crowd_scene, occlusion_scene)
 
@@ -464,7 +469,11 @@ def main(argv=None) -> int:
     parser.add_argument("--legacy", action="store_true",
                         help="the older in-sample tables of every tracker variant instead of "
                         "the leave-one-clip-out protocol (writes a report only with --output)")
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="override a parameter of our tracker (YAML value) under every "
+                        "grid setting, e.g. multi_kernel.scale.acceptance=lower")
     args = parser.parse_args(argv)
+    BASE_CHANGES.update({n: setting_value(v) for n, _, v in (s.partition("=") for s in args.set)})
     if not args.legacy:
         return loso_main(args, argv)
     try:
@@ -1094,8 +1103,12 @@ def grid_configs() -> list[tuple[str, dict]]:
     return out
 
 
+#: ``--set NAME=VALUE`` overrides of the tracker's defaults, applied under every grid setting
+BASE_CHANGES: dict = {}
+
+
 def manual_config(setting: dict) -> MultiObjectTrackerConfig:
-    d = MultiObjectTrackerConfig()
+    d = updated(MultiObjectTrackerConfig(), BASE_CHANGES)
     return replace(d, manual_track=replace(d.manual_track, **setting))
 
 

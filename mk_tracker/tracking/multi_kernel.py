@@ -49,6 +49,8 @@ gate are blended.  The scale (9)-(11) is updated only when the *minimum* kernel 
 exceeds ``scale_similarity_gate`` = 0.8: with the paper's mean > 0.3, an occluded kernel
 (ellipse edge covered by an occluder) biases ``r(h)`` and the box shrank or grew by the
 5 %/frame limit until the target was lost.  :func:`paper_config` restores the paper's gates.
+The step itself and its checks (a cost-decrease margin, the three-scale test of Comaniciu et
+al.) are in :mod:`mk_tracker.tracking.scale_estimation` (``config.scale``).
 
 Search additions (not in the paper; off by default, on for tracks started by hand, see
 :mod:`mk_tracker.tracking.manual_track`; issue #16).  Algorithm 1 is a local descent: each
@@ -94,6 +96,8 @@ from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_l
 from mk_tracker.parameters import parameter, validate_config
 from mk_tracker.tracking.redetection import (LEARNT_MEASURES, grid_start, redetect,
                                              relative_similarities, update_reference)
+from mk_tracker.tracking.scale_estimation import (ScaleEstimationConfig, ScaleStep, gated_step,
+                                                  scale_step)
 
 
 class TrackingInputError(ValueError):
@@ -157,6 +161,9 @@ class MultiKernelConfig:
     max_scale_change: float = parameter(
         0.05, "Largest |Delta s| per frame (not in the paper; bounds a noisy (10))",
         minimum=0.0, maximum=1.0)
+    scale: ScaleEstimationConfig = parameter(
+        ScaleEstimationConfig(), "How the scale step is proposed and checked "
+        "(mk_tracker.tracking.scale_estimation)")
     min_scale: float = parameter(0.25, "Smallest scale relative to the first box",
                                  minimum=0.01, maximum=1.0)
     max_scale: float = parameter(4.0, "Largest scale relative to the first box",
@@ -342,6 +349,8 @@ class TargetState:
     reference_var: np.ndarray | None = None
     #: consecutive frames whose result said the track failed (re-search window growth)
     failed_frames: int = 0
+    #: the last scale update's record (:class:`~mk_tracker.tracking.scale_estimation.ScaleStep`)
+    scale_step: ScaleStep | None = None
 
     @property
     def num_kernels(self) -> int:
@@ -612,6 +621,7 @@ class MultiKernelTracker:
         # the model and scale gates keep the paper's similarity exp(-J_i)
         mean_sim = float(ev.similarities.mean())
         sims = ev.similarities
+        state.scale_step = gated_step(mean_sim, state.scale)
         if mean_sim > cfg.similarity_gate:
             if cfg.model_update_rate > 0:
                 rate = cfg.model_update_rate
@@ -620,7 +630,9 @@ class MultiKernelTracker:
                         state.models[i] = (1.0 - rate) * state.models[i] + rate * ev.p[i]
             scale_sim = mean_sim if cfg.scale_gate_statistic == "mean" else float(sims.min())
             if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
-                self._update_scale(search, state, w, ev)
+                state.scale_step = self._update_scale(search, state, w, ev, scale_sim)
+            else:
+                state.scale_step = gated_step(scale_sim, state.scale)
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
         return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),
@@ -713,32 +725,11 @@ class MultiKernelTracker:
         return redetect(self, image, state, start_box, score)
 
     def _update_scale(self, search: SearchRegion, state: TargetState, weights: np.ndarray,
-                      ev: KernelBatch) -> None:
-        """Eqs. (9)-(11): ``Delta s = beta r(h)``, ``s_t = s_{t-1}(1 + Delta s)``.
-
-        ``r`` is the W-weighted mean of the kernels' ratios.  The kernels' offsets from the
-        centroid (14) and the distances L are rescaled with the scale, so (12)-(13) still hold.
-        With ``verify_scale_step`` the new scale is kept only if the weighted cost (7) of the
-        rescaled kernels is not higher than at the old scale.
-        """
-        cfg = self.config
-        r = float(np.sum(weights * ev.scale_ratios)) / len(ev.scale_ratios)
-        ds = float(np.clip(cfg.beta * r, -cfg.max_scale_change, cfg.max_scale_change))
-        new_scale = float(np.clip(state.scale * (1.0 + ds), cfg.min_scale, cfg.max_scale))
-        if not np.isfinite(new_scale) or new_scale == state.scale:
-            return
-        ratio = new_scale / state.scale
-        centroid = state.center
-        centres = centroid + (state.centres - centroid) * ratio
-        if cfg.verify_scale_step:
-            trial = self._evaluate(search, state.base_half_axes * new_scale, centres,
-                                   state.models)
-            old_cost = float(np.sum(weights * ev.costs))
-            new_cost = float(np.sum(weights * trial.costs))
-            if not new_cost <= old_cost:
-                return
-        state.centres = centres
-        state.scale = new_scale
+                      ev: KernelBatch, statistic: float = float("nan")) -> ScaleStep:
+        """Eqs. (9)-(11), ``Delta s = beta r(h)``, ``s_t = s_{t-1}(1 + Delta s)``, with the
+        checks of ``config.scale`` (:func:`mk_tracker.tracking.scale_estimation.scale_step`:
+        with ``verify_scale_step`` the weighted cost (7) of the rescaled kernels decides)."""
+        return scale_step(self._evaluate, search, state, weights, ev, self.config, statistic)
 
     def _lost(self, state: TargetState, x: np.ndarray, axes: np.ndarray, reason: str,
               sims: np.ndarray | None = None, weights: np.ndarray | None = None

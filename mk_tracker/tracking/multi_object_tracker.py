@@ -77,6 +77,7 @@ from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman
                                               manual_track_lifecycle,
                                               manual_track_multi_kernel, recentre_shift)
 from mk_tracker.tracking.multi_kernel import MultiKernelTracker, visibility_similarity
+from mk_tracker.tracking.scale_estimation import fit_height
 from mk_tracker.parameters import ParameterError, validate_config
 from mk_tracker.stamps import checked_stamp
 from mk_tracker.tracking.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
@@ -347,6 +348,10 @@ class MultiObjectTracker:
             except ValueError as exc:       # the refiner's own input errors
                 result.events.append(f"track {t.id}: refinement failed: {exc}")
                 continue
+            k = self.config.max_refined_size_ratio
+            if found is not None and k > 0 and t.detected_box is not None and \
+                    self._fit_refiner(t, t.detected_box[3] / k, t.detected_box[3] * k):
+                found = (np.asarray(t.target.box, dtype=np.float64), found[1], found[2])
             if found is not None:
                 refined[t.id] = found
                 t.refined_box = found[0]
@@ -468,6 +473,14 @@ class MultiObjectTracker:
         except ValueError:
             return False
         return all(math.isfinite(v) and v >= floor for v in sims)
+
+    def _fit_refiner(self, t: Track, low: float, high: float) -> bool:
+        """Rescale the track's multiple-kernel target so its box height is in ``[low, high]``
+        (:func:`~mk_tracker.tracking.scale_estimation.fit_height`); False for other refiners."""
+        cfg = getattr(self._refiner_for(t), "config", None)
+        if not isinstance(getattr(t.target, "scale", None), float) or cfg is None:
+            return False
+        return fit_height(t.target, low, high, cfg.min_scale, cfg.max_scale)
 
     def _refiner_for(self, t: Track) -> Refiner | None:
         """The refiner of a track: ``manual_refiner`` for tracks started by hand."""
@@ -709,6 +722,8 @@ class MultiObjectTracker:
                         self.config.refine_consistency_iou:
                     t.correct(refined[0], quality * self.config.fused_quality_factor,
                               use_size=False)            # the detection gives the size
+            if self.config.refiner_size_from_detection and not group:
+                self._fit_refiner(t, det_box[3], det_box[3])
             t.hits += 1
             t.tentative_misses = 0
             t.last_detection = stamp

@@ -102,6 +102,15 @@ class MultiObjectTrackerConfig:
         0.5, "Factor on a refinement's quality in frames where no detection confirms the "
         "track (a part-occluded target still matches its visible kernels well)",
         minimum=0.0, maximum=1.0)
+    refiner_size_from_detection: bool = parameter(
+        False, "Each detection of a track rescales its multiple-kernel target so that the "
+        "kernels' box has the detection's height (the detection measures the size; without "
+        "it the kernels keep the size of the last appearance refresh and their scale "
+        "update (9)-(11) runs on its own; not in the paper)")
+    max_refined_size_ratio: float = parameter(
+        0.0, "The kernels of a track are held to at most this factor above or below its last "
+        "detected height (a bound on the scale update (9)-(11) of an undetected track; not "
+        "in the paper); 0 = no bound", minimum=0.0, maximum=100.0)
     appearance_update_interval: float = parameter(
         1.0, "Seconds between refreshes of a track's appearance model from an isolated "
         "detection (0 = every frame)", minimum=0.0, maximum=1e4)
