@@ -9,6 +9,8 @@ choice of defaults) is generated and processed by ``mk_tracker process`` with:
   default: see docs/benchmark_groups.md);
 * ``kernel + cluster split``: the detector's ``split_clusters`` switched on (off by default,
   the same page);
+* ``kernel + join stacked``: the detector's ``body_extent.join_stacked`` switched on (a
+  person's stacked parts reported as one box; off by default, the same page);
 * ``kernel, no groups``: the default detector with the tracker's group measurements off
   (``tracker.group.enabled: false``), the tracker as it was before issue #15;
 * ``threshold``: the threshold detector baseline driving the same tracker;
@@ -51,14 +53,20 @@ from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 
 
+def _joining(detector):
+    return replace(detector, body_extent=replace(detector.body_extent, join_stacked=True))
+
+
 def configurations(base):
     no_groups = replace(base, tracker=replace(
         base.tracker, group=replace(base.tracker.group, enabled=False)))
     split = replace(base, detector=replace(base.detector, split_by_person_size=True))
     clusters = replace(base, detector=replace(base.detector, split_clusters=True))
+    stacked = replace(base, detector=_joining(base.detector))
     return [("kernel", base, "thermal"),
             ("kernel + size split", split, "thermal"),
             ("kernel + cluster split", clusters, "thermal"),
+            ("kernel + join stacked", stacked, "thermal"),
             ("kernel, no groups", no_groups, "thermal"),
             ("threshold", replace(base, method="threshold"), "thermal"),
             ("truth", base, "topic:/detections")]
@@ -105,13 +113,18 @@ def main(argv: list[str] | None = None) -> int:
                     write_scene_bag(scene, bag, preset="crowd")
                     truth = tmp / f"truth_{size}_{people}_{seed}"
                     with_truth_as_detections(bag, truth)
-                    det = {"kernel": detector_scores(scene, "kernel", base.detector),
-                           "kernel + size split": detector_scores(
-                               scene, "kernel", replace(base.detector,
-                                                        split_by_person_size=True)),
-                           "kernel + cluster split": detector_scores(
-                               scene, "kernel", replace(base.detector, split_clusters=True)),
-                           "threshold": detector_scores(scene, "threshold", base.threshold)}
+                    detectors = {"kernel": ("kernel", base.detector),
+                                 "kernel + size split": ("kernel", replace(
+                                     base.detector, split_by_person_size=True)),
+                                 "kernel + cluster split": ("kernel", replace(
+                                     base.detector, split_clusters=True)),
+                                 "kernel + join stacked": ("kernel",
+                                                           _joining(base.detector)),
+                                 "threshold": ("threshold", base.threshold)}
+                    # the detector alone, for the configurations that run
+                    det = {name: detector_scores(scene, *detectors[name])
+                           for name in {c[0].split(",")[0] for c in configs}
+                           if name in detectors}
                     for name, config, source in configs:
                         result = process_bag(truth if source.startswith("topic:") else bag,
                                              tmp / f"run_{size}_{people}_{seed}_{name}", config,

@@ -74,6 +74,10 @@ Where the paper is silent, and what we add (each switchable):
   one band are joined while they fit one person, the footprint is shared by Voronoi cells
   and slivers are joined to a neighbour; the previous pass's objects are kept apart
   (:mod:`mk_tracker.detection.crowd_split`).  Off by default (docs/benchmark_groups.md).
+* **Stacked parts joined** (``body_extent.join_stacked``).  A person reported as an upper
+  and a lower box (two objects of one full pass, each keeping its Voronoi cell) is
+  reported as one box; the objects themselves are unchanged
+  (:mod:`mk_tracker.detection.body_extent`).  Off by default (docs/benchmark_groups.md).
 * The (5.2) window is the object's box plus ``window_margin`` pixels plus the distance the
   Kalman velocity covers in the window's time span on each side, snapped to the ``rho``
   grid so that overlapping windows share blocks (their union is factored once).  Support
@@ -124,6 +128,7 @@ import numpy as np
 from mk_tracker.tracking.association import assign
 from mk_tracker.boxes import iou
 from mk_tracker.detection.block_support import SupportResult, _support, support_in_frame
+from mk_tracker.detection.body_extent import BodyExtent, BodyExtentConfig
 from mk_tracker.detection.crowd_split import CrowdSplitting
 from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell, _median,
                                             _object_kernel, _owned_support,
@@ -283,6 +288,8 @@ class ThermalDetectorConfig:
     min_valid_fraction: float = parameter(0.5, "frames with fewer finite pixels are skipped",
                                           minimum=0.0, maximum=1.0)
     kalman: KalmanConfig = parameter(KalmanConfig(), "per-object Kalman filter (Sec. 4)")
+    body_extent: BodyExtentConfig = parameter(
+        BodyExtentConfig(), "whole-body boxes (mk_tracker.detection.body_extent)")
 
 
 @dataclass(frozen=True)
@@ -324,7 +331,7 @@ def _overlap(a: tuple, b: tuple) -> bool:
             and min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]) > 0)
 
 
-class ThermalDetector(FootprintSplitting, CrowdSplitting):
+class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
@@ -371,6 +378,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting):
         self.heights = PersonHeightModel(self.config.size_memory)
         self.aspects = np.zeros(2)      # forgetting sums of (1, width / height) of samples
         self._group_seen = False        # a tracking pass saw a footprint of several people
+        self._extents: dict = {}        # body_extent: object id -> its person's extent
 
     def reset(self) -> None:
         """Forget every frame and object (counters are kept)."""
@@ -438,14 +446,14 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting):
                 self.last_mode = "warming_up"
                 return []
             self.last_mode = "startup"
-            return self._learn_sizes(self._full_pass())
+            return self._whole_bodies(self._learn_sizes(self._full_pass()))
         self._since_full += 1
         if self._since_full >= c.reconfigure_period or (
                 self._group_seen and self._since_full >= c.group_recheck_frames):
             self.last_mode = "reconfiguration"
-            return self._learn_sizes(self._full_pass())
+            return self._whole_bodies(self._learn_sizes(self._full_pass()))
         self.last_mode = "tracking"
-        return self._learn_sizes(self._tracking_pass())
+        return self._whole_bodies(self._learn_sizes(self._tracking_pass()))
 
     # -- normalisation ---------------------------------------------------------------------
     def _update_map(self, frames: list[np.ndarray]) -> None:
