@@ -302,8 +302,9 @@ def compensate(tracks: Iterable[Any], motion: CameraMotion) -> int:
 
     Per track (:class:`~mk_tracker.tracking.track.Track`): the Kalman filter
     (:meth:`~mk_tracker.kalman.ConstantVelocityKalman.warp`) and the one kept for the
-    observation-centric re-update, the remembered centre, the last detected box (centre
-    mapped, size scaled) and the smoothed size, scaled by the map's zoom
+    observation-centric re-update, the remembered centre, the reported (smoothed) velocity
+    (turned and scaled by ``L``), the last detected box (centre mapped, size scaled) and
+    the smoothed size, scaled by the map's zoom
     ``sqrt(|det L|)``; the multiple-kernel target's centroid is mapped and its kernels
     rescaled about it (14) with its ``scale`` (the layout is not rotated: the kernels are
     axis-aligned, Sec. IV-A).  The identity moves nothing."""
@@ -321,6 +322,8 @@ def compensate(tracks: Iterable[Any], motion: CameraMotion) -> int:
         if getattr(t, "detected_box", None) is not None:
             t.detected_box = _warped_box(t.detected_box, lin, shift, zoom)
         t.size = np.asarray(t.size, dtype=np.float64) * zoom
+        if getattr(t, "smoothed_velocity", None) is not None:
+            t.smoothed_velocity = lin @ np.asarray(t.smoothed_velocity, dtype=np.float64)
         target = getattr(t, "target", None)
         centres = getattr(target, "centres", None)
         if centres is not None and isinstance(getattr(target, "scale", None), float):

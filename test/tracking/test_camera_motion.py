@@ -166,6 +166,15 @@ def test_compensate_moves_the_track_and_its_remembered_boxes():
     # the identity (a fall-back) moves nothing
     assert compensate([t], CameraMotion(status="blank")) == 0
     np.testing.assert_allclose(t.center, [105.0, 94.0])
+    # a zoom by 2 about the origin: centre doubles, size and reported velocity scale
+    t.smoothed_velocity = np.array([3.0, -1.0])
+    compensate([t], CameraMotion(matrix=np.array([[2.0, 0.0, 0.0], [0.0, 2.0, 0.0]]),
+                                 status="estimated"))
+    np.testing.assert_allclose(t.center, [210.0, 188.0])
+    np.testing.assert_allclose(t.size, [80.0, 160.0])
+    np.testing.assert_allclose(t.smoothed_velocity, [6.0, -2.0])
+    # detected box: centre (105, 94) -> (210, 188), size (80, 160): corner (170, 108)
+    np.testing.assert_allclose(t.detected_box, [170.0, 108.0, 80.0, 160.0])
 
 
 def test_tracker_counts_fallbacks_and_keeps_the_track_on_a_blank_frame():
