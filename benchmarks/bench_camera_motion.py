@@ -101,8 +101,17 @@ def pan_scene(speed: float, seed: int, frames: int):
     return list(panned_frames(scene, offsets, W, H))
 
 
+#: the compensation settings of sections 2-4 when on (``--downscale``, ``--max-features``)
+ON = CameraMotionConfig(enabled=True)
+
+
+def _config(enabled: bool) -> MultiObjectTrackerConfig:
+    return replace(MultiObjectTrackerConfig(),
+                   camera_motion=ON if enabled else CameraMotionConfig(enabled=False))
+
+
 def track_run(views, enabled: bool):
-    cfg = replace(MultiObjectTrackerConfig(), camera_motion=CameraMotionConfig(enabled=enabled))
+    cfg = _config(enabled)
     trk = MultiObjectTracker(cfg)
     tid = trk.start_track(views[0].rgb, views[0].stamp, views[0].boxes[1])
     errors, times = [], []
@@ -171,8 +180,7 @@ def multi_object_table(speeds, seeds, frames: int, miss: float) -> list[str]:
             gt = [r for *_, g in data for r in g]
             cells, fallbacks = [], 0
             for enabled in (False, True):
-                trk = MultiObjectTracker(replace(
-                    MultiObjectTrackerConfig(), camera_motion=CameraMotionConfig(enabled=enabled)))
+                trk = MultiObjectTracker(_config(enabled))
                 hyp = []
                 for k, (rgb, stamp, dets, _) in enumerate(data):
                     res = trk.step(rgb, stamp, dets)
@@ -194,9 +202,18 @@ def main() -> int:
     parser.add_argument("--seeds", default="1,2,3")
     parser.add_argument("--miss", type=float, default=0.1,
                         help="fraction of true boxes dropped in the multi-object check")
+    default = CameraMotionConfig()
+    parser.add_argument("--downscale", type=float, default=default.downscale,
+                        help="camera_motion.downscale of sections 2 and 4")
+    parser.add_argument("--max-features", type=int, default=default.max_features,
+                        help="camera_motion.max_features of sections 2 and 4")
     parser.add_argument("--only", default="", help="run only these sections, e.g. '4' or '1,2'")
     args = parser.parse_args()
     cv2.setNumThreads(1)
+    global ON
+    ON = replace(CameraMotionConfig(enabled=True), downscale=args.downscale,
+                 max_features=args.max_features)
+    print(f"sections 2 and 4, on: downscale {ON.downscale:g}, max_features {ON.max_features}")
     print(f"load average {os.getloadavg()}; OpenCV {cv2.__version__}", flush=True)
     only = set(args.only.split(",")) if args.only else {"1", "2", "4"}
     speeds = [float(s) for s in args.speeds.split(",")]

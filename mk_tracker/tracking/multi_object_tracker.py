@@ -289,7 +289,9 @@ class MultiObjectTracker:
 
         dets = self._prepare(detections, stamp, width, height, result)
         live = [t for t in self.tracks if t.state is not TrackState.DELETED]
-        if self.camera_motion is not None:
+        if self.camera_motion is not None and not live:
+            self.camera_motion.remember(image_bgr)     # nothing to move: no estimate
+        elif self.camera_motion is not None:
             # the boxes are still those of the previous frame: left out of the estimate
             motion = self.camera_motion.estimate(image_bgr, [t.box for t in live])
             self.totals["camera_motion_fallbacks"] += int(motion.fallback)

@@ -258,3 +258,19 @@ def test_hand_started_track_follows_a_panning_camera_only_with_compensation():
     # start and stop of the pan; compensated, the track stays on the person
     assert errors[True] < 10.0
     assert errors[False] > 30.0
+
+
+def test_frames_without_tracks_are_not_estimated_but_remembered():
+    cfg = replace(MultiObjectTrackerConfig(use_multi_kernel=False),
+                  camera_motion=CameraMotionConfig(enabled=True))
+    trk = MultiObjectTracker(cfg)
+    world = texture(900, 480, seed=11)
+    trk.step(crop(world, 100, 0), 0.0)
+    trk.step(crop(world, 110, 0), 0.04)
+    assert trk.camera_motion.counts == {}          # no track: nothing estimated
+    tid = trk.start_track(crop(world, 120, 0), 0.08, (300, 200, 40, 80))
+    trk.step(crop(world, 120, 0), 0.08)
+    res = trk.step(crop(world, 125, 0), 0.12)
+    assert trk.camera_motion.counts == {"still": 1, "estimated": 1}
+    box = [t.box for t in res.tracks if t.id == tid][0]
+    assert abs(box[0] - 295.0) < 0.5
