@@ -274,3 +274,15 @@ def test_frames_without_tracks_are_not_estimated_but_remembered():
     assert trk.camera_motion.counts == {"still": 1, "estimated": 1}
     box = [t.box for t in res.tracks if t.id == tid][0]
     assert abs(box[0] - 295.0) < 0.5
+
+
+def test_pan_crop_outside_the_scene_is_refused():
+    from mk_tracker.synthetic.camera_pan import panned_frames, robot_pan_offsets
+    from mk_tracker.synthetic.scene import make_scene
+    from mk_tracker.synthetic.scene_config import SceneConfig
+
+    scene = make_scene(SceneConfig(seed=1, frames=3, width=700, height=480))
+    with pytest.raises(ValueError, match="leaves"):
+        list(panned_frames(scene, [(0.0, 0.0), (61.0, 0.0)], 640, 480))
+    with pytest.raises(ValueError):
+        robot_pan_offsets(0)
