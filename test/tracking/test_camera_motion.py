@@ -7,7 +7,6 @@ import cv2
 import numpy as np
 import pytest
 
-from mk_tracker.kalman import ConstantVelocityKalman, KalmanError
 from mk_tracker.tracking.camera_motion import (CameraMotion, CameraMotionConfig,
                                                CameraMotionEstimator, compensate)
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker
@@ -118,47 +117,14 @@ def test_people_inside_tracked_boxes_do_not_bias_the_estimate(camera_dx):
     np.testing.assert_allclose(m.translation, [-camera_dx, 0.0], atol=0.5)
 
 
-def test_kalman_warp_moves_mean_and_covariance_by_hand():
-    kf = ConstantVelocityKalman((10.0, 20.0), initial_velocity=(3.0, -1.0),
-                                initial_position_var=4.0, initial_velocity_var=1.0)
-    kf._cov[0, 2] = kf._cov[2, 0] = 0.5          # x position - x velocity covariance
-    kf._cov[1, 1], kf._cov[3, 3] = 9.0, 2.0
-    # a quarter turn (x, y) -> (-y, x) and a shift (5, -7)
-    kf.warp([[0.0, -1.0], [1.0, 0.0]], (5.0, -7.0))
-    # mean: (-20 + 5, 10 - 7) and velocity (1, 3)
-    np.testing.assert_allclose(kf.state, [-15.0, 3.0, 1.0, 3.0])
-    # P = diag(4, 9, 1, 2) + 0.5 at (x, vx): the axes swap, the x terms become y terms
-    expected = np.array([[9.0, 0.0, 0.0, 0.0], [0.0, 4.0, 0.0, 0.5],
-                         [0.0, 0.0, 2.0, 0.0], [0.0, 0.5, 0.0, 1.0]])
-    np.testing.assert_allclose(kf.covariance, expected, atol=1e-12)
-
-
-def test_kalman_warp_with_scale_scales_velocity_and_covariance():
-    kf = ConstantVelocityKalman((10.0, 20.0), initial_velocity=(3.0, -1.0),
-                                initial_position_var=4.0, initial_velocity_var=1.0)
-    kf.warp([[2.0, 0.0], [0.0, 2.0]], (1.0, 1.0))
-    np.testing.assert_allclose(kf.state, [21.0, 41.0, 6.0, -2.0])
-    np.testing.assert_allclose(np.diag(kf.covariance), [16.0, 16.0, 4.0, 4.0])
-
-
-@pytest.mark.parametrize("lin,shift", [([[1, 0], [0, float("nan")]], (0, 0)),
-                                       ([[1, 0], [0, 1]], (float("inf"), 0)),
-                                       ([1, 2, 3], (0, 0))])
-def test_kalman_warp_refuses_bad_input_and_leaves_the_filter(lin, shift):
-    kf = ConstantVelocityKalman((10.0, 20.0))
-    before = kf.state, kf.covariance
-    with pytest.raises(KalmanError):
-        kf.warp(lin, shift)
-    np.testing.assert_array_equal(kf.state, before[0])
-    np.testing.assert_array_equal(kf.covariance, before[1])
-
-
 def test_compensate_moves_the_track_and_its_remembered_boxes():
     t = Track(1, np.array([100.0, 50.0, 40.0, 80.0]), 0.0, score=1.0,
               kalman=KalmanConfig(), config=LifecycleConfig())
+    p0 = t.kf.covariance                      # diag(4, 4, 2500, 2500) from KalmanConfig
     motion = CameraMotion(matrix=np.array([[1.0, 0.0, -15.0], [0.0, 1.0, 4.0]]),
                           status="estimated")
     assert compensate([t], motion) == 1
+    np.testing.assert_allclose(t.kf.covariance, p0)             # a shift leaves P alone
     np.testing.assert_allclose(t.center, [105.0, 94.0])        # (120 - 15, 90 + 4)
     np.testing.assert_allclose(t.kf.velocity, [0.0, 0.0])
     np.testing.assert_allclose(t.detected_box, [85.0, 54.0, 40.0, 80.0])
@@ -171,6 +137,8 @@ def test_compensate_moves_the_track_and_its_remembered_boxes():
     compensate([t], CameraMotion(matrix=np.array([[2.0, 0.0, 0.0], [0.0, 2.0, 0.0]]),
                                  status="estimated"))
     np.testing.assert_allclose(t.center, [210.0, 188.0])
+    # P' = diag(L, L) P diag(L, L)^T = 4 P: position 4 -> 16, velocity 2500 -> 10000 (px/s)^2
+    np.testing.assert_allclose(np.diag(t.kf.covariance), [16.0, 16.0, 1e4, 1e4])
     np.testing.assert_allclose(t.size, [80.0, 160.0])
     np.testing.assert_allclose(t.smoothed_velocity, [6.0, -2.0])
     # detected box: centre (105, 94) -> (210, 188), size (80, 160): corner (170, 108)
