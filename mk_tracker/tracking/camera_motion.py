@@ -204,10 +204,13 @@ class CameraMotionEstimator:
         else:
             scale = grey.shape[1] / float(size[1])
             mask = _free_mask(previous.shape, boxes, scale, cfg.box_margin)
-            if cfg.method == "ecc":
-                matrix, status, support = _ecc(previous, grey, mask, cfg)
-            else:
-                matrix, status, support = _sparse(previous, grey, mask, cfg)
+            try:
+                if cfg.method == "ecc":
+                    matrix, status, support = _ecc(previous, grey, mask, cfg)
+                else:
+                    matrix, status, support = _sparse(previous, grey, mask, cfg)
+            except cv2.error:           # e.g. a frame too small for the flow's pyramid
+                matrix, status, support = None, "no_convergence", 0
             motion = self._checked(matrix, status, support, scale, size)
         self.counts[motion.status] = self.counts.get(motion.status, 0) + 1
         self.last = motion

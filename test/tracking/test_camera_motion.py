@@ -254,3 +254,19 @@ def test_pan_crop_outside_the_scene_is_refused():
         list(panned_frames(scene, [(0.0, 0.0), (61.0, 0.0)], 640, 480))
     with pytest.raises(ValueError):
         robot_pan_offsets(0)
+
+
+@pytest.mark.parametrize("method", ["sparse", "ecc"])
+@pytest.mark.parametrize("shape,dtype", [((1, 1, 3), np.uint8), ((3, 5, 3), np.uint8),
+                                         ((12, 16, 4), np.uint8), ((60, 80), np.uint16),
+                                         ((60, 80, 3), np.float32)])
+def test_odd_frames_never_raise_and_give_a_status(method, shape, dtype):
+    rng = np.random.default_rng(12)
+    est = CameraMotionEstimator(CameraMotionConfig(method=method))
+    for _ in range(3):
+        img = (rng.random(shape) * 1000).astype(dtype)
+        if dtype == np.float32:
+            img.flat[0] = np.nan
+        m = est.estimate(img, [(0, 0, 2, 2), (float("nan"), 0, 1, 1)])
+        assert m.matrix.shape == (2, 3) and np.all(np.isfinite(m.matrix))
+    assert sum(est.counts.values()) == 3
