@@ -226,6 +226,34 @@ class ConstantVelocityKalman:
         self._state, self._cov = self.predicted(dt)
         return self._state.copy()
 
+    def warp(self, linear: np.ndarray, translation: Sequence[float]) -> None:
+        """Move the filter into another image's pixel grid: ``x' = L x + t`` (camera motion).
+
+        A point ``x`` of the old image is at ``L x + t`` in the new one (``L`` 2x2, ``t``
+        2-vector; BoT-SORT, Aharon et al. 2022, Sec. 3.2).  The state of (2.1) maps through
+        ``T = diag(L, L)`` plus ``(t, 0)``: the centroid moves and turns/scales with the
+        image, the velocity only turns/scales (a translation of the image is no motion of the
+        person).  The error covariance (the P of (4.3)-(4.4)) is that of a linear map,
+        ``P' = T P T^T``.  A non-finite or malformed input raises :class:`KalmanError` and
+        leaves the filter unchanged.
+        """
+        try:
+            lin = np.asarray(linear, dtype=np.float64).reshape(2, 2)
+            shift = np.asarray(translation, dtype=np.float64).reshape(2)
+        except (TypeError, ValueError) as exc:
+            raise KalmanError(f"warp needs a 2x2 matrix and a 2-vector, got {linear!r}, "
+                              f"{translation!r}") from exc
+        if not (np.all(np.isfinite(lin)) and np.all(np.isfinite(shift))):
+            raise KalmanError("warp has a NaN or infinite value; filter left unchanged")
+        t = np.zeros((4, 4))
+        t[:2, :2] = lin
+        t[2:, 2:] = lin
+        state = t @ self._state
+        state[:2] += shift
+        cov = t @ self._cov @ t.T
+        self._state = state
+        self._cov = _positive_semidefinite(0.5 * (cov + cov.T))
+
     def _measurement_std(self, sigma_w: float | None) -> float:
         if sigma_w is None:
             return self.sigma_w

@@ -376,3 +376,39 @@ def test_negative_variances_from_rounding_are_clipped_to_the_nearest_psd_matrix(
     out = _positive_semidefinite(bad)
     np.testing.assert_allclose(out[:2, :2], [[1.5, 1.5], [1.5, 1.5]], atol=1e-12)
     np.testing.assert_allclose(np.diag(out)[2:], [0.0, 5.0], atol=1e-12)
+
+
+# -- warp (camera-motion compensation, tracking/camera_motion.py) ---------------------
+def test_kalman_warp_moves_mean_and_covariance_by_hand():
+    kf = ConstantVelocityKalman((10.0, 20.0), initial_velocity=(3.0, -1.0),
+                                initial_position_var=4.0, initial_velocity_var=1.0)
+    kf._cov[0, 2] = kf._cov[2, 0] = 0.5          # x position - x velocity covariance
+    kf._cov[1, 1], kf._cov[3, 3] = 9.0, 2.0
+    # a quarter turn (x, y) -> (-y, x) and a shift (5, -7)
+    kf.warp([[0.0, -1.0], [1.0, 0.0]], (5.0, -7.0))
+    # mean: (-20 + 5, 10 - 7) and velocity (1, 3)
+    np.testing.assert_allclose(kf.state, [-15.0, 3.0, 1.0, 3.0])
+    # P = diag(4, 9, 1, 2) + 0.5 at (x, vx): the axes swap, the x terms become y terms
+    expected = np.array([[9.0, 0.0, 0.0, 0.0], [0.0, 4.0, 0.0, 0.5],
+                         [0.0, 0.0, 2.0, 0.0], [0.0, 0.5, 0.0, 1.0]])
+    np.testing.assert_allclose(kf.covariance, expected, atol=1e-12)
+
+
+def test_kalman_warp_with_scale_scales_velocity_and_covariance():
+    kf = ConstantVelocityKalman((10.0, 20.0), initial_velocity=(3.0, -1.0),
+                                initial_position_var=4.0, initial_velocity_var=1.0)
+    kf.warp([[2.0, 0.0], [0.0, 2.0]], (1.0, 1.0))
+    np.testing.assert_allclose(kf.state, [21.0, 41.0, 6.0, -2.0])
+    np.testing.assert_allclose(np.diag(kf.covariance), [16.0, 16.0, 4.0, 4.0])
+
+
+@pytest.mark.parametrize("lin,shift", [([[1, 0], [0, float("nan")]], (0, 0)),
+                                       ([[1, 0], [0, 1]], (float("inf"), 0)),
+                                       ([1, 2, 3], (0, 0))])
+def test_kalman_warp_refuses_bad_input_and_leaves_the_filter(lin, shift):
+    kf = ConstantVelocityKalman((10.0, 20.0))
+    before = kf.state, kf.covariance
+    with pytest.raises(KalmanError):
+        kf.warp(lin, shift)
+    np.testing.assert_array_equal(kf.state, before[0])
+    np.testing.assert_array_equal(kf.covariance, before[1])

@@ -17,6 +17,8 @@ image planes (thermal = world plane, RGB) linked by a homography.
   (2.1)-(2.2) of Schizas et al., with bounded turns) and how they look.
 * :mod:`~mk_tracker.synthetic.scene` -- ``SyntheticScene``: rendering of both planes,
   visibility and boxes of every object, thermal encodings.
+* :mod:`~mk_tracker.synthetic.camera_pan` -- a panning camera over a scene: a moving crop
+  window with exactly known image motion and shifted truth boxes.
 * :mod:`~mk_tracker.synthetic.scene_bag` -- a scene as a rosbag2 bag (``mk_tracker
   generate``), with ground truth and the homography in ``/scene_info``.
 

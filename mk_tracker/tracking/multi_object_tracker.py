@@ -15,7 +15,9 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    the frame's by more than ``stale_tolerance`` are dropped and counted; the others are
    brought to the frame time with each track's Kalman velocity (constant-velocity model
    (2.1)-(2.2) of Schizas et al. 2018).
-3. **Prediction.**  Every track's Kalman filter is advanced to the frame time, (4.2)-(4.3).
+3. **Prediction.**  With ``camera_motion.enabled``, every track is first moved by the image
+   motion since the previous frame (:mod:`mk_tracker.tracking.camera_motion`); then its
+   Kalman filter is advanced to the frame time, (4.2)-(4.3).
 4. **Association** (:mod:`mk_tracker.tracking.association`): Hungarian assignment of detections to
    tentative/confirmed/occluded tracks on overlap + Kalman-gated distance; then the
    remaining detections (and those of still-tentative tracks) against *lost* tracks, gated
@@ -60,6 +62,7 @@ from typing import Any, Iterable, Protocol, Sequence
 import numpy as np
 
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
+from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
 from mk_tracker.kalman import KalmanConfig
 # FrameResult, TrackKernels and coast_position_std are re-exported from here
@@ -198,9 +201,11 @@ class MultiObjectTracker:
         self._published_box: dict[int, np.ndarray] = {}
         self._frame_interval = 0.0       # seconds between the last two frames
         self.frame_size: tuple[int, int] | None = None
+        self.camera_motion = CameraMotionEstimator(self.config.camera_motion) \
+            if self.config.camera_motion.enabled else None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
                        "resets": 0, "size_resets": 0, "group_measurements": 0,
-                       "merged_duplicates": 0}
+                       "merged_duplicates": 0, "camera_motion_fallbacks": 0}
 
     # -- public API -----------------------------------------------------------------------
     def reset(self) -> None:
@@ -209,6 +214,8 @@ class MultiObjectTracker:
         self.last_stamp = None
         self.frame_size = None
         self._stacked_since = {}
+        if self.camera_motion is not None:
+            self.camera_motion.reset()
 
     def start_track(self, image_bgr: np.ndarray, stamp: float, box: Sequence[float]) -> int:
         """Start a confirmed track on ``box`` by hand (single-target protocol); returns its id."""
@@ -235,6 +242,8 @@ class MultiObjectTracker:
             track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b)))
         if self.frame_size is None:
             self.frame_size = image_bgr.shape[:2]
+        if self.camera_motion is not None:
+            self.camera_motion.remember(image_bgr)     # the motion is measured from here
         return track.id
 
     def stop_track(self, track_id: int) -> bool:
@@ -280,6 +289,13 @@ class MultiObjectTracker:
 
         dets = self._prepare(detections, stamp, width, height, result)
         live = [t for t in self.tracks if t.state is not TrackState.DELETED]
+        if self.camera_motion is not None and not live:
+            self.camera_motion.remember(image_bgr)     # nothing to move: no estimate
+        elif self.camera_motion is not None:
+            # the boxes are still those of the previous frame: left out of the estimate
+            motion = self.camera_motion.estimate(image_bgr, [t.box for t in live])
+            self.totals["camera_motion_fallbacks"] += int(motion.fallback)
+            compensate(live, motion)
         for t in live:
             t.predict(stamp)
 

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
 from mk_tracker.tracking.association import AssociationConfig
+from mk_tracker.tracking.camera_motion import CameraMotionConfig
 from mk_tracker.tracking.duplicate_tracks import DuplicateConfig
 from mk_tracker.tracking.group_measurement import GroupConfig
 from mk_tracker.tracking.manual_track import ManualTrackConfig
@@ -38,6 +39,9 @@ class MultiObjectTrackerConfig:
     manual_track: ManualTrackConfig = parameter(
         ManualTrackConfig(), "Tracks started by hand (initial_box, ~/start_track): their own "
         "Kalman, visibility and kernel settings")
+    camera_motion: CameraMotionConfig = parameter(
+        CameraMotionConfig(), "Camera-motion compensation: the image motion between frames "
+        "moves every track before the prediction (tracking/camera_motion.py)")
     use_multi_kernel: bool = parameter(
         True, "Refine every confirmed/occluded track with the multiple-kernel tracker "
         "(Sec. IV-D); false = detections and Kalman prediction only")
