@@ -11,11 +11,15 @@ and after every frame the model's relative residual spread (weighted residual st
 deviation about the line / mean height) and its samples' total weight are read.  Reported
 per scene and path: frames with a fit, the spread's 10th / 50th / 90th percentile and
 maximum over the frames with at least ``--min-samples`` of weight, the first frame with
-that weight, and the spread at the end.  Not a test: nothing is asserted.
+that weight, the spread at the end, the median share of the samples' height variance the
+line explains (R^2), and how many frames and full-frame passes had a size the check
+accepts (all of them without a check).  Not a test: nothing is asserted.
 
     nice -n 10 .venv/bin/python benchmarks/diagnose_size_fit.py --out out/size_fit.md
 
-``--set NAME=VALUE`` overrides a detector parameter (YAML value) in every run.
+``--set NAME=VALUE`` overrides a detector parameter (YAML value) in every run, e.g.
+``--sizes --set size_max_residual=0.25 size_min_samples=10`` (BU-TIV-lab only, with the
+check on: the path runs only while the size is accepted).
 """
 
 from __future__ import annotations
@@ -52,9 +56,14 @@ def trace(frames, detector, min_samples: float) -> dict:
     """Run ``detector`` over ``frames`` (iterable of ``(image, stamp, encoding)``); the
     spread figures of its height model."""
     spreads, explained, first, last = [], [], None, math.nan
+    accepted, passes, passes_accepted = 0, 0, 0
     for k, (image, stamp, encoding) in enumerate(frames):
         detector.process(image, stamp, encoding=encoding)
         model = detector.heights
+        accepted += model.valid()
+        if detector.last_mode in ("startup", "reconfiguration"):
+            passes += 1
+            passes_accepted += model.valid()
         spread = model.relative_residual()
         if spread is None:
             continue
@@ -67,7 +76,8 @@ def trace(frames, detector, min_samples: float) -> dict:
     pct = np.percentile(s, [10, 50, 90]) if s.size else [math.nan] * 3
     return {"frames": len(s), "first": first, "p10": pct[0], "p50": pct[1], "p90": pct[2],
             "max": float(s.max()) if s.size else math.nan, "end": last,
-            "r2": float(np.median(explained)) if explained else math.nan}
+            "r2": float(np.median(explained)) if explained else math.nan,
+            "accepted": accepted, "passes": f"{passes_accepted} / {passes}"}
 
 
 def scene_frames(scene):
@@ -86,7 +96,7 @@ def bag_frames(bag: Path):
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--people", type=int, nargs="+", default=[3, 8, 15])
-    parser.add_argument("--sizes", nargs="+", default=["320x240", "640x480"])
+    parser.add_argument("--sizes", nargs="*", default=["320x240", "640x480"])
     parser.add_argument("--seeds", type=int, nargs="+", default=[101, 102, 103])
     parser.add_argument("--frames", type=int, default=150)
     parser.add_argument("--min-samples", type=float, default=10.0,
@@ -96,9 +106,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args(argv)
     cfg = load_pipeline_config()
-    base = updated(cfg.detector, {n: yaml.safe_load(v) for n, _, v in
-                                  (s.partition("=") for s in args.set)})
-    base = replace(base, size_max_residual=100.0, size_min_samples=2.5)
+    base = replace(cfg.detector, size_max_residual=100.0, size_min_samples=2.5)
+    base = updated(base, {n: yaml.safe_load(v) for n, _, v in
+                          (s.partition("=") for s in args.set)})
     rows = []
 
     def run(label: str, frames_of, regions=()) -> None:
@@ -126,12 +136,13 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"{args.clip} not found: BU-TIV-lab left out", file=sys.stderr)
     lines = ["| scene | path | frames with >= %g samples | first such frame | spread p10 | "
-             "p50 | p90 | max | at the end | explained (R^2) p50 |" % args.min_samples,
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "p50 | p90 | max | at the end | explained (R^2) p50 | frames with an accepted size | "
+             "full passes with one |" % args.min_samples,
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for label, path, f in rows:
         lines.append(f"| {label} | {path} | {f['frames']} | {f['first']} | {f['p10']:.3f} | "
                      f"{f['p50']:.3f} | {f['p90']:.3f} | {f['max']:.3f} | {f['end']:.3f} | "
-                     f"{f['r2']:.2f} |")
+                     f"{f['r2']:.2f} | {f['accepted']} | {f['passes']} |")
     table = "\n".join(lines)
     print(table)
     if args.out is not None:
