@@ -24,7 +24,8 @@ test: nothing is asserted.
     .venv/bin/python benchmarks/bench_groups.py --out docs/benchmark_groups.md
 
 ``--set NAME=VALUE`` overrides a parameter of the tracker in every configuration (YAML value,
-e.g. ``duplicates.enabled=false``), for ablations on the held-out seed.
+e.g. ``duplicates.enabled=false``), for ablations on the held-out seed; ``--set-detector``
+does the same for the detector (e.g. ``size_max_residual=0.25``).
 """
 
 from __future__ import annotations
@@ -90,15 +91,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                         help="override a parameter of the tracker (YAML value), e.g. "
                              "duplicates.enabled=false")
+    parser.add_argument("--set-detector", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="override a parameter of the detector (YAML value), e.g. "
+                             "size_max_residual=0.25")
     args = parser.parse_args(argv)
 
     base = load_pipeline_config()
+
+    def changes(items):
+        return {n: yaml.safe_load(v) for n, _, v in (i.partition("=") for i in items)}
     if args.set:
-        changes = {}
-        for item in args.set:
-            name, _, value = item.partition("=")
-            changes[name] = yaml.safe_load(value)
-        base = replace(base, tracker=updated(base.tracker, changes))
+        base = replace(base, tracker=updated(base.tracker, changes(args.set)))
+    if args.set_detector:
+        base = replace(base, detector=updated(base.detector, changes(args.set_detector)))
     configs = [c for c in configurations(base) if args.configs is None or c[0] in args.configs]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -43,6 +43,11 @@ and every person who touches with them (docs/benchmark_groups.md).  Here, within
    ``window_margin`` (``keep_objects_apart``): two people who walked apart stay two while
    they pass each other.  Only with a learnt size: without one the blob is one object.
 
+With a size check (``size_max_residual`` below 100, not in the paper), the pass uses
+these rules only while the learnt height fit explains its samples
+(:meth:`~mk_tracker.detection.person_size.PersonHeightModel.valid`); otherwise it runs the
+link rule and the footprint merge, as without ``split_clusters``.
+
 The rules of steps 1-3 are pure functions (:func:`leading_clusters`, :func:`join_pieces`,
 :func:`is_sliver`); :class:`CrowdSplitting` (a mixin of
 :class:`~mk_tracker.detection.thermal_detector.ThermalDetector`) applies them.  None of this is

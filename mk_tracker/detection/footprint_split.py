@@ -124,7 +124,8 @@ class FootprintSplitting:
         """Detections of one group's footprint split by the expected person width at its
         bottom row (:mod:`mk_tracker.detection.person_size`): one per person side by side,
         cut at the emptiest columns; one detection, as :meth:`_candidate` gives it, while
-        the footprint is no wider than ``split_ratio`` persons or no size is known yet."""
+        the footprint is no wider than ``split_ratio`` persons or no size is known (not yet
+        learnt, or refused by the size check: ``size_max_residual``)."""
         c = self.config
         fp = self._group_footprint(frame, result, rows, cols, bounds, footprint)
         if fp is None:

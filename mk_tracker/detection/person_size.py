@@ -8,7 +8,11 @@ than one person at its row is a group:
 
 * :class:`PersonHeightModel` fits ``h = a + b * y_bottom`` by least squares with
   exponential forgetting, from the boxes of *isolated* people (:func:`is_person_shaped`:
-  an upright aspect ratio, so a fragment or a side-by-side group is not a sample);
+  an upright aspect ratio, so a fragment or a side-by-side group is not a sample), and
+  keeps the samples' residual spread about the line, so that a scene where one height per
+  row does not hold can refuse the size (optional: ``detector.size_max_residual``; on the
+  project's scenes it did not separate a ground-plane crowd from BU-TIV-lab,
+  docs/benchmark_groups.md);
 * :func:`people_in_width` says how many people a region of a given width holds
   (``round(width / expected width)`` once it is ``split_ratio`` expected widths wide);
 * :func:`projection_cuts` cuts the region at the emptiest columns of its mask (the vertical
@@ -22,6 +26,8 @@ use them the same way.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ["PersonHeightModel", "is_person_shaped", "people_in_width", "projection_cuts",
@@ -31,32 +37,90 @@ __all__ = ["PersonHeightModel", "is_person_shaped", "people_in_width", "projecti
 class PersonHeightModel:
     """``h = a + b * y_bottom`` fitted online by least squares with exponential forgetting
     (weights ``(1 - 1/memory)^age``); without enough spread in ``y`` it is the weighted mean
-    height."""
+    height.
 
-    def __init__(self, memory: float) -> None:
+    **Validity** (not in the paper: Schizas et al. (2018) have no size prior).  One height
+    per image row holds for people standing on a ground plane seen from above; in a near
+    indoor scene a half-body box and a whole-body box end on the same row.  The model keeps
+    the weighted residual variance of its samples about the line, ``var(h) - b^2 var(y)``
+    (``var(h)`` without a slope), and :meth:`height_at` gives no size while the relative
+    residual spread (:meth:`relative_residual`: its square root over the mean height) is
+    above ``max_relative_residual`` or the samples' total weight is below ``min_samples``:
+    every split that reads the expected size then acts as if none was learnt.
+    """
+
+    def __init__(self, memory: float, max_relative_residual: float = math.inf,
+                 min_samples: float = 2.5) -> None:
         self.decay = 1.0 - 1.0 / max(float(memory), 1.0)
-        self.sums = np.zeros(5)          # n, y, h, yy, yh
+        self.max_relative_residual = float(max_relative_residual)
+        self.min_samples = float(min_samples)
+        self.sums = np.zeros(6)          # n, y, h, yy, yh, hh
 
     @property
     def samples(self) -> float:
+        """Total weight of the samples (their count without forgetting)."""
         return float(self.sums[0])
 
     def add(self, y_bottom: float, height: float) -> None:
         self.sums *= self.decay
-        self.sums += (1.0, y_bottom, height, y_bottom * y_bottom, y_bottom * height)
+        self.sums += (1.0, y_bottom, height, y_bottom * y_bottom, y_bottom * height,
+                      height * height)
+
+    def _line(self) -> tuple[float, float, float, float] | None:
+        """``(mean y, mean h, slope, residual variance)`` of the weighted fit; None with
+        fewer than about 3 samples."""
+        n, sy, sh, syy, syh, shh = self.sums
+        if n < 2.5:
+            return None
+        mean_y, mean_h = sy / n, sh / n
+        var_y = syy / n - mean_y ** 2
+        var_h = shh / n - mean_h ** 2
+        if var_y < 1.0:                  # all samples on (nearly) one row
+            return mean_y, mean_h, 0.0, max(var_h, 0.0)
+        b = (syh / n - mean_y * mean_h) / var_y
+        return mean_y, mean_h, b, max(var_h - b * b * var_y, 0.0)
+
+    def relative_residual(self) -> float | None:
+        """Weighted residual standard deviation of the samples about the fitted line over
+        their mean height; None with fewer than about 3 samples."""
+        line = self._line()
+        if line is None or not line[1] > 0:
+            return None
+        return math.sqrt(line[3]) / line[1]
+
+    def explained(self) -> float | None:
+        """Share of the samples' height variance the line explains (R^2, 0 without a slope
+        or spread); None with fewer than about 3 samples."""
+        n, _, sh, _, _, shh = self.sums
+        line = self._line()
+        if line is None:
+            return None
+        var_h = shh / n - (sh / n) ** 2
+        return 0.0 if not var_h > 0 else float(1.0 - line[3] / var_h)
+
+    def valid(self) -> bool:
+        """Whether the fit explains its samples: at least ``min_samples`` of weight and a
+        relative residual spread of at most ``max_relative_residual``."""
+        if self.samples < self.min_samples:
+            return False
+        if math.isinf(self.max_relative_residual):
+            return self._line() is not None
+        spread = self.relative_residual()
+        return spread is not None and spread <= self.max_relative_residual
+
+    def allows(self) -> bool:
+        """Whether a split may run: always without a check (``max_relative_residual``
+        infinite: as before the check existed), else only while :meth:`valid`."""
+        return math.isinf(self.max_relative_residual) or self.valid()
 
     def height_at(self, y_bottom: float) -> float | None:
         """Expected height of a person whose feet are at row ``y_bottom``; None with fewer
-        than about 3 samples."""
-        n, sy, sh, syy, syh = self.sums
-        if n < 2.5:
+        than about 3 samples, or while the fit is not :meth:`valid`."""
+        line = self._line()
+        if line is None or not self.valid():
             return None
-        var = syy / n - (sy / n) ** 2
-        mean_h = sh / n
-        if var < 1.0:                    # all samples on (nearly) one row
-            return float(mean_h)
-        b = (syh / n - (sy / n) * mean_h) / var
-        return float(mean_h + b * (y_bottom - sy / n))
+        mean_y, mean_h, b, _ = line
+        return float(mean_h + b * (y_bottom - mean_y))
 
 
 def is_person_shaped(width: float, height: float, aspect: float) -> bool:

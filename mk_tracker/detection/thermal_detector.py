@@ -285,6 +285,12 @@ class ThermalDetectorConfig:
     size_memory: float = parameter(500.0, "split_by_person_size: person-size samples "
                                    "remembered (exponential forgetting)", minimum=1.0,
                                    maximum=1e6)
+    size_max_residual: float = parameter(
+        100.0, "the learnt person size (and split_clusters) is used only while the height "
+        "fit's residual std / mean height is at most this (person_size; not in the paper; "
+        "100: no check, docs/benchmark_groups.md)", minimum=0.0, maximum=100.0)
+    size_min_samples: float = parameter(2.5, "... and its samples weigh at least this",
+                                        minimum=2.5, maximum=1e6)
     min_valid_fraction: float = parameter(0.5, "frames with fewer finite pixels are skipped",
                                           minimum=0.0, maximum=1.0)
     kalman: KalmanConfig = parameter(KalmanConfig(), "per-object Kalman filter (Sec. 4)")
@@ -375,7 +381,10 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
         self._integer = False
         self._ring: np.ndarray | None = None
         self._frames_seen = 0
-        self.heights = PersonHeightModel(self.config.size_memory)
+        c = self.config
+        self.heights = PersonHeightModel(c.size_memory, c.size_max_residual if
+                                         c.size_max_residual < 100 else math.inf,
+                                         c.size_min_samples)
         self.aspects = np.zeros(2)      # forgetting sums of (1, width / height) of samples
         self._group_seen = False        # a tracking pass saw a footprint of several people
         self._extents: dict = {}        # body_extent: object id -> its person's extent
@@ -500,11 +509,13 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
             _, labels = cluster_support_pixels(np.column_stack([cols, rows]),
                                                max_objects=c.max_objects,
                                                merge_distance_sq=c.merge_distance_sq)
-            if c.link_gap > 0 and not (c.current_frame_refinement and c.split_clusters):
+            # with a size check, split_clusters only while the learnt size holds (person_size)
+            crowd = c.current_frame_refinement and c.split_clusters and self.heights.allows()
+            if c.link_gap > 0 and not crowd:
                 labels = merge_linked(labels, link_groups(result.support, c.link_gap)[rows, cols])
             groups = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)]
             groups = [g for g in groups if g.size >= c.min_object_pixels]
-            if c.current_frame_refinement and c.split_clusters:
+            if crowd:
                 candidates = self._crowd_candidates(frame, result, rows, cols, groups, bounds)
                 groups = []
             footprints: list[Any] = [_UNSET] * len(groups)

@@ -126,6 +126,26 @@ def test_two_close_walkers_are_two_detections_with_split_clusters():
     assert len(_startup(config, frames)) == 1
 
 
+def test_split_clusters_turns_itself_off_while_the_size_fit_is_refused():
+    # the pair of the test above.  Samples of one row, half and whole bodies (h 20 and 60,
+    # mean 40 as above): relative residual spread 20 / 40 = 0.5, so with size_max_residual
+    # 0.3 the learnt size is refused and the detector does as the defaults (one object)
+    frames = _two_people_frames(gap=3)
+    mixed = [(60.0, 20.0), (60.0, 60.0)] * 3
+    strict = ThermalDetectorConfig(split_clusters=True, person_aspect=0.25,
+                                   size_max_residual=0.3, size_min_samples=2.5)
+    assert len(_startup(strict, frames, mixed)) == 1
+    # the same samples under a lenient threshold: the mean height 40 is used, two people
+    lenient = ThermalDetectorConfig(split_clusters=True, person_aspect=0.25,
+                                    size_max_residual=0.6, size_min_samples=2.5)
+    assert len(_startup(lenient, frames, mixed)) == 2
+    # consistent samples but fewer than size_min_samples: refused too
+    few = ThermalDetectorConfig(split_clusters=True, person_aspect=0.25,
+                                size_max_residual=0.3, size_min_samples=8.0)
+    assert len(_startup(few, frames, [(60.0, 40.0)] * 5)) == 1
+    assert len(_startup(few, frames, [(60.0, 40.0)] * 9)) == 2
+
+
 def test_one_walker_is_one_detection_with_split_clusters():
     # one 20 x 40 person (as wide as the pair above): its leading and trailing bands are
     # 20 px apart and the person is the expected size, so it stays one

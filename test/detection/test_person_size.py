@@ -123,3 +123,78 @@ def test_a_group_cut_off_by_the_image_bottom_is_not_split():
             last_full = out
     assert det.heights.samples > 3                          # sizes were learnt
     assert len(last_full) == 3                              # the pair stays one detection
+
+
+def test_samples_on_an_exact_line_have_no_residual_and_the_prior_holds():
+    model = PersonHeightModel(memory=1e9, max_relative_residual=0.05, min_samples=3.5)
+    for y in (100.0, 150.0, 200.0):
+        model.add(y, 0.4 * y)
+    assert model.relative_residual() == pytest.approx(0.0, abs=1e-9)
+    assert model.explained() == pytest.approx(1.0)
+    assert not model.valid() and model.height_at(300.0) is None     # 3 samples < 3.5
+    model.add(250.0, 100.0)
+    assert model.valid() and model.height_at(300.0) == pytest.approx(120.0)
+
+
+def test_half_and_whole_bodies_on_the_same_rows_refuse_the_prior():
+    # at rows 100 and 200, a half body (h 20 / 40) and a whole body (h 60 / 80): the line
+    # h = 0.2 y + 20 (slope from the row means 40 and 60) leaves residuals of +-20 at every
+    # sample, std 20 about a mean height of 50: relative spread 0.4, R^2 = 1 - 400/500
+    model = PersonHeightModel(memory=1e9, max_relative_residual=0.3, min_samples=3)
+    for y, h in ((100, 20), (100, 60), (200, 40), (200, 80)):
+        model.add(y, h)
+    assert model.relative_residual() == pytest.approx(0.4)
+    assert model.explained() == pytest.approx(0.2)
+    assert not model.valid() and model.height_at(150) is None
+    lenient = PersonHeightModel(memory=1e9, max_relative_residual=0.5, min_samples=3)
+    for y, h in ((100, 20), (100, 60), (200, 40), (200, 80)):
+        lenient.add(y, h)
+    assert lenient.height_at(150) == pytest.approx(50.0)
+    # no threshold (the default): the size is used as before
+    plain = PersonHeightModel(memory=1e9)
+    for y, h in ((100, 20), (100, 60), (200, 40), (200, 80)):
+        plain.add(y, h)
+    assert plain.height_at(150) == pytest.approx(50.0)
+
+
+def test_forgetting_lets_the_prior_come_back_once_the_line_holds_again():
+    # memory 4: every older sample's weight is multiplied by 0.75 at each new one.  Four
+    # samples at one row (h 20, 20, 60, 60) have no slope: their spread about the mean
+    model = PersonHeightModel(memory=4.0, max_relative_residual=0.1, min_samples=2.5)
+    for h in (20, 20, 60, 60):
+        model.add(100, h)
+    w = [0.75 ** 3, 0.75 ** 2, 0.75, 1.0]                   # oldest first
+    total = sum(w)
+    mean = (20 * (w[0] + w[1]) + 60 * (w[2] + w[3])) / total
+    var = (400 * (w[0] + w[1]) + 3600 * (w[2] + w[3])) / total - mean ** 2
+    assert model.relative_residual() == pytest.approx(var ** 0.5 / mean)   # 0.43
+    assert model.explained() == 0.0
+    assert not model.valid()
+    for y in range(150, 650, 25):
+        model.add(float(y), 0.4 * y)
+    # the one-row samples now weigh 0.75^20 (0.3 %) or less: the line explains what is left
+    assert model.valid()
+    assert model.height_at(700.0) == pytest.approx(280.0, rel=0.02)
+
+
+@pytest.mark.parametrize("max_residual", [0.1, 100.0])
+def test_the_size_split_stops_while_the_height_fit_is_refused(max_residual):
+    """The scene of the split test above, after 200 earlier samples of half and whole
+    bodies (h 10 and 70, mean 40) at the isolated people's rows: about 80 exact 40 px
+    samples later the spread is still ~25 px over a mean of 40 (0.6), above 0.1: the size is
+    refused and the pair stays one detection; without a check (100) it is split."""
+    from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
+
+    config = dataclasses.replace(ThermalDetectorConfig(), split_by_person_size=True,
+                                 person_aspect=0.4, split_ratio=1.5, reconfigure_period=5,
+                                 size_max_residual=max_residual, size_min_samples=2.5)
+    det = ThermalDetector(config)
+    for k in range(200):
+        det.heights.add(60.0 + 100.0 * (k % 2), 10.0 if k % 4 < 2 else 70.0)
+    for i, f in enumerate(_walkers(40, [(10, 20), (10, 120), (150, 70), (166, 70)])):
+        out = det.process(f, i * 0.04, "mono8")
+        if det.last_mode == "reconfiguration":
+            last = out
+    spread = det.heights.relative_residual()
+    assert 0.5 < spread < 0.75
+    assert len(last) == {0.1: 3, 100.0: 4}[max_residual]     # the pair: one, or two
