@@ -9,6 +9,8 @@ factor of that matrix is non-zero exactly on the moving objects.
   each object's Kalman prediction (5.2), one Kalman filter per object (Secs. 2 and 4,
   (2.1)-(2.3), (4.1)-(4.5), :mod:`mk_tracker.kalman`); what we add where the paper is
   silent is listed there, each with its switch.
+* :mod:`~mk_tracker.detection.thermal_detector_config` -- its parameters (``detector.*``),
+  each with the paper's symbol where there is one, a description and a range.
 * :mod:`~mk_tracker.detection.thermal_image` -- frames to the unit intensity scale the
   kernel (3.6) assumes (sigma^2 = 0.01, Sec. 6); missing pixels (the case of Sec. 8) hold
   their last value.

@@ -45,7 +45,7 @@ from mk_tracker.detection.sparse_factorization import (_factorize_block, compile
 from mk_tracker.detection.thermal_image import ThermalInputError
 
 if TYPE_CHECKING:
-    from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
+    from mk_tracker.detection.thermal_detector_config import ThermalDetectorConfig
 
 __all__ = ["SupportResult", "TABLE_LEVELS", "support_in_frame"]
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
-from mk_tracker.detection.thermal_detector import ThermalDetectorConfig
+from mk_tracker.detection.thermal_detector_config import ThermalDetectorConfig
 from mk_tracker.detection.threshold_detector import ThresholdDetectorConfig
 from mk_tracker.detection.background_detector import BackgroundDetectorConfig
 from mk_tracker.frame_processing import build_detector
