@@ -129,14 +129,21 @@ class DriftRefiner:
         return 0.9
 
 
-def _drift_then_return(back_at: tuple, **changes):
+class DriftRefinerOtherLook(DriftRefiner):
+    """The same drift, but the returning box does not look like the track (0.5 < 0.7)."""
+
+    def appearance_similarity(self, image, state, box):
+        return 0.5
+
+
+def _drift_then_return(back_at: tuple, refiner=None, **changes):
     """A person stands at (100, 100, 30, 60), detected for 15 frames; then 10 frames
     without a detection in which the refinement drags the track 3 px a frame to the right
     (30 px = 0.5 box heights); then the detection ``back_at`` for 4 frames.  Returns the
     first track's id, the tracker, the last result and the tracks' centres after each
     of those 4 frames."""
     trk = MultiObjectTracker(updated(MultiObjectTrackerConfig(), changes),
-                             refiner=DriftRefiner(3.0))
+                             refiner=refiner or DriftRefiner(3.0))
     for i in range(15):
         trk.step(IMG, i * DT, [FrameDetection((100.0, 100.0, 30.0, 60.0), 0.9)])
     (tid,) = [t.id for t in trk.tracks]
@@ -163,6 +170,12 @@ def test_drifted_track_gets_its_returning_detection_instead_of_a_new_track_being
     # estimate (> 135), and still: after 3 more frames on the same detection it is there
     assert centres[0][tid] == pytest.approx((115.0, 130.0))
     assert centres[3][tid] == pytest.approx((115.0, 130.0), abs=0.5)
+
+
+def test_returning_detection_that_does_not_look_like_the_track_starts_a_new_one():
+    tid, trk, r, _ = _drift_then_return((100.0, 100.0, 30.0, 60.0),
+                                        refiner=DriftRefinerOtherLook(3.0))
+    assert len({t.id for t in r.reported()} - {tid}) == 1 and len(trk.tracks) == 2
 
 
 def test_detection_far_from_both_the_estimate_and_the_last_detection_starts_a_track():
