@@ -178,6 +178,7 @@ def replay(inputs: list, changes: dict, diagnose: bool = False, near: float = 3.
             snap[t.id] = (t.state, t.box.copy(), t.last_detection)
         history.append(snap)
     figures = identity_figures(reported_by_frame)
+    figures.update(box_figures(inputs, reported_by_frame))
     if not diagnose:
         return figures, None
     first_reported = {}
@@ -235,6 +236,36 @@ def replay(inputs: list, changes: dict, diagnose: bool = False, near: float = 3.
     return figures, rows
 
 
+def box_figures(inputs: list, reported_by_frame: list) -> dict[str, float]:
+    """``tall``: reported boxes taller than the frame; ``max_h``: the tallest (px);
+    ``covered``: fraction of the detections that some reported box overlaps at IoU >= 0.3
+    (no ground truth: a detected person without a track is a miss of the tracker);
+    ``alone``: reported boxes per frame that no detection overlaps so (people kept while
+    undetected, e.g. standing still, or boxes on nobody)."""
+    from mk_tracker.boxes import iou_matrix
+    tall, max_h, n_det, n_cov, alone = 0, 0.0, 0, 0, 0
+    for (image, _, dets), frame in zip(inputs, reported_by_frame):
+        heights = [float(b[3]) for _, b in frame]
+        tall += sum(h > image.shape[0] for h in heights)
+        max_h = max([max_h] + heights)
+        boxes = np.array([d.box for d in dets], dtype=np.float64).reshape(-1, 4)
+        n_det += len(boxes)
+        if len(boxes) and frame:
+            ious = iou_matrix(boxes, np.array([b for _, b in frame], dtype=np.float64))
+            n_cov += int(np.sum(ious.max(axis=1) >= 0.3))
+            alone += int(np.sum(ious.max(axis=0) < 0.3))
+        elif frame:
+            alone += len(frame)
+    return {"tall": tall, "max_h": max_h, "covered": n_cov / max(n_det, 1),
+            "alone": alone / max(len(reported_by_frame), 1)}
+
+
+def _line(name: str, f: dict) -> str:
+    return (f"replay {name}: ids {f['ids']} dup {f['duplicates']:.2f} tracks {f['tracks']:.2f}"
+            f" | boxes > frame {f['tall']} (tallest {f['max_h']:.0f} px) | detections "
+            f"covered {f['covered']:.2f} | undetected boxes / frame {f['alone']:.2f}")
+
+
 def table(rows) -> str:
     lines = ["| new id | born (frame) | reported (frame) | nearest old id | old state / refused "
              "by | unseen (s) | dist. to last detection (h) | dist. to prediction (h) | "
@@ -279,15 +310,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"pipeline run at capture (the defaults then): ids {piped['ids']} "
           f"dup {piped['duplicates']:.2f} tracks {piped['tracks']:.2f}", flush=True)
     figures, rows = replay(inputs, changes, diagnose=not args.no_table, near=args.near)
-    print(f"replay {changes}: ids {figures['ids']} dup {figures['duplicates']:.2f} "
-          f"tracks {figures['tracks']:.2f}", flush=True)
+    print(_line(str(changes), figures), flush=True)
     if rows is not None:
         print(table(rows), flush=True)
     for item in args.sweep:
         extra = {n: _value(v) for n, _, v in (s.partition("=") for s in item.split(";"))}
         f, _ = replay(inputs, {**changes, **extra})
-        print(f"replay {item}: ids {f['ids']} dup {f['duplicates']:.2f} "
-              f"tracks {f['tracks']:.2f}", flush=True)
+        print(_line(item, f), flush=True)
     return 0
 
 

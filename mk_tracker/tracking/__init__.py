@@ -16,6 +16,9 @@ detections of :mod:`mk_tracker.detection`.  The Kalman filter itself is
   detected as two, become the older one (track-level suppression of duplicates).
 * :mod:`~mk_tracker.tracking.association` -- Hungarian assignment on 1 - IoU and the
   Mahalanobis distance gated by the innovation covariance (the bracket of (4.5)).
+* :mod:`~mk_tracker.tracking.recovery` -- a second round for tracks whose estimate drifted
+  while undetected: from their last detected box, checked by appearance (OC-SORT's
+  observation-centric recovery; not in the papers).
 * :mod:`~mk_tracker.tracking.multi_kernel` -- one target as N kernels (Sec. IV-A):
   min J(x) = sum_i W_i J_i(x) (3), (7) subject to C(x) = 0 (4), by Algorithm 1 (Sec.
   III-C), the adaptive weights (Sec. III-D), the scale update (9)-(11) (Sec. III-E) and the

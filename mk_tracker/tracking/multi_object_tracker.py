@@ -19,7 +19,9 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    motion since the previous frame (:mod:`mk_tracker.tracking.camera_motion`); then its
    Kalman filter is advanced to the frame time, (4.2)-(4.3).
 4. **Association** (:mod:`mk_tracker.tracking.association`): Hungarian assignment of detections to
-   tentative/confirmed/occluded tracks on overlap + Kalman-gated distance; then the
+   tentative/confirmed/occluded tracks on overlap + Kalman-gated distance; 4b' a second
+   round from the last detected boxes of the tracks left without one, checked by
+   appearance (:mod:`mk_tracker.tracking.recovery`: drifted estimates); then the
    remaining detections (and those of still-tentative tracks) against *lost* tracks, gated
    by the Kalman prediction or by the track's last detection (whose spread grows with the
    time since it, :mod:`mk_tracker.tracking.reacquisition`), where the appearance model
@@ -75,7 +77,8 @@ from mk_tracker.tracking.group_measurement import (constrain_inside, explained_f
                                                    find_groups)
 from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectTrackerConfig
 from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
-                                               reacquisition_matches)
+                                               reacquisition_matches, reference_similarity)
+from mk_tracker.tracking.recovery import recover_into, restart_filter
 from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
                                               manual_track_lifecycle,
                                               manual_track_multi_kernel, recentre_shift)
@@ -314,6 +317,11 @@ class MultiObjectTracker:
             a = self._match(free, [dets[k] for k in single], self.config.association.gate)
             for r, k in a.matches:
                 matched_track[single[k]] = free[r].id
+        # 4b'. drifted tracks vs the rest, from their last detection (tracking/recovery.py)
+        recovered = recover_into(free, single, [d.box for d in dets], matched_track, stamp,
+                                 self.config.recovery, result.events, lambda t, box:
+                                 reference_similarity(t, box, image_bgr,
+                                                      self._refiner_for(t))[0])
         # 4c. remaining detections vs lost tracks (re-acquisition)
         # A person reappearing part-occluded may first be seen by a new tentative track (its
         # appearance does not match yet); its detections stay candidates until it is
@@ -392,7 +400,7 @@ class MultiObjectTracker:
                 continue
             self._update_track(t, stamp, image_bgr, det_boxes_now.get(t.id),
                                detected.get(t.id), refined.get(t.id), width, height,
-                               blockers, hold=t.id in held)
+                               blockers, hold=t.id in held, restart=t.id in recovered)
         # 6b. two tracks stacked on one person become one (tracking/duplicate_tracks.py)
         self._merge_duplicates(live, set(matched_track.values()), image_bgr, stamp, result)
         live = [t for t in live if t.state is not TrackState.DELETED]
@@ -713,9 +721,10 @@ class MultiObjectTracker:
                       det_box: np.ndarray | None, det: _Prepared | None,
                       refined: tuple[np.ndarray, float, bool] | None, width: int, height: int,
                       blockers: dict[int, np.ndarray], hold: bool = False,
-                      group: bool = False) -> None:
+                      group: bool = False, restart: bool = False) -> None:
         """Kalman update and lifecycle of one track; ``group``: its detection is its place
-        inside a group measurement (no OC-SORT re-update, no appearance refresh)."""
+        inside a group measurement (no OC-SORT re-update, no appearance refresh);
+        ``restart``: recovered from its last detection (a new filter at the detection)."""
         cfg = t.config            # the tracker's lifecycle, or manual_track's for hand-started
         was = t.state
         sim = refined[1] if refined is not None else None
@@ -725,7 +734,10 @@ class MultiObjectTracker:
         lo, hi = measurement.refinement_similarity_range
         quality = 0.0 if sim is None else min(max((sim - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
         if det_box is not None:
-            if was is TrackState.LOST:
+            if restart and self.config.recovery.restart != "correct":   # (recovery.py)
+                restart_filter(t, det_box, stamp, self.config.kalman,
+                               self.config.recovery.restart == "observations")
+            elif was is TrackState.LOST:
                 # re-acquired: restart the filter's position at the detection, keep velocity
                 t.kf.update(det_box[:2] + det_box[2:] / 2.0, sigma_w=cfg.min_noise_px)
                 t.size = det_box[2:].copy()
@@ -745,6 +757,7 @@ class MultiObjectTracker:
             t.last_detection = stamp
             if not group:
                 t.detected_box = np.array(det_box, dtype=np.float64)
+                t.detected_stamp = stamp
             t.last_seen = stamp
             t.score = sim if sim is not None else _quality(det.score)
         else:

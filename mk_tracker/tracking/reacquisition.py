@@ -35,7 +35,7 @@ import numpy as np
 from mk_tracker.tracking.association import assign
 
 __all__ = ["last_detection_distance2", "nearer_of_both", "reacquire_check",
-           "reacquisition_matches"]
+           "reacquisition_matches", "reference_similarity"]
 
 
 def last_detection_distance2(points: np.ndarray, centre: np.ndarray, height: float,
@@ -95,17 +95,25 @@ def reacquire_check(track: Any, box: np.ndarray, d2: float, image: np.ndarray, c
     ratio_max = config.reacquire_max_size_ratio
     if not (1.0 / ratio_max <= ratio <= ratio_max):
         return "size", math.nan, None
+    sim, k = reference_similarity(track, box, image, refiner)
+    if not math.isfinite(sim) or sim < config.reacquire_similarity:
+        return "appearance", sim, None
+    return None, sim, k
+
+
+def reference_similarity(track: Any, box: Sequence[float], image: np.ndarray,
+                         refiner: Any) -> tuple[float, int | None]:
+    """Best appearance similarity of ``track``'s frozen reference models at ``box``
+    (``refiner.appearance_similarity``) and the index of that reference: ``(1, None)``
+    without a refiner or references, ``(nan, None)`` when the refiner refuses the box."""
     if refiner is None or not track.references:
-        return None, 1.0, None
+        return 1.0, None
     try:
         sims = [float(refiner.appearance_similarity(image, ref, tuple(box)))
                 for ref in track.references]
     except ValueError:
-        return "appearance", math.nan, None
-    sim = max(sims)
-    if not math.isfinite(sim) or sim < config.reacquire_similarity:
-        return "appearance", sim, None
-    return None, sim, int(np.argmax(sims))
+        return math.nan, None
+    return max(sims), int(np.argmax(sims))
 
 
 def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.ndarray,

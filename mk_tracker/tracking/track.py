@@ -216,6 +216,7 @@ class Track:
         #: the box of the last detection assigned to the track (the observation itself, not
         #: the filtered box), for re-acquisition from the last detection
         self.detected_box = np.array([x, y, w, h])
+        self.detected_stamp = float(stamp)     # when detected_box was observed
         self.last_seen = float(stamp)
         self.lost_since: float | None = None
         self.hits = 1

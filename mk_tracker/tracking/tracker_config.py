@@ -15,6 +15,7 @@ from mk_tracker.tracking.duplicate_tracks import DuplicateConfig
 from mk_tracker.tracking.group_measurement import GroupConfig
 from mk_tracker.tracking.manual_track import ManualTrackConfig
 from mk_tracker.tracking.multi_kernel import MultiKernelConfig
+from mk_tracker.tracking.recovery import RecoveryConfig
 from mk_tracker.tracking.track import LifecycleConfig
 
 __all__ = ["IDENTITY_HOMOGRAPHY", "MultiObjectTrackerConfig"]
@@ -34,6 +35,9 @@ class MultiObjectTrackerConfig:
                                    "(group measurements)")
     duplicates: DuplicateConfig = parameter(
         DuplicateConfig(), "Two tracks stacked on one person (track-level suppression)")
+    recovery: RecoveryConfig = parameter(
+        RecoveryConfig(), "Second association round of drifted active tracks from their last "
+        "detection (OC-SORT's observation-centric recovery)")
     multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
                                                 "Multiple-kernel refinement (Chu et al. 2013)")
     manual_track: ManualTrackConfig = parameter(
