@@ -9,6 +9,8 @@ detections of :mod:`mk_tracker.detection`.  The Kalman filter itself is
 * :mod:`~mk_tracker.tracking.multi_object_tracker` -- one ``step`` per RGB frame: detections
   to the RGB plane and the frame time, prediction (4.2)-(4.3), association, refinement of
   tracks without a detection, Kalman update (4.4)-(4.5), lifecycle.
+* :mod:`~mk_tracker.tracking.detection_input` -- a frame's detections checked, mapped into
+  the RGB plane (homography) and brought to the frame time.
 * :mod:`~mk_tracker.tracking.camera_motion` -- the image motion between frames (corners,
   Lucas-Kanade, RANSAC; or ECC) moving every track's Kalman state and kernels before the
   prediction, for a moving camera (BoT-SORT; off by default).

@@ -14,7 +14,7 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    entirely outside the image, are skipped and counted; detections whose stamp differs from
    the frame's by more than ``stale_tolerance`` are dropped and counted; the others are
    brought to the frame time with each track's Kalman velocity (constant-velocity model
-   (2.1)-(2.2) of Schizas et al. 2018).
+   (2.1)-(2.2) of Schizas et al. 2018); :mod:`mk_tracker.tracking.detection_input`.
 3. **Prediction.**  With ``camera_motion.enabled``, every track is first moved by the image
    motion since the previous frame (:mod:`mk_tracker.tracking.camera_motion`); then its
    Kalman filter is advanced to the frame time, (4.2)-(4.3).
@@ -58,14 +58,19 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
 
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
-from mk_tracker.boxes import InvalidBoxError, as_box, clip_box, iou, iou_matrix, transform_box
+# FrameDetection, PLANES and TrackerInputError are re-exported from here
+from mk_tracker.tracking.detection_input import (PLANES, FrameDetection,  # noqa: F401
+                                                 PreparedDetection, TrackerInputError,
+                                                 detection_geometry, homography_matrix,
+                                                 prepare_detections)
+from mk_tracker.boxes import InvalidBoxError, as_box, iou, iou_matrix
 from mk_tracker.kalman import KalmanConfig
 # FrameResult, TrackKernels and coast_position_std are re-exported from here
 from mk_tracker.tracking.frame_result import (FrameResult, TrackKernels,  # noqa: F401
@@ -89,22 +94,6 @@ from mk_tracker.stamps import checked_stamp
 from mk_tracker.tracking.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
                               next_state)
 
-PLANES = ("rgb", "thermal")
-
-
-class TrackerInputError(ValueError):
-    """An input the tracker cannot use at all (not an image, singular homography, ...)."""
-
-
-@dataclass(frozen=True)
-class FrameDetection:
-    """A detection as the tracker consumes it.  ``stamp`` None = the frame's stamp."""
-
-    box: tuple[float, float, float, float]
-    score: float = 1.0
-    stamp: float | None = None
-    plane: str = "rgb"
-
 
 class Refiner(Protocol):
     def start(self, image_bgr: np.ndarray, box: Sequence[float]) -> Any: ...
@@ -114,26 +103,6 @@ class Refiner(Protocol):
 
     def appearance_similarity(self, image_bgr: np.ndarray, state: Any,
                               box: Sequence[float]) -> float: ...
-
-
-@dataclass
-class _Prepared:
-    box: np.ndarray        # in the RGB plane, at the detection's stamp
-    score: float
-    lag: float             # frame stamp - detection stamp (s)
-
-
-def _homography_matrix(values: Sequence[float]) -> np.ndarray:
-    try:
-        h = np.asarray(values, dtype=np.float64).reshape(3, 3)
-    except (TypeError, ValueError) as exc:
-        raise TrackerInputError(f"homography must be 9 numbers, got {values!r}") from exc
-    if not np.all(np.isfinite(h)):
-        raise TrackerInputError("homography has NaN or infinite values")
-    scale = max(float(np.abs(h).max()), 1e-300)
-    if abs(np.linalg.det(h / scale)) < 1e-12:
-        raise TrackerInputError(f"homography {h.tolist()} is singular")
-    return h
 
 
 def _check_similarity_range(name: str, value: Any) -> None:
@@ -178,7 +147,7 @@ class MultiObjectTracker:
             validate_config(self.config)
         except ParameterError as exc:
             raise TrackerInputError(str(exc)) from exc
-        self.homography = _homography_matrix(self.config.homography)
+        self.homography = homography_matrix(self.config.homography)
         for name, cfg in (("refinement_similarity_range", self.config),
                           ("manual_track.refinement_similarity_range", self.config.manual_track)):
             _check_similarity_range(name, cfg.refinement_similarity_range)
@@ -349,7 +318,7 @@ class MultiObjectTracker:
         live = [t for t in live if t.state is not TrackState.DELETED]
 
         by_id = {t.id: t for t in live}
-        detected: dict[int, _Prepared] = {by_id[tid].id: dets[k]
+        detected: dict[int, PreparedDetection] = {by_id[tid].id: dets[k]
                                           for k, tid in matched_track.items()}
         det_boxes_now = {tid: self._at_frame_time(by_id[tid], d)
                          for tid, d in detected.items()}
@@ -393,7 +362,7 @@ class MultiObjectTracker:
                 found = refined.get(t.id)
                 base = found[0] if found is not None and found[2] else t.box
                 box = constrain_inside(base, self._at_frame_time(t, g))
-                member = _Prepared(box=box, score=_quality(g.score)
+                member = PreparedDetection(box=box, score=_quality(g.score)
                                    * self.config.group.quality_factor, lag=0.0)
                 self._update_track(t, stamp, image_bgr, box, member, None, width, height,
                                    blockers, group=True)
@@ -584,69 +553,26 @@ class MultiObjectTracker:
         return t
 
     def _prepare(self, detections: Iterable[Any], stamp: float, width: int, height: int,
-                 result: FrameResult) -> list[_Prepared]:
-        out: list[_Prepared] = []
-        for det in detections:
-            try:
-                box = as_box(getattr(det, "box"))
-                score = float(getattr(det, "score", 1.0))
-                det_stamp = getattr(det, "stamp", None)
-                det_stamp = stamp if det_stamp is None else float(det_stamp)
-                plane = str(getattr(det, "plane", "rgb") or "rgb").lower()
-                if plane not in PLANES or not math.isfinite(score) \
-                        or not math.isfinite(det_stamp):
-                    raise InvalidBoxError(f"bad plane/score/stamp {plane!r} {score} {det_stamp}")
-                if plane == "thermal":
-                    box = np.asarray(transform_box(box, self.homography))
-            except (InvalidBoxError, AttributeError, TypeError, ValueError):
-                result.skipped_bad_detections += 1
-                continue
-            lag = stamp - det_stamp
-            if abs(lag) > self.config.stale_tolerance:
-                result.dropped_stale += 1
-                continue
-            if score < self.config.min_detection_score:
-                continue
-            clipped = clip_box(box, width, height)
-            if clipped is None:
-                result.skipped_bad_detections += 1
-                continue
-            out.append(_Prepared(box=np.asarray(clipped), score=score, lag=lag))
-        if result.dropped_stale:
-            result.events.append(f"dropped {result.dropped_stale} detection(s) older or newer "
-                                 f"than {self.config.stale_tolerance} s")
-        if result.skipped_bad_detections:
-            result.events.append(f"skipped {result.skipped_bad_detections} bad detection(s) "
-                                 "(NaN, non-positive size, bad plane or outside the image)")
-        return out
+                 result: FrameResult) -> list[PreparedDetection]:
+        return prepare_detections(detections, stamp, width, height, self.homography,
+                                  self.config.stale_tolerance,
+                                  self.config.min_detection_score, result)
 
     @staticmethod
     def _in_image(t: Track, width: int, height: int) -> bool:
         cx, cy = t.center
         return 0.0 <= cx < width and 0.0 <= cy < height
 
-    def _det_geometry(self, tracks: list[Track], dets: list[_Prepared]
+    @staticmethod
+    def _det_geometry(tracks: list[Track], dets: list[PreparedDetection]
                       ) -> tuple[np.ndarray, np.ndarray]:
-        """Detection boxes per track at the frame time ``(T, D, 4)`` and centres ``(T, D, 2)``.
-
-        When every detection has the frame's stamp the boxes are the same for every track and
-        ``(D, 4)`` / ``(D, 2)`` are returned instead (one IoU matrix for all tracks).
-        """
-        boxes = np.array([d.box for d in dets])                        # (D, 4)
-        lags = np.array([d.lag for d in dets])                         # (D,)
-        if not np.any(lags):
-            return boxes, boxes[:, :2] + boxes[:, 2:] / 2.0
-        vel = np.array([t.kf.velocity for t in tracks]).reshape(-1, 2)  # (T, 2)
-        shift = vel[:, None, :] * lags[None, :, None]                  # (T, D, 2)
-        per_track = np.broadcast_to(boxes[None], (len(tracks),) + boxes.shape).copy()
-        per_track[..., :2] += shift
-        centres = per_track[..., :2] + per_track[..., 2:] / 2.0
-        return per_track, centres
+        """:func:`~mk_tracker.tracking.detection_input.detection_geometry` for ``tracks``."""
+        return detection_geometry(np.array([t.kf.velocity for t in tracks]), dets)
 
     def _innovation_covs(self, tracks: list[Track]) -> np.ndarray:
         return np.array([t.innovation_covariance(t.size[1]) for t in tracks]).reshape(-1, 2, 2)
 
-    def _match(self, tracks: list[Track], dets: list[_Prepared], gate: float):
+    def _match(self, tracks: list[Track], dets: list[PreparedDetection], gate: float):
         boxes, centres = self._det_geometry(tracks, dets)
         maha = mahalanobis_matrix(np.array([t.center for t in tracks]),
                                   self._innovation_covs(tracks), centres)
@@ -654,7 +580,7 @@ class MultiObjectTracker:
         cost = association_cost(track_boxes, boxes, maha, self.config.association)
         return assign(cost, self.config.association.max_cost)
 
-    def _reacquire(self, lost: list[Track], dets: list[_Prepared], image: np.ndarray
+    def _reacquire(self, lost: list[Track], dets: list[PreparedDetection], image: np.ndarray
                    ) -> tuple[list[tuple[int, int]], set[int]]:
         """Matches ``(lost index, det index)`` by gated distance, size and appearance
         (:meth:`_reacquire_check`).  The distance is the smaller of the Kalman one and, with
@@ -680,14 +606,14 @@ class MultiObjectTracker:
         return reacquisition_matches(lost, dets, maha, gated, image, self.config,
                                      self._reacquire_check)
 
-    def _reacquire_check(self, t: Track, d: _Prepared, maha: float, image: np.ndarray
+    def _reacquire_check(self, t: Track, d: PreparedDetection, maha: float, image: np.ndarray
                          ) -> tuple[str | None, float, int | None]:
         """One lost track against one detection in :meth:`_reacquire`
         (:func:`~mk_tracker.tracking.reacquisition.reacquire_check`)."""
         return reacquire_check(t, d.box, maha, image, self.config, self._refiner_for(t))
 
     @staticmethod
-    def _at_frame_time(t: Track, d: _Prepared) -> np.ndarray:
+    def _at_frame_time(t: Track, d: PreparedDetection) -> np.ndarray:
         box = d.box.copy()
         box[:2] += t.kf.velocity * d.lag
         return box
@@ -718,7 +644,7 @@ class MultiObjectTracker:
                 t.references[1] = fresh
 
     def _update_track(self, t: Track, stamp: float, image: np.ndarray,
-                      det_box: np.ndarray | None, det: _Prepared | None,
+                      det_box: np.ndarray | None, det: PreparedDetection | None,
                       refined: tuple[np.ndarray, float, bool] | None, width: int, height: int,
                       blockers: dict[int, np.ndarray], hold: bool = False,
                       group: bool = False, restart: bool = False) -> None:
