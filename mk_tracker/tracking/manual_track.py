@@ -190,6 +190,21 @@ class ManualTrackConfig:
         "multi_kernel.recovery_growth): box sizes added on every side of the scan per "
         "earlier frame of the same failure", minimum=0.0, maximum=100.0)
 
+    border_person_aspect: float = parameter(
+        0.0, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
+        "paper): a first box of a track started by hand that touches the left or right "
+        "image border (within border_margin_px) with width / height below this is the "
+        "visible part of a person partly outside the image; the kernels are laid out on "
+        "the whole person (the box extended past the border to this aspect), each kernel's "
+        "model is completed as it comes into view, the reported box of every track started "
+        "by hand is clipped to the image and it ends when its box leaves the image.  0.41 "
+        "= the standard pedestrian box aspect of the Caltech pedestrian benchmark (Dollar "
+        "et al. 2012); 0 = off (the kernels are laid "
+        "out on the part inside the image)", minimum=0.0, maximum=2.0)
+    border_margin_px: float = parameter(
+        2.0, "A box within this many pixels of the left or right image border touches it "
+        "(border_person_aspect)", minimum=0.0, maximum=100.0)
+
 
 def manual_track_kalman(config: "MultiObjectTrackerConfig") -> KalmanConfig:
     """The Kalman settings of a track started by hand."""

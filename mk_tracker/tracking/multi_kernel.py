@@ -66,7 +66,9 @@ failure (``recovery_similarity``): a colour back-projection scan of a window tha
 the time lost (``recovery_margin``, ``recovery_growth``), confirmed by the multiple-kernel
 similarity and refined by Algorithm 1.  The Kalman prediction (Sec. IV-D) stays the first
 start and wins ties.  (d) :meth:`MultiKernelTracker.start` lays the kernels out on the part of
-a box inside the image (a person entering at an edge).
+a box inside the image, or on the whole box past the border (``outside=True``; the border as
+an occluder, :mod:`mk_tracker.tracking.image_border`: models completed as kernels come into
+view, the mean shift (C.3) of a cut kernel taken relative to its in-image support).
 
 State and mutation.  :meth:`MultiKernelTracker.refine` *mutates* the :class:`TargetState` it
 is given: on success the kernel centres move to the result; the scale and the models change
@@ -94,6 +96,7 @@ from mk_tracker.tracking.projected_gradient import (_compiled_step, constraint_j
                                                     projected_gradient_step)
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS, kernel_layout, kernels_bounding_box
 from mk_tracker.parameters import parameter, validate_config
+from mk_tracker.tracking.image_border import complete_models, inside_fractions, support_offsets
 from mk_tracker.tracking.redetection import (LEARNT_MEASURES, grid_start, redetect,
                                              relative_similarities, update_reference)
 from mk_tracker.tracking.scale_estimation import (ScaleEstimationConfig, ScaleStep, gated_step,
@@ -351,6 +354,9 @@ class TargetState:
     failed_frames: int = 0
     #: the last scale update's record (:class:`~mk_tracker.tracking.scale_estimation.ScaleStep`)
     scale_step: ScaleStep | None = None
+    #: per kernel: the in-image share its model was built from (targets started with
+    #: ``outside=True``, :mod:`mk_tracker.tracking.image_border`); None = all in view
+    seen: np.ndarray | None = None
 
     @property
     def num_kernels(self) -> int:
@@ -481,12 +487,17 @@ class MultiKernelTracker:
                                cfg.pixel_weighting)
 
     # -- public API ------------------------------------------------------------------------
-    def start(self, image_bgr: np.ndarray, box: BoxLike) -> TargetState:
+    def start(self, image_bgr: np.ndarray, box: BoxLike, outside: bool = False) -> TargetState:
         """Build a target from ``box`` (x, y, w, h) in ``image_bgr`` (H x W x 3 BGR).
 
         The kernels of the configured layout are placed in the box (in its part inside the
         image when it reaches outside, e.g. a person entering at an edge), each kernel's model
-        is the histogram under it, and ``L_x``, ``L_y`` are set so (12)-(13) hold.  Raises
+        is the histogram under it, and ``L_x``, ``L_y`` are set so (12)-(13) hold.  With
+        ``outside=True`` the kernels are laid out on the whole box, also past the image
+        border (the border as an occluder, :mod:`mk_tracker.tracking.image_border`): each
+        model comes from the kernel's part in the image, and the models are completed as
+        the kernels come into view (:func:`~mk_tracker.tracking.image_border.complete_models`).
+        Raises
         :class:`TrackingInputError` for an empty, zero-area, non-finite or out-of-image box,
         a bad image, NaN pixels, a kernel with no pixel, or a uniform-colour target (its
         histogram puts everything in one bin, so there is nothing to track).
@@ -500,12 +511,12 @@ class MultiKernelTracker:
         clipped = clip_box(b, width, height)
         if clipped is None:
             raise TrackingInputError(f"box {b} is entirely outside the {width}x{height} image")
-        # a box reaching outside the image (a person entering at an edge) is the target's
-        # visible part: the kernels are laid out in that part, so every kernel has pixels
-        # and its model q_i is the colour of what is seen (no kernel models the void)
-        b = tuple(float(v) for v in clipped)
+        # a box reaching outside the image is the target's visible part: the kernels are
+        # laid out in that part (every kernel has pixels, no model q_i of the void), or with
+        # ``outside`` on the whole box, each q_i from the kernel's part in the image
         cfg = self.config
-        centres, axes = kernel_layout(b, cfg.num_kernels)
+        centres, axes = kernel_layout(b if outside else clipped, cfg.num_kernels)
+        b = tuple(float(v) for v in clipped)
         region = _region(b, 0.0, width, height)
         if region is None:
             raise TrackingInputError(f"box {b} covers no whole pixel of the image")
@@ -526,8 +537,9 @@ class MultiKernelTracker:
                 "colour-histogram tracker cannot localise it")
         pairs = kernel_pairs(cfg.num_kernels)
         lx, ly = pair_distances(centres, pairs)
+        seen = inside_fractions(centres, axes, width, height) if outside else None
         return TargetState(centres=centres, base_half_axes=axes, scale=1.0, models=models,
-                           base_lx=lx, base_ly=ly, pairs=pairs, similarity=1.0)
+                           base_lx=lx, base_ly=ly, pairs=pairs, similarity=1.0, seen=seen)
 
     def refine(self, image_bgr: np.ndarray, state: TargetState,
                predicted_center: tuple[float, float] | np.ndarray | None = None
@@ -621,6 +633,9 @@ class MultiKernelTracker:
         # the model and scale gates keep the paper's similarity exp(-J_i)
         mean_sim = float(ev.similarities.mean())
         sims = ev.similarities
+        if state.seen is not None:      # kernels coming into view (image_border.py)
+            complete_models(state.models, state.seen, ev.p, sims,
+                            inside_fractions(x, axes, width, height), cfg.similarity_gate)
         state.scale_step = gated_step(mean_sim, state.scale)
         if mean_sim > cfg.similarity_gate:
             if cfg.model_update_rate > 0:
@@ -674,7 +689,10 @@ class MultiKernelTracker:
             w = adaptive_weights(ev.similarities) if cfg.adaptive_weights else np.ones(n_k)
             total = _weighted_cost(w, ev.costs)
             history.append(total)
-            jx = -ev.mean_shift.reshape(-1)
+            ms = ev.mean_shift
+            if state.seen is not None:      # pixels past the border are unseen, not background
+                ms = ms - support_offsets(x, axes, lo, hi)
+            jx = -ms.reshape(-1)
             if step_loops is not None:
                 step_loops(x, state.pairs, lx, ly, jx, w, cfg.alpha,
                            cfg.use_projected_gradient, c, dx_a, dx_b)

@@ -84,6 +84,7 @@ from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectT
 from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
                                                reacquisition_matches, reference_similarity)
 from mk_tracker.tracking.recovery import recover_into, restart_filter
+from mk_tracker.tracking.image_border import clip_to_image, overlaps_image, whole_person_box
 from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
                                               manual_track_lifecycle,
                                               manual_track_multi_kernel, recentre_shift)
@@ -199,7 +200,19 @@ class MultiObjectTracker:
         stamp = self._check_stamp(stamp)
         target = None
         refiner = self.manual_refiner
-        if refiner is not None:
+        # a sliver at a side border is the visible part of a person partly outside the
+        # image: kernels on the whole person (image_border.py; None when off or not a sliver)
+        m = self.config.manual_track
+        whole = whole_person_box(b, image_bgr.shape[1], image_bgr.shape[0],
+                                 m.border_person_aspect, m.border_margin_px) \
+            if isinstance(refiner, MultiKernelTracker) else None
+        if whole is not None:
+            try:
+                target = refiner.start(image_bgr, whole, outside=True)
+                b = np.asarray(whole, dtype=np.float64)
+            except ValueError:          # a kernel with no pixel in the image: as before
+                whole = None
+        if refiner is not None and target is None:
             try:
                 target = refiner.start(image_bgr, tuple(float(v) for v in b))
             except ValueError as exc:
@@ -211,7 +224,8 @@ class MultiObjectTracker:
         track.manual = True
         track.target, track.target_stamp = target, stamp
         if target is not None:
-            track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b)))
+            track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b),
+                                                  **({"outside": True} if whole else {})))
         if self.frame_size is None:
             self.frame_size = image_bgr.shape[:2]
         if self.camera_motion is not None:
@@ -332,7 +346,7 @@ class MultiObjectTracker:
             refiner = self._refiner_for(t)
             if (refiner is None or t.target is None
                     or t.state not in (TrackState.CONFIRMED, TrackState.OCCLUDED)
-                    or not self._in_image(t, width, height)):
+                    or not self._inside(t, width, height)):
                 continue
             if t.id in det_boxes_now and not self.config.refine_when_detected:
                 continue
@@ -403,6 +417,10 @@ class MultiObjectTracker:
                 result.deleted_ids.append(t.id)
         self.tracks = [t for t in self.tracks if t.state is not TrackState.DELETED]
         result.tracks = [t.output() for t in self.tracks]
+        if self.config.manual_track.border_person_aspect > 0:    # image_border.py
+            manual = {t.id for t in self.tracks if t.manual}
+            result.tracks = [replace(o, box=clip_to_image(o.box, width, height))
+                             if o.id in manual else o for o in result.tracks]
         if self._published_box:
             result.tracks = [replace(o, box=tuple(float(v) for v in self._published_box[o.id]))
                              if o.id in self._published_box else o for o in result.tracks]
@@ -558,6 +576,14 @@ class MultiObjectTracker:
                                   self.config.stale_tolerance,
                                   self.config.min_detection_score, result)
 
+    def _inside(self, t: Track, width: int, height: int) -> bool:
+        """In the image for refinement and lifecycle: the centre (:meth:`_in_image`), or for
+        a track started by hand with the border as an occluder (``border_person_aspect``)
+        any part of its box, as a person entering or leaving at an edge."""
+        if t.manual and self.config.manual_track.border_person_aspect > 0:
+            return overlaps_image(t.box, width, height)
+        return self._in_image(t, width, height)
+
     @staticmethod
     def _in_image(t: Track, width: int, height: int) -> bool:
         cx, cy = t.center
@@ -700,7 +726,7 @@ class MultiObjectTracker:
             t.hold_if_uncertain(det_box is not None or visible,
                                 self.config.manual_track.max_coast_position_std)
         new = next_state(was, detected=det_box is not None, visible=visible,
-                         in_image=self._in_image(t, width, height), hits=t.hits,
+                         in_image=self._inside(t, width, height), hits=t.hits,
                          tentative_misses=t.tentative_misses,
                          # a track started by hand has no detector to come back with: it
                          # coasts (and keeps refining) until it leaves the image
