@@ -92,7 +92,8 @@ class ManualTrackConfig:
 
     Every field replaces one field of the tracker's ``kalman`` / ``lifecycle`` /
     ``multi_kernel`` sections for these tracks only; the rest of those sections applies to
-    them unchanged.
+    them unchanged.  ``border_person_aspect`` and ``border_margin_px`` treat the image border
+    as an occluder (:mod:`mk_tracker.tracking.image_border`, docs/image_border.md).
     """
 
     initial_velocity_var: float = parameter(
@@ -191,7 +192,7 @@ class ManualTrackConfig:
         "earlier frame of the same failure", minimum=0.0, maximum=100.0)
 
     border_person_aspect: float = parameter(
-        0.0, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
+        0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
         "paper): a first box of a track started by hand that touches the left or right "
         "image border (within border_margin_px) with width / height below this is the "
         "visible part of a person partly outside the image; the kernels are laid out on "
