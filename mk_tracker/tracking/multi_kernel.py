@@ -492,12 +492,9 @@ class MultiKernelTracker:
 
         The kernels of the configured layout are placed in the box (in its part inside the
         image when it reaches outside, e.g. a person entering at an edge), each kernel's model
-        is the histogram under it, and ``L_x``, ``L_y`` are set so (12)-(13) hold.  With
-        ``outside=True`` the kernels are laid out on the whole box, also past the image
-        border (the border as an occluder, :mod:`mk_tracker.tracking.image_border`): each
-        model comes from the kernel's part in the image, and the models are completed as
-        the kernels come into view (:func:`~mk_tracker.tracking.image_border.complete_models`).
-        Raises
+        is the histogram under it, and ``L_x``, ``L_y`` are set so (12)-(13) hold; with
+        ``outside=True`` on the whole box, past the border (each model from the kernel's
+        part in the image; :mod:`mk_tracker.tracking.image_border`).  Raises
         :class:`TrackingInputError` for an empty, zero-area, non-finite or out-of-image box,
         a bad image, NaN pixels, a kernel with no pixel, or a uniform-colour target (its
         histogram puts everything in one bin, so there is nothing to track).

@@ -182,3 +182,27 @@ def test_person_leaving_at_the_right_edge_shrinks_then_ends():
     out = got[15 - 1:]
     assert all(t is None or t.state != "confirmed" for t in out)
     assert any(t is None or t.state == "lost" for t in out)
+
+
+def test_a_kernel_wholly_past_the_border_falls_back_to_the_visible_part():
+    # 6 kernels (3 rows x 2 columns, Fig. 14b): a 10 px sliver of a 40 px person leaves the
+    # outer column ([0, 0.55] of the width = 22 px) wholly outside the image, so that
+    # kernel would have no model: the track starts on the visible part, as before
+    cfg = updated(MultiObjectTrackerConfig(), {"manual_track.border_person_aspect": 0.4,
+                                               "manual_track.num_kernels": 6})
+    tracker = MultiObjectTracker(cfg)
+    img = _frame(-30.0)
+    tid = tracker.start_track(img, 0.0, (0.0, TOP, 10.0, PERSON_H))
+    t = next(t for t in tracker.tracks if t.id == tid)
+    assert t.box == pytest.approx((0.0, TOP, 10.0, PERSON_H))
+    assert t.target.seen is None
+    # with 2 full-width kernels the same sliver is laid out on the whole person
+    cfg2 = updated(cfg, {"manual_track.num_kernels": 2})
+    tracker2 = MultiObjectTracker(cfg2)
+    tid2 = tracker2.start_track(img, 0.0, (0.0, TOP, 10.0, PERSON_H))
+    t2 = next(t for t in tracker2.tracks if t.id == tid2)
+    assert t2.box == pytest.approx((-30.0, TOP, 40.0, PERSON_H))
+    # the visible 10 px are the last quarter of each 40 px wide kernel: the disc segment
+    # beyond u = 0.5 of the half-axis, (acos(u) - u sqrt(1 - u^2)) / pi = 0.1955 of its area
+    segment = (math.acos(0.5) - 0.5 * math.sqrt(0.75)) / math.pi
+    assert t2.target.seen == pytest.approx([segment, segment], abs=0.01)
