@@ -249,6 +249,10 @@ class MultiKernelConfig:
         3, "Back-projection peaks (at least one box apart) at which the failure re-search "
         "evaluates the kernel layout (Algorithm 1 then runs from the best)",
         minimum=1, maximum=20)
+    border_model_gain: float = parameter(
+        0.02, "A kernel of a target started past the image border completes its model when its "
+        "in-image share grew by more than this (image_border.complete_models)",
+        minimum=0.0, maximum=1.0)
     recovery_scan_cells: int = parameter(
         8, "Sampling of the back-projection scan: about this many samples across the box "
         "width (stride ceil(w / this) px)", minimum=2, maximum=64)
@@ -354,8 +358,7 @@ class TargetState:
     failed_frames: int = 0
     #: the last scale update's record (:class:`~mk_tracker.tracking.scale_estimation.ScaleStep`)
     scale_step: ScaleStep | None = None
-    #: per kernel: the in-image share its model was built from (targets started with
-    #: ``outside=True``, :mod:`mk_tracker.tracking.image_border`); None = all in view
+    #: per kernel: in-image share of its model (``start(outside=True)``); None = all seen
     seen: np.ndarray | None = None
 
     @property
@@ -508,9 +511,8 @@ class MultiKernelTracker:
         clipped = clip_box(b, width, height)
         if clipped is None:
             raise TrackingInputError(f"box {b} is entirely outside the {width}x{height} image")
-        # a box reaching outside the image is the target's visible part: the kernels are
-        # laid out in that part (every kernel has pixels, no model q_i of the void), or with
-        # ``outside`` on the whole box, each q_i from the kernel's part in the image
+        # a box reaching outside the image: kernels on its visible part (no q_i of the void),
+        # or with ``outside`` on the whole box, each q_i from the kernel's part in the image
         cfg = self.config
         centres, axes = kernel_layout(b if outside else clipped, cfg.num_kernels)
         b = tuple(float(v) for v in clipped)
@@ -631,8 +633,8 @@ class MultiKernelTracker:
         mean_sim = float(ev.similarities.mean())
         sims = ev.similarities
         if state.seen is not None:      # kernels coming into view (image_border.py)
-            complete_models(state.models, state.seen, ev.p, sims,
-                            inside_fractions(x, axes, width, height), cfg.similarity_gate)
+            complete_models(state.models, state.seen, ev.p, sims, inside_fractions(
+                x, axes, width, height), cfg.similarity_gate, cfg.border_model_gain)
         state.scale_step = gated_step(mean_sim, state.scale)
         if mean_sim > cfg.similarity_gate:
             if cfg.model_update_rate > 0:
