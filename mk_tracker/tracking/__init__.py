@@ -24,7 +24,8 @@ detections of :mod:`mk_tracker.detection`.  The Kalman filter itself is
 * :mod:`~mk_tracker.tracking.multi_kernel` -- one target as N kernels (Sec. IV-A):
   min J(x) = sum_i W_i J_i(x) (3), (7) subject to C(x) = 0 (4), by Algorithm 1 (Sec.
   III-C), the adaptive weights (Sec. III-D), the scale update (9)-(11) (Sec. III-E) and the
-  box from the kernels' extremes (14).
+  box from the kernels' extremes (14); its parameters (the paper's values by default) in
+  :mod:`~mk_tracker.tracking.multi_kernel_config`.
 * :mod:`~mk_tracker.tracking.projected_gradient` -- the constraints (12)-(13) and the step
   dx_A + dx_B of (5) / (8) (Appendix A), safe when C_x^T C_x is singular.
 * :mod:`~mk_tracker.tracking.kernel_histograms` -- the appearance model: kernel-weighted

@@ -38,8 +38,9 @@ from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
 from mk_tracker.tracking.kernel_layouts import (COLUMN_SPACING, column_best, column_coverage,
                                                 has_columns)
-from mk_tracker.tracking.multi_kernel import (SUPPORTED_KERNEL_COUNTS, VISIBILITY_STATISTICS,
-                                              MultiKernelConfig)
+from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
+from mk_tracker.tracking.multi_kernel import VISIBILITY_STATISTICS
+from mk_tracker.tracking.multi_kernel_config import MultiKernelConfig
 from mk_tracker.tracking.redetection import LEARNT_MEASURES
 from mk_tracker.tracking.track import LifecycleConfig
 

@@ -14,7 +14,7 @@ from mk_tracker.tracking.camera_motion import CameraMotionConfig
 from mk_tracker.tracking.duplicate_tracks import DuplicateConfig
 from mk_tracker.tracking.group_measurement import GroupConfig
 from mk_tracker.tracking.manual_track import ManualTrackConfig
-from mk_tracker.tracking.multi_kernel import MultiKernelConfig
+from mk_tracker.tracking.multi_kernel_config import MultiKernelConfig
 from mk_tracker.tracking.recovery import RecoveryConfig
 from mk_tracker.tracking.track import LifecycleConfig
 
