@@ -62,10 +62,12 @@ KERNEL_COUNTS = (2, 1, 4)
 
 def load_baseline(rev: str, workdir: Path):
     """``multi_kernel`` module of git revision ``rev`` with its own appearance-model modules
-    (``kernel_histograms``, and ``search_region`` where the revision has it), loaded under
+    (``kernel_histograms``, and ``search_region`` and ``multi_kernel_config`` where the
+    revision has them), loaded under
     other names; the rest of the package is shared with this working tree."""
     names = {}
-    stems = ("kernel_histograms", "search_region", "multi_kernel")     # dependency order
+    stems = ("kernel_histograms", "search_region", "multi_kernel_config",
+             "multi_kernel")                                  # dependency order
     for stem in stems:
         text = None
         for path in (f"mk_tracker/tracking/{stem}.py", f"mk_tracker/{stem}.py"):
@@ -75,7 +77,7 @@ def load_baseline(rev: str, workdir: Path):
                 text = shown.stdout
                 break
         if text is None:
-            if stem == "search_region":          # before the split of kernel_histograms
+            if stem in ("search_region", "multi_kernel_config"):   # before the splits
                 continue
             raise SystemExit(f"{stem}.py not found at revision {rev}")
         for other in stems:
