@@ -43,12 +43,10 @@ from mk_tracker.detection.threshold_detector import ThresholdDetector, Threshold
 MIN_VISIBLE = 0.5
 
 
-def match_frame(detections, objects):
-    """``(true positives, false positives, false negatives, squared errors)`` of one frame."""
-    gts = [o for o in objects if o.in_frame]
-    if not detections:
-        n_fn = sum(1 for o in gts if o.visible_fraction >= MIN_VISIBLE)
-        return 0, 0, n_fn, []
+def centroid_cost(detections, gts) -> np.ndarray:
+    """``(D, max(G, 1))`` matching cost: the distance from a detection's centroid to a
+    person's box centre where the centroid lies inside the person's thermal box, else inf
+    (the benchmark's matching rule)."""
     cost = np.full((len(detections), max(len(gts), 1)), np.inf)
     for i, d in enumerate(detections):
         cx, cy = d.centroid
@@ -56,6 +54,16 @@ def match_frame(detections, objects):
             x, y, w, h = o.box_thermal
             if x <= cx <= x + w and y <= cy <= y + h:
                 cost[i, j] = np.hypot(cx - (x + w / 2), cy - (y + h / 2))
+    return cost
+
+
+def match_frame(detections, objects):
+    """``(true positives, false positives, false negatives, squared errors)`` of one frame."""
+    gts = [o for o in objects if o.in_frame]
+    if not detections:
+        n_fn = sum(1 for o in gts if o.visible_fraction >= MIN_VISIBLE)
+        return 0, 0, n_fn, []
+    cost = centroid_cost(detections, gts)
     result = assign(cost[:, :len(gts)] if gts else np.zeros((len(detections), 0)),
                     max_cost=float("inf"))
     tp, fp, errs = 0, 0, []

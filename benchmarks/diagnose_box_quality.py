@@ -42,7 +42,6 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +62,7 @@ from mk_tracker.synthetic.scene_bag import (THERMAL_FRAME_ID, build_preset,  # n
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking.association import assign  # noqa: E402
+from bench_thermal_detector import centroid_cost  # noqa: E402
 
 VARIANTS = ("as is", "truth box", "truth box, one person", "truth size")
 DETECTIONS_TOPIC = "/box_quality/detections"
@@ -73,13 +73,7 @@ def match(detections, objects) -> dict[int, object]:
     gts = [o for o in objects if o.in_frame]
     if not detections or not gts:
         return {}
-    cost = np.full((len(detections), len(gts)), np.inf)
-    for i, d in enumerate(detections):
-        cx, cy = d.centroid
-        for j, o in enumerate(gts):
-            x, y, w, h = o.box_thermal
-            if x <= cx <= x + w and y <= cy <= y + h:
-                cost[i, j] = np.hypot(cx - (x + w / 2), cy - (y + h / 2))
+    cost = centroid_cost(detections, gts)
     return {i: gts[j] for i, j in assign(cost, max_cost=float("inf")).matches}
 
 
