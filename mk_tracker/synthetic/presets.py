@@ -162,9 +162,10 @@ def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int 
     ``stop_fraction`` of the people (issue #19: a person who stops must keep the track) stop
     for good at a waypoint: their walk ends at the last waypoint within ``d`` px of path
     from the start (the first one if none), ``d`` drawn between the distance they walk in
-    20% and in 50% of the clip, and they stand there, perfectly still, to the end.  The cut draws from a random stream of its own, so at the
-    default 0 the scene is the same as before the argument existed, and a stopper's
-    waypoints are the first ones of the walk it has at 0.
+    20% and in 50% of the clip, and they stand there, perfectly still, to the end.  The cut
+    draws from a random stream of its own, so at the default 0 the scene is the same as
+    before the argument existed, and a stopper's waypoints are the first ones of the walk it
+    has at 0.
     """
     _check_preset_args(seed, frames, width=width, height=height)
     for name, value in (("n_people", n_people), ("occluders", occluders)):
