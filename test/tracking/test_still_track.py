@@ -102,3 +102,28 @@ def test_one_unmatched_frame_of_a_still_person(needs_visible, kept):
         if i == 49:
             assert {t.id: t.state for t in r.tracks}[tid] == ("occluded" if kept else "lost")
     assert {t.id: t.state for t in r.tracks}[tid] == ("confirmed" if kept else "lost")
+
+
+@pytest.mark.parametrize("changes, jumps", [
+    ({"recovery.still_max_age": 0.0}, True),
+    ({"recovery.skip_still": True}, False),
+    # capped at 0.5 s: spread 60 sqrt(0.05^2 + 0.15^2) = 9.5 px, d2 = 160 > 13.8
+    ({"recovery.still_max_age": 0.5}, False),
+])
+def test_a_passer_by_near_a_still_track_in_the_recovery_round(changes, jumps):
+    # standing at (100, 100) 30 x 60, detected for 1 s, then seen only by the kernels for
+    # 2 s; then a detection 120 px (2 box heights) to the right.  Its distance from the last
+    # detection, 2 s old: spread 60 sqrt(0.05^2 + (0.3 * 2)^2) = 36.1 px, d2 = 11.0 < 13.8,
+    # inside the recovery gate (the kernels' corrections keep it out of the Kalman gate)
+    cfg = config(**changes)
+    trk = MultiObjectTracker(cfg, refiner=FollowRefiner())
+    for i in range(25):
+        trk.step(IMG, i * DT, [FrameDetection((100, 100, 30, 60), 0.9)])
+    (tid,) = [t.id for t in trk.tracks]
+    for i in range(25, 75):
+        trk.step(IMG, i * DT, [])
+    r = trk.step(IMG, 75 * DT, [FrameDetection((220, 100, 30, 60), 0.9)])
+    box = {t.id: t.box for t in r.tracks}[tid]
+    assert (box[0] == pytest.approx(220.0)) is jumps
+    assert (box[0] == pytest.approx(100.0, abs=1.0)) is not jumps
+    assert len(r.tracks) == (1 if jumps else 2)     # else the passer-by starts a track
