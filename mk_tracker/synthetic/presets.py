@@ -151,19 +151,31 @@ def approach_scene(seed: int = 0, frames: int = 120) -> SyntheticScene:
 
 def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int = 480,
                 frames: int = 300, occluders: int = 2, perspective: float = 0.6,
-                thermal_encoding: str = "mono8") -> SyntheticScene:
+                thermal_encoding: str = "mono8", stop_fraction: float = 0.0) -> SyntheticScene:
     """``n_people`` people wandering with random turns, crossings and ``occluders`` pillars.
 
     Each person starts at a random point of the floor (lower 70% of the image) and walks at
     1-3 px/frame through random waypoints on the floor, so people cross each other and pass
     behind the pillars; sizes follow a perspective (``perspective``).  Used for the 5/15/30
     people benchmarks.
+
+    ``stop_fraction`` of the people (issue #19: a person who stops must keep the track) stop
+    for good at a waypoint: their walk ends at the last waypoint within ``d`` px of path
+    from the start (the first one if none), ``d`` drawn between the distance they walk in
+    20% and in 50% of the clip, and they stand there, perfectly still, to the end.  The cut
+    draws from a random stream of its own, so at the default 0 the scene is the same as
+    before the argument existed, and a stopper's waypoints are the first ones of the walk it
+    has at 0.
     """
     _check_preset_args(seed, frames, width=width, height=height)
     for name, value in (("n_people", n_people), ("occluders", occluders)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
             raise SceneError(f"{name} must be a non-negative integer, got {value!r}")
+    if not (isinstance(stop_fraction, (int, float)) and not isinstance(stop_fraction, bool)
+            and 0.0 <= stop_fraction <= 1.0):
+        raise SceneError(f"stop_fraction must be in [0, 1], got {stop_fraction!r}")
     rng = np.random.default_rng([seed, 0xC20D])
+    stops = np.random.default_rng([seed, 0x5709])
     x0, x1 = 0.06 * width, 0.94 * width
     y0, y1 = 0.38 * height, 0.98 * height
     people = []
@@ -183,7 +195,13 @@ def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int 
                 elif p[axis] > hi:
                     p[axis] = max(2 * hi - p[axis], lo)
             wps[j] = p
-        people.append(PersonSpec(waypoints=tuple(map(tuple, wps.round(2).tolist())),
+        wps = wps.round(2)
+        stop = stops.random() < stop_fraction
+        walk = float(stops.uniform(0.2, 0.5)) * frames * round(speed, 3)
+        if stop:   # the last waypoint within ``walk`` px of path is the last one
+            along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(wps, axis=0).T))))
+            wps = wps[:max(int(np.searchsorted(along, walk, side="right")) - 1, 1) + 1]
+        people.append(PersonSpec(waypoints=tuple(map(tuple, wps.tolist())),
                                  speed=round(speed, 3), height=0.3 * height,
                                  torso_temperature=float(rng.uniform(301.5, 304.0))))
     occ = []

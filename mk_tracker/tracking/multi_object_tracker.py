@@ -734,8 +734,7 @@ class MultiObjectTracker:
                          lost_time=0.0 if t.lost_since is None else stamp - t.lost_since,
                          config=cfg,
                          undetected_time=0.0 if t.manual else stamp - t.last_detection,
-                         still=cfg.still_speed > 0 and float(np.hypot(*t.kf.velocity))
-                         < cfg.still_speed * float(t.size[1]))
+                         still=t.is_still())
         if hold and new is TrackState.CONFIRMED and was is TrackState.TENTATIVE:
             new = TrackState.TENTATIVE
         if new is TrackState.LOST and was is not TrackState.LOST:

@@ -25,6 +25,13 @@ to the old one.  The recovery round (step 4b' of
   ``s0`` the floor and ``v`` a walking speed in box heights per second
   (``recovery.floor``, ``recovery.speed``); it replaces OC-SORT's IoU with the last
   observation by a radius that grows with the time the track went undetected;
+* for a track slower than ``lifecycle.still_speed`` (a person standing still, whom the
+  kernel covariance detector no longer sees) that time is capped at
+  ``recovery.still_max_age``: the person has not walked away, and with the full time the
+  radius reached passers-by (after 3 s: 3.3 box heights), whose grey thermal appearance
+  passes the check, and the still person's track restarted on them
+  (benchmarks/bench_still_people.py, docs/benchmark_real_thermal.md);
+  ``recovery.skip_still`` leaves such tracks out altogether (off: BU-TIV-lab 13 ids);
 * a pair is possible when ``d2 <= recovery.gate``, the heights differ by at most
   ``recovery.max_size_ratio``, and the track's frozen reference models match the
   detection's box with at least ``recovery.min_similarity``
@@ -94,6 +101,18 @@ class RecoveryConfig:
         "with the velocity of its last two detections), correct (the ordinary Kalman "
         "correction of the drifted estimate)",
         choices=("still", "observations", "correct"))
+    skip_still: bool = parameter(
+        False, "Leave tracks slower than lifecycle.still_speed out of the round: a person "
+        "standing still has not drifted, and the radius that grows with the time since the "
+        "last detection would otherwise reach a passer-by's detection, which the thermal "
+        "appearance (people look alike in grey) lets through")
+    still_max_age: float = parameter(
+        0.5, "For tracks slower than lifecycle.still_speed, the time since the last "
+        "detection that sets the radius is capped at this many seconds (a person standing "
+        "still has not walked away from the last detection, so a passer-by's detection "
+        "two box heights away is not theirs); 0 = no cap (chosen on the still-person "
+        "scenes of benchmarks/bench_still_people.py, seeds 101-103: 0.5 and 1.0 tried)",
+        minimum=0.0, maximum=1e5)
 
 
 def recovery_cost(detected_boxes: np.ndarray, elapsed: Sequence[float],
@@ -139,12 +158,16 @@ def recovery_round(tracks: Sequence[Any], detection_boxes: Sequence[np.ndarray],
         return []
     held = {id(h) for h in holders if h is not None}
     cands = [t for t in tracks if id(t) not in held and not getattr(t, "manual", False)
-             and t.state in (TrackState.CONFIRMED, TrackState.OCCLUDED)]
+             and t.state in (TrackState.CONFIRMED, TrackState.OCCLUDED)
+             and not (config.skip_still and t.is_still())]
     cols = [j for j, h in enumerate(holders) if h is None or h.state is TrackState.TENTATIVE]
     if not cands or not cols:
         return []
-    cost = recovery_cost(np.array([t.detected_box for t in cands]),
-                         [float(stamp) - t.detected_stamp for t in cands],
+    ages = [float(stamp) - t.detected_stamp for t in cands]
+    if config.still_max_age > 0.0:
+        ages = [min(a, config.still_max_age) if t.is_still() else a
+                for a, t in zip(ages, cands)]
+    cost = recovery_cost(np.array([t.detected_box for t in cands]), ages,
                          np.array([detection_boxes[j] for j in cols]), config)
     if config.min_similarity > 0.0 and similarity is not None:
         for r, c in zip(*np.nonzero(np.isfinite(cost))):

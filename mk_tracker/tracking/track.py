@@ -92,6 +92,11 @@ class LifecycleConfig:
         "from max_undetected_time (the kernel covariance detector finds only what moves: a "
         "person standing still gets no detections while the multiple-kernel appearance "
         "still matches); 0 = no exemption", minimum=0.0, maximum=100.0)
+    still_needs_visible: bool = parameter(
+        True, "The still_speed exemption from max_undetected_time holds only in frames where "
+        "the multiple-kernel refinement sees the track (visible); false: a still track that "
+        "stops matching for a frame coasts (occluded) like any other and is lost "
+        "max_coast_time after it was last seen, not at once")
     size_smoothing: float = parameter(
         0.6, "Weight of a new measured box size in the exponential size smoothing "
         "(scaled by match quality; 1 = no smoothing)", minimum=0.0, maximum=1.0)
@@ -161,7 +166,7 @@ def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bo
     if not in_image:
         return TrackState.LOST
     if config.max_undetected_time > 0 and undetected_time > config.max_undetected_time \
-            and not (still and visible):
+            and not (still and (visible or not config.still_needs_visible)):
         return TrackState.LOST
     if visible:
         return TrackState.CONFIRMED
@@ -332,6 +337,13 @@ class Track:
         kf.predict(step)
         self.kf = kf
         return True
+
+    def is_still(self) -> bool:
+        """Whether the track's Kalman velocity is below ``still_speed`` box heights per
+        second (False when ``still_speed`` is 0)."""
+        cfg = self.config
+        return cfg.still_speed > 0.0 and \
+            float(np.hypot(*self.kf.velocity)) < cfg.still_speed * float(self.size[1])
 
     def remember_seen(self) -> None:
         """Keep the filter and centre of a frame in which the track was seen."""

@@ -572,3 +572,23 @@ def test_far_view_walkers_keep_their_speed_in_seconds_at_another_frame_rate():
     # four times the frame rate: a quarter of the motion per frame (rounded to 3 decimals)
     for a, b in zip(slow, fast):
         assert b.speed == pytest.approx(a.speed / 4.0, abs=1e-3)
+
+
+def test_crowd_stops_cut_the_same_walks_and_people_then_stand_still():
+    walking = crowd_scene(6, seed=3, frames=300)
+    assert crowd_scene(6, seed=3, frames=300, stop_fraction=0.0).config == walking.config
+    scene = crowd_scene(6, seed=3, frames=300, stop_fraction=1.0)
+    feet = np.array([scene.foot_points(i) for i in range(300)])
+    for k, (walk, stop) in enumerate(zip(walking.config.people, scene.config.people)):
+        # the same walk (the stops draw from a stream of their own), cut at a waypoint
+        n = len(stop.waypoints)
+        assert 2 <= n < len(walk.waypoints) and stop.waypoints == walk.waypoints[:n]
+        assert (stop.speed, stop.height) == (walk.speed, walk.height)
+        legs = np.hypot(*np.diff(np.array(stop.waypoints), axis=0).T)
+        # within half the clip's walk, unless the first leg alone is longer
+        assert n == 2 or legs.sum() <= 0.5 * 300 * stop.speed
+        # standing on the last waypoint, still, over the last 60 frames (a first leg is at
+        # most 0.3 * 640 = 192 px, walked at >= 1 px/frame)
+        assert np.allclose(feet[-60:, k], stop.waypoints[-1])
+    with pytest.raises(SceneError):
+        crowd_scene(stop_fraction=-0.1)

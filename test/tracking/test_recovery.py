@@ -49,7 +49,7 @@ def test_cost_checks_its_shapes_and_is_off_without_spread():
 
 def _track(state, box=(100.0, 100.0, 30.0, 60.0), detected_stamp=0.0, manual=False):
     return SimpleNamespace(state=state, detected_box=np.array(box), manual=manual,
-                           detected_stamp=detected_stamp)
+                           detected_stamp=detected_stamp, is_still=lambda: False)
 
 
 def test_round_is_one_to_one_by_least_distance_and_off_unless_enabled():
@@ -200,3 +200,36 @@ def test_recover_into_updates_the_assignment_and_deletes_the_tentative_holder():
     assert ids == {3} and matched == {1: 3}
     assert tentative.state is TrackState.DELETED
     assert events == ["tentative track 9 is track 3 recovered"]
+
+
+def test_skip_still_leaves_a_still_track_out_of_the_round():
+    # 4 s after its last detection the spread is 60 sqrt(0.05^2 + 1.2^2) = 72.06 px, so a
+    # passer-by's detection 120 px (2 box heights) away is in the gate: d2 = 14400 / 5193
+    dets = [np.array([220.0, 100.0, 30.0, 60.0])]
+    still = _track(TrackState.CONFIRMED)
+    still.is_still = lambda: True
+    moving = _track(TrackState.CONFIRMED)
+    moving.is_still = lambda: False
+    uncapped = RecoveryConfig(enabled=True, min_similarity=0.0, still_max_age=0.0)
+    skip = RecoveryConfig(enabled=True, min_similarity=0.0, skip_still=True,
+                          still_max_age=0.0)
+    assert recovery_round([still], dets, [None], 4.0, uncapped) == [(still, 0, None)]
+    assert recovery_cost(np.array([still.detected_box]), [4.0], np.array(dets), ON)[0, 0] \
+        == pytest.approx(14400.0 / (3600.0 * (0.05 ** 2 + 1.2 ** 2)))
+    assert recovery_round([still], dets, [None], 4.0, skip) == []
+    assert recovery_round([still, moving], dets, [None], 4.0, skip) == [(moving, 0, None)]
+
+
+def test_still_max_age_caps_the_radius_of_a_still_track_only():
+    # capped at 0.5 s, a still track's spread is that of the first cost test (spread^2 =
+    # 90): the passer-by 120 px away is out (d2 = 160), its own detection 6, 8 px off is in
+    passer_by = [np.array([220.0, 100.0, 30.0, 60.0])]
+    own = [np.array([106.0, 108.0, 30.0, 60.0])]
+    still = _track(TrackState.CONFIRMED)
+    still.is_still = lambda: True
+    moving = _track(TrackState.CONFIRMED)
+    moving.is_still = lambda: False
+    capped = RecoveryConfig(enabled=True, min_similarity=0.0, still_max_age=0.5)
+    assert recovery_round([still], passer_by, [None], 4.0, capped) == []
+    assert recovery_round([still], own, [None], 4.0, capped) == [(still, 0, None)]
+    assert recovery_round([moving], passer_by, [None], 4.0, capped) == [(moving, 0, None)]
