@@ -4,6 +4,7 @@
     ros2 launch mk_tracker mk_tracker.launch.py bag:=out/scene rate:=2.0 record:=out/run1 \\
         image_topic:=/camera/image_raw thermal_image_topic:=/flir/image_raw
     ros2 launch mk_tracker mk_tracker.launch.py namespace:=cam1   # one launch per camera pair
+    ros2 launch mk_tracker mk_tracker.launch.py thermal_only:=true  # no RGB camera
 
 * ``detector_node`` reads thermal images and publishes ``vision_msgs/Detection2DArray``;
   ``tracker_node`` reads RGB images plus those detections and publishes the tracks.
@@ -13,6 +14,8 @@
   holding both sections can be given to both).
 * ``namespace:=NS`` runs both nodes in ``/NS``; the topic arguments are relative by default,
   so they resolve inside it (``/NS/image_raw`` ...) and several pairs run side by side.
+* ``thermal_only:=true`` (a thermal camera and no RGB camera): the tracker reads the
+  thermal image too, and follows the people found in it there (issue #19).
 * Topics are remapped from the nodes' names (``thermal/image_raw``, ``image_raw``,
   ``thermal/detections``, ``tracks``; they are not parameters) to the launch arguments.
 * With ``bag:=PATH`` the bag is played with ``ros2 bag play --clock`` (add
@@ -102,6 +105,17 @@ def _in_namespace(topic_argument):
         LaunchConfiguration(topic_argument), "')"])
 
 
+def _tracker_topic(argument):
+    """The tracker's topic for a launch argument; with ``thermal_only:=true`` its RGB image
+    (``image_topic``) is the thermal camera (``thermal_image_topic``), issue #19."""
+    if argument != "image_topic":
+        return LaunchConfiguration(argument)
+    return PythonExpression([
+        "'", LaunchConfiguration("thermal_image_topic"), "' if '",
+        LaunchConfiguration("thermal_only"), "'.lower() == 'true' else '",
+        LaunchConfiguration("image_topic"), "'"])
+
+
 def _not_empty(name):
     return IfCondition(PythonExpression(["'", LaunchConfiguration(name), "' != ''"]))
 
@@ -126,6 +140,10 @@ def generate_launch_description():
         DeclareLaunchArgument("rate", default_value="1.0", description="playback rate"),
         DeclareLaunchArgument("record", default_value="",
                               description="record detections and tracks into this new bag"),
+        DeclareLaunchArgument("thermal_only", default_value="false",
+                              description="no RGB camera: the tracker follows the people in "
+                              "the thermal image (its image_raw is remapped to "
+                              "thermal_image_topic)"),
         DeclareLaunchArgument("fastdds_shm", default_value="true",
                               description="give every process config/fastdds_shm.xml (Fast "
                               "DDS shared memory) unless a profiles file is already set"),
@@ -153,7 +171,7 @@ def generate_launch_description():
         package=PACKAGE, executable="tracker_node", name="tracker_node", output="screen",
         namespace=namespace,
         parameters=[LaunchConfiguration("tracker_params"), {"use_sim_time": use_sim_time}],
-        remappings=[(src, LaunchConfiguration(arg)) for src, arg in TRACKER_REMAPS.items()])
+        remappings=[(src, _tracker_topic(arg)) for src, arg in TRACKER_REMAPS.items()])
     player = ExecuteProcess(
         cmd=["ros2", "bag", "play", LaunchConfiguration("bag"), "--rate",
              LaunchConfiguration("rate"), "--clock", "--delay",

@@ -206,6 +206,14 @@ def player_waits(specs: Sequence[ProcessSpec], remaps: Sequence[str] = (),
     return ["--wait-topics", *(topic for _, topic in go_after), "--go-on-stdin"], go_after
 
 
+def thermal_only_remaps(remaps: Sequence[str], namespace: str = "") -> list[str]:
+    """``remaps`` plus the rule of thermal-only mode (issue #19: no RGB camera): the
+    tracker's ``image_raw`` is the thermal camera the detector reads (``thermal/image_raw``
+    after ``remaps``), so the people found in the thermal image are tracked in it.  The
+    detector's own input is not matched by the new rule (ROS remaps whole names)."""
+    return [*remaps, f"image_raw:={remapped('thermal/image_raw', remaps, namespace)}"]
+
+
 def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     """The processes ``mk_launch`` starts for parsed command-line ``args``."""
     for params_file in args.params_file:
@@ -214,11 +222,16 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
     if args.bag and not os.path.exists(args.bag):
         raise LaunchError(f"bag {args.bag!r} does not exist")
     namespace = normalize_namespace(args.namespace)
+    remaps = (thermal_only_remaps(args.remap, namespace) if args.thermal_only
+              else list(args.remap))
+    # the thermal-only rule is the tracker's: the bag's own /image_raw, if it has one,
+    # is not played onto the thermal topic
+    nodes_only = set(remaps[len(args.remap):])
     specs: list[ProcessSpec] = []
     for name, skip in (("detector_node", args.no_detector), ("tracker_node", args.no_tracker)):
         if not skip:       # both warm up at once; what follows waits for their ready lines
             specs.append(ProcessSpec(name, module_command(
-                f"mk_tracker.ros.{name}", ros_args(args.params_file, args.remap,
+                f"mk_tracker.ros.{name}", ros_args(args.params_file, remaps,
                                                    use_sim_time=args.clock,
                                                    namespace=namespace)),
                 ready_lines=(READY_LINES[name],), waits=False))
@@ -231,27 +244,28 @@ def build_specs(args: argparse.Namespace) -> list[ProcessSpec]:
         played = _bag_topics(args.bag) if args.bag else set()
         awaited = ["/" + t.lstrip("/") for t in args.record_topics]
         ready = tuple(f"recording {t} [" for t in awaited
-                      if remapped(t, args.remap, namespace) not in played and t not in played)
+                      if remapped(t, remaps, namespace) not in played and t not in played)
         specs.append(ProcessSpec("bag_recorder", module_command(
             "mk_tracker.ros.bag_recorder", rec), ready_lines=("recording into",) + ready))
     if args.bag:
         play = [args.bag, "--rate", str(args.rate), "--wait-for-subscribers",
                 str(args.wait_for_subscribers)]
-        wait_args, go_after = player_waits(specs, args.remap, namespace)
+        wait_args, go_after = player_waits(specs, remaps, namespace)
         play += wait_args
         if args.clock:
             play += ["--clock"]
         played = _bag_topics(args.bag)
-        for remap in args.remap:
+        for remap in remaps:
             # a rule for a topic the bag does not have (e.g. the detector's input remapped
             # to the RGB camera of an RGB-only bag) is the nodes' alone
-            if not played or remapped(remap.partition(":=")[0], ()) in played:
+            if remap not in nodes_only and (
+                    not played or remapped(remap.partition(":=")[0], ()) in played):
                 play += ["--remap", remap]
         if namespace:   # the bag's topics at the root go to the nodes in the namespace
             for spec in specs:
                 for topic in NODE_INPUTS.get(spec.name, ()):
-                    root, inside = remapped(topic, args.remap), remapped(
-                        topic, args.remap, namespace)
+                    root, inside = remapped(topic, remaps), remapped(
+                        topic, remaps, namespace)
                     if root != inside:
                         play += ["--remap", f"{root}:={inside}"]
         specs.append(ProcessSpec("bag_player", module_command(
@@ -467,6 +481,9 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                              "when the bag has the topic (RGB only: "
                              "thermal/image_raw:=image_raw feeds the RGB camera to the "
                              "detector)")
+    parser.add_argument("--thermal-only", action="store_true",
+                        help="no RGB camera: the tracker follows the people in the thermal "
+                             "image the detector reads (its image_raw is remapped to it)")
     parser.add_argument("--namespace", default="", metavar="NS",
                         help="run both nodes in namespace NS (their relative topics then "
                              "resolve inside it, e.g. /NS/image_raw); the player plays the "

@@ -129,9 +129,46 @@ def test_ready_lines_and_namespace_argument(launch_module):
     declared = {a.args[0]: a.kwargs for a in _of(entities, "DeclareLaunchArgument")}
     assert declared["namespace"]["default_value"] == ""
     assert float(declared["play_delay"]["default_value"]) > 0
+    defaults = {name: kwargs["default_value"] for name, kwargs in declared.items()}
     for node in _of(entities, "Node"):
         assert _config_name(node.kwargs["namespace"]) == "namespace"
         # relative remap targets by default: they resolve inside the namespace
         for source, target in node.kwargs["remappings"]:
-            default = declared[_config_name(target)]["default_value"]
+            default = _render(target, defaults)
             assert not default.startswith("/") and default == source
+
+
+def _render(substitution, values: dict) -> str:
+    """What launch makes of a substitution with launch arguments ``values``: a
+    LaunchConfiguration is its value, a PythonExpression the eval of its parts joined."""
+    kind = type(substitution).__name__
+    if isinstance(substitution, str):
+        return substitution
+    if kind == "LaunchConfiguration":
+        return values[substitution.args[0]]
+    assert kind == "PythonExpression", substitution
+    return str(eval("".join(_render(p, values) for p in substitution.args[0])))
+
+
+def test_thermal_only_feeds_the_thermal_camera_to_the_tracker_alone(launch_module):
+    entities = launch_module["generate_launch_description"]().args[0]
+    declared = {a.args[0]: a.kwargs for a in _of(entities, "DeclareLaunchArgument")}
+    assert declared["thermal_only"]["default_value"] == "false"
+    detector, tracker = _of(entities, "Node")
+
+    def topics(node, **changes):
+        values = {name: kwargs["default_value"] for name, kwargs in declared.items()}
+        values.update(changes)
+        return {source: _render(target, values) for source, target in node.kwargs["remappings"]}
+
+    assert topics(tracker)["image_raw"] == "image_raw"
+    assert topics(tracker, thermal_only="true")["image_raw"] == "thermal/image_raw"
+    assert topics(tracker, thermal_only="True", thermal_image_topic="/flir/image_raw",
+                  image_topic="/rgb")["image_raw"] == "/flir/image_raw"
+    assert topics(tracker, thermal_only="false", image_topic="/rgb")["image_raw"] == "/rgb"
+    # the detector keeps reading the thermal camera; the tracker's other topics are unchanged
+    for mode in ("true", "false"):
+        assert topics(detector, thermal_only=mode) == {"thermal/image_raw": "thermal/image_raw",
+                                                       "thermal/detections":
+                                                       "thermal/detections"}
+        assert topics(tracker, thermal_only=mode)["thermal/detections"] == "thermal/detections"

@@ -27,7 +27,8 @@ from test_bag_player import fresh_domain
 
 from mk_tracker.ros.launcher import (READY_LINES, LaunchError, ProcessSpec, build_specs,
                                      configure_parser, crashed, matched_input,
-                                     normalize_namespace, remapped, ros_args, run_processes)
+                                     normalize_namespace, remapped, ros_args, run_processes,
+                                     thermal_only_remaps)
 from mk_tracker.ros.subscription_events import matched_text
 
 
@@ -254,6 +255,49 @@ def test_a_remap_of_a_topic_the_bag_lacks_is_the_nodes_alone(tmp_path):
                                            "image_raw:=/cam/image_raw"]))
     argv = list(specs[-1].argv)
     assert argv[argv.index("--remap") + 1] == "image_raw:=/cam/image_raw"
+
+
+def test_thermal_only_feeds_the_thermal_camera_to_the_tracker(tmp_path):
+    """Thermal only (issue #19): a bag with a thermal camera and no RGB one; the tracker's
+    image_raw becomes the (possibly remapped) thermal topic, the detector still reads it,
+    the player plays it unchanged and waits for both nodes to match it."""
+    from mk_tracker.bags.bag_io import BagWriter
+
+    bag = tmp_path / "thermal_only"
+    with BagWriter(bag) as writer:
+        writer.add_topic("/flir/image_raw", "sensor_msgs/msg/Image")
+    parser = argparse.ArgumentParser()
+    configure_parser(parser)
+    assert parser.parse_args([]).thermal_only is False
+    specs = build_specs(parser.parse_args(["--bag", str(bag), "--thermal-only", "--remap",
+                                           "thermal/image_raw:=/flir/image_raw"]))
+    det, trk, player = specs
+    for node in (det, trk):
+        assert "image_raw:=/flir/image_raw" in node.argv
+    rules = ["thermal/image_raw:=/flir/image_raw", "image_raw:=/flir/image_raw"]
+    assert remapped("thermal/image_raw", rules) == "/flir/image_raw"     # the detector
+    assert remapped("image_raw", rules) == "/flir/image_raw"             # the tracker
+    assert player.go_after == (("detector_node", "/flir/image_raw"),
+                               ("tracker_node", "/flir/image_raw"))
+    assert "--remap" not in player.argv                                  # the bag's names
+    # in a namespace, without a remap of the thermal topic
+    assert thermal_only_remaps([], "/cam1") == ["image_raw:=/cam1/thermal/image_raw"]
+    assert remapped("image_raw", thermal_only_remaps([], "/cam1"), "/cam1") == \
+        "/cam1/thermal/image_raw"
+    # without --thermal-only the tracker keeps its RGB topic
+    det, trk, player = build_specs(parser.parse_args(["--bag", str(bag)]))
+    assert player.go_after[1] == ("tracker_node", "/image_raw")
+    # a bag that also has an RGB topic: the rule stays the nodes' (the player refused to
+    # play /image_raw and /thermal/image_raw onto one topic)
+    both = tmp_path / "both"
+    with BagWriter(both) as writer:
+        writer.add_topic("/image_raw", "sensor_msgs/msg/Image")
+        writer.add_topic("/thermal/image_raw", "sensor_msgs/msg/Image")
+    det, trk, player = build_specs(parser.parse_args(["--bag", str(both), "--thermal-only"]))
+    assert "image_raw:=/thermal/image_raw" in trk.argv
+    assert "--remap" not in player.argv
+    assert player.go_after == (("detector_node", "/thermal/image_raw"),
+                               ("tracker_node", "/thermal/image_raw"))
 
 
 def test_matched_input_reads_the_nodes_match_lines():
