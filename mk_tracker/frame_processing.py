@@ -13,7 +13,9 @@ identical decisions on the same input.
   ``header.frame_id`` (:func:`detection_plane`: the RGB image's frame, or the thermal
   camera's frame whose boxes the tracker maps with its homography), which buffered
   detection messages belong to which frame (:class:`DetectionBuffer`), the tracker's input
-  list built from them (:func:`tracker_inputs`) and the tracks that are published
+  list built from them (:func:`tracker_inputs`), the tracker configuration for the image's
+  encoding (:func:`tracker_config_for_encoding`: a single-channel image, i.e. thermal-only
+  tracking, uses ``multi_kernel.thermal_colour_space``) and the tracks that are published
   (:func:`tracks_to_detections`).
 * Debug images: :func:`tracker_debug_image` and :func:`detector_debug_image` (what the
   nodes publish on ``~/debug_image`` and the pipeline writes into its video).
@@ -24,7 +26,7 @@ No rclpy here: messages are duck-typed (``rclpy`` and ``rosbags`` messages both 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Iterable, Sequence
 
 import numpy as np
@@ -235,6 +237,23 @@ def tracker_input(msg: Any) -> np.ndarray:
             f"encoding {msg.encoding!r} is not an RGB tracker input "
             f"(supported: {', '.join(RGB_ENCODINGS)})")
     return np.ascontiguousarray(to_bgr(image_to_numpy(msg), msg.encoding))
+
+
+#: Encodings of one channel (grey-replicated into BGR by :func:`tracker_input`): a thermal
+#: camera (thermal-only tracking) or a monochrome one, with no colour for HSV to see.
+SINGLE_CHANNEL_ENCODINGS = ("mono8", "mono16", "16UC1", "32FC1")
+
+
+def tracker_config_for_encoding(config: Any, encoding: str) -> Any:
+    """The tracker configuration (``MultiObjectTrackerConfig``) for images of ``encoding``:
+    ``config`` itself, except that a single-channel encoding
+    (:data:`SINGLE_CHANNEL_ENCODINGS`) makes ``multi_kernel.colour_space`` the configured
+    ``multi_kernel.thermal_colour_space``.  The one rule of the node and the offline
+    pipeline for thermal-only tracking (docs/ros_nodes.md)."""
+    mk = config.multi_kernel
+    if encoding not in SINGLE_CHANNEL_ENCODINGS or mk.thermal_colour_space == mk.colour_space:
+        return config
+    return replace(config, multi_kernel=replace(mk, colour_space=mk.thermal_colour_space))
 
 
 def detection_plane(frame_id: str, image_frame_id: str, thermal_frame_id: str) -> str | None:

@@ -65,7 +65,8 @@ from mk_tracker.messages.detection_messages import (DetectionMessageError,
                                            make_detection_array, read_detection,
                                            read_detection_array)
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, detection_plane,
-                                         kernel_drawings, tracker_debug_image, tracker_input,
+                                         kernel_drawings, tracker_config_for_encoding,
+                                         tracker_debug_image, tracker_input,
                                          tracker_inputs, tracks_to_detections)
 from mk_tracker.messages.compressed_image import as_image
 from mk_tracker.messages.image_transport import (image_transport_parameter,
@@ -223,6 +224,7 @@ class TrackerNode(Node):
         tracker_cfg = self._bridge.add_config("tracker", MultiObjectTrackerConfig(),
                                               extra_check=check_tracker_config,
                                               on_change=self._on_tracker_config)
+        self._tracker_config = tracker_cfg     # as set; the tracker's may differ by encoding
         self.tracker = MultiObjectTracker(tracker_cfg)
         self._bridge.activate()
 
@@ -285,6 +287,7 @@ class TrackerNode(Node):
         # Kalman/lifecycle constants they were created with).  A new tracker applies the
         # change everywhere, at the price of restarting the tracks.
         with self._tracker_lock:
+            self._tracker_config = config
             self.tracker = MultiObjectTracker(config)
         self.get_logger().warning("tracker restarted with the new parameters (tracks reset)")
 
@@ -417,6 +420,11 @@ class TrackerNode(Node):
             starts = list(self._start_requests)
             self._start_requests.clear()
         with self._tracker_lock:
+            wanted = tracker_config_for_encoding(self._tracker_config, msg.encoding)
+            if wanted != self.tracker.config:   # the shared rule of thermal-only tracking
+                self.tracker = MultiObjectTracker(wanted)
+                self._event(f"{msg.encoding} images: the tracker uses "
+                            f"{wanted.multi_kernel.colour_space} histograms (tracks reset)")
             tracker = self.tracker
             dets, unknown = tracker_inputs(batches, frame, self.node_config.thermal_frame_id)
             for frame_id in unknown:

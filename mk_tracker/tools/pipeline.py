@@ -65,7 +65,8 @@ from mk_tracker.evaluation.metrics import MotRow
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_detector,
                                          detector_outputs,
                                          kernel_drawings, skipped_reason, detector_input,
-                                         tracker_debug_image, tracker_input, tracker_inputs,
+                                         tracker_config_for_encoding, tracker_debug_image,
+                                         tracker_input, tracker_inputs,
                                          tracks_to_detections)
 from mk_tracker.bags.image_topics import ImageTopicError, check_image_topic, compressed_topics
 from mk_tracker.messages.compressed_image import as_image
@@ -383,7 +384,8 @@ class _Run:
         stamp = stamp_to_seconds(msg.header.stamp)
         if self.tracker is None:
             try:
-                self.tracker = MultiObjectTracker(self.tracker_config)
+                self.tracker = MultiObjectTracker(
+                    tracker_config_for_encoding(self.tracker_config, msg.encoding))
             except TrackerInputError as exc:
                 raise PipelineError(f"tracker configuration rejected: {exc}") from exc
             r.homography = tuple(self.tracker_config.homography)

@@ -3,7 +3,8 @@
 The appearance model of Chu et al. 2013 (Sec. III-A, III-E, IV-A, Appendix C), after
 Comaniciu, Ramesh and Meer 2003:
 
-* Pixels are quantised into ``m`` colour bins ``b(z)`` (HSV by default, Sec. IV-A).
+* Pixels are quantised into ``m`` colour bins ``b(z)`` (HSV by default, Sec. IV-A; ``grey``
+  bins the luminance alone, for a thermal image followed without an RGB camera).
 * A kernel is an ellipse with centre ``x`` and half-axes ``(a_x, a_y)``; a pixel ``z`` has the
   normalised squared distance ``v = ((z_x - x_x)/a_x)^2 + ((z_y - x_y)/a_y)^2`` and contributes
   ``k(v)`` to its bin.  ``k`` is the *roof* profile ``k(v) = 1 - v`` on ``v < 1`` (piecewise
@@ -39,12 +40,16 @@ import cv2
 import numpy as np
 
 
-COLOUR_SPACES = ("hsv", "bgr")
+COLOUR_SPACES = ("hsv", "bgr", "grey")
 PROFILES = ("roof", "gaussian")
 PIXEL_WEIGHTINGS = ("kl", "bhattacharyya")
 
 #: OpenCV 8-bit HSV hue range.
 _HUE_RANGE = 180
+#: Fixed-point BGR -> luminance weights 0.114 B + 0.587 G + 0.299 R (BT.601) with 15
+#: fractional bits; they sum to 2^15, so a grey-replicated pixel keeps its level.
+_GREY_SHIFT = 15
+_GREY_B, _GREY_G, _GREY_R = 3735, 19235, 9798
 
 
 class InvalidImageError(ValueError):
@@ -82,13 +87,17 @@ def bin_lookup_tables(colour_space: str, bins: tuple[int, int, int]) -> np.ndarr
 
     Channel 0 (hue, or blue) gets bin ``c0 * b0 // 180`` (``c0 * b0 >> 8`` for BGR), the others
     ``c * b >> 8``; the tables hold those bins already multiplied out to the flat index
-    ``(bin0 * b1 + bin1) * b2 + bin2``.  Built once per configuration.
+    ``(bin0 * b1 + bin1) * b2 + bin2``.  Built once per configuration.  ``grey`` bins only
+    the luminance ``L`` (channel 2 of :func:`_colour_converted`) into ``L * b2 >> 8``: it needs
+    ``bins = (1, 1, b2)``, and its rows 0 and 1 are zero.
     """
     if colour_space not in COLOUR_SPACES:
         raise ValueError(f"colour_space must be one of {COLOUR_SPACES}, got {colour_space!r}")
     if not all(1 <= int(b) <= 256 for b in bins):
         raise ValueError(f"bins must lie in [1, 256], got {bins}")
     b0, b1, b2 = (int(b) for b in bins)
+    if colour_space == "grey" and (b0, b1) != (1, 1):
+        raise ValueError(f"grey histograms have bins (1, 1, n), got {bins}")
     key = (colour_space, b0, b1, b2)
     table = _LUTS.get(key)
     if table is None:
@@ -104,10 +113,26 @@ def bin_lookup_tables(colour_space: str, bins: tuple[int, int, int]) -> np.ndarr
     return table
 
 
+def grey_levels(roi_bgr: np.ndarray) -> np.ndarray:
+    """8-bit luminance ``(3735 B + 19235 G + 9798 R + 2^14) >> 15`` of a uint8 BGR array
+    (the BT.601 weights in fixed point, the values of ``cv2.COLOR_BGR2GRAY`` in OpenCV 4.x,
+    written out so the result does not depend on the OpenCV build); a grey-replicated pixel,
+    as a mono8 thermal frame becomes, keeps its level."""
+    c = roi_bgr.astype(np.int32)
+    lum = (c[..., 0] * _GREY_B + c[..., 1] * _GREY_G + c[..., 2] * _GREY_R
+           + (1 << (_GREY_SHIFT - 1))) >> _GREY_SHIFT
+    return lum.astype(np.uint8)
+
+
 def _colour_converted(roi_bgr: np.ndarray, colour_space: str) -> np.ndarray:
-    """The uint8 ``H x W x 3`` channels that are binned: OpenCV HSV or the BGR itself."""
+    """The uint8 ``H x W x 3`` channels that are binned: OpenCV HSV, the BGR itself, or for
+    ``grey`` the luminance of :func:`grey_levels` in channel 2 (0 in the others)."""
     if colour_space == "hsv":
         return cv2.cvtColor(roi_bgr, cv2.COLOR_BGR2HSV)
+    if colour_space == "grey":
+        out = np.zeros(roi_bgr.shape[:2] + (3,), dtype=np.uint8)
+        out[..., 2] = grey_levels(roi_bgr)
+        return out
     return roi_bgr
 
 
@@ -115,8 +140,8 @@ def quantize(roi_bgr: np.ndarray, colour_space: str, bins: tuple[int, int, int])
     """Bin index ``b(z)`` of every pixel of a BGR ROI, int32 array of the ROI's shape.
 
     ``colour_space`` ``"hsv"`` converts with OpenCV (8-bit hue in ``[0, 180)``) and bins
-    ``(hue, saturation, value)``; ``"bgr"`` bins the raw channels (see
-    :func:`bin_lookup_tables`).  Float ROIs are taken to be in ``[0, 255]`` and clipped; they
+    ``(hue, saturation, value)``; ``"bgr"`` bins the raw channels; ``"grey"`` the luminance
+    alone (see :func:`bin_lookup_tables`).  Float ROIs are taken to be in ``[0, 255]`` and clipped; they
     must not hold NaN (see :func:`roi_has_nan`).
     """
     table = bin_lookup_tables(colour_space, bins)

@@ -28,8 +28,15 @@ class MultiKernelConfig:
     num_kernels: int = parameter(
         2, "Kernels per target (1 = single-kernel mean shift; 2/4 Fig. 4; 5/6 Fig. 14)",
         choices=SUPPORTED_KERNEL_COUNTS)
-    colour_space: str = parameter("hsv", "Colour space of the histograms (Sec. IV-A: HSV)",
+    colour_space: str = parameter("hsv", "Colour space of the histograms (Sec. IV-A: HSV; "
+                                  "grey: the luminance alone, grey_bins bins)",
                                   choices=COLOUR_SPACES)
+    thermal_colour_space: str = parameter(
+        "hsv", "Colour space used instead of colour_space when the tracked image is "
+        "single-channel (mono8/mono16/16UC1/32FC1: thermal-only tracking; "
+        "frame_processing.tracker_config_for_encoding)", choices=COLOUR_SPACES)
+    grey_bins: int = parameter(4, "Histogram bins of the grey colour space (luminance "
+                               "L goes to bin L * grey_bins >> 8)", minimum=1, maximum=256)
     hue_bins: int = parameter(16, "Histogram bins along hue (or blue for bgr)",
                               minimum=1, maximum=180)
     saturation_bins: int = parameter(8, "Histogram bins along saturation (or green)",
@@ -173,6 +180,9 @@ class MultiKernelConfig:
 
     @property
     def bins(self) -> tuple[int, int, int]:
+        """Bins per channel of ``colour_space``: ``(1, 1, grey_bins)`` for grey."""
+        if self.colour_space == "grey":
+            return (1, 1, self.grey_bins)
         return (self.hue_bins, self.saturation_bins, self.value_bins)
 
 

@@ -56,7 +56,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from mk_tracker.tracking.kernel_histograms import bin_lookup_tables, roi_has_nan
+from mk_tracker.tracking.kernel_histograms import (_colour_converted, bin_lookup_tables,
+                                                  roi_has_nan)
 from mk_tracker.tracking.search_region import SearchRegion
 from mk_tracker.tracking.kernel_layouts import kernels_bounding_box
 
@@ -208,7 +209,7 @@ def _window_hsv(image: np.ndarray, region: tuple[int, int, int, int], stride: in
     if roi.dtype != np.uint8:
         roi = np.clip(roi, 0, 255).astype(np.uint8)
     roi = np.ascontiguousarray(roi)
-    return cv2.cvtColor(roi, cv2.COLOR_BGR2HSV) if colour_space == "hsv" else roi
+    return _colour_converted(roi, colour_space)
 
 
 def back_projection_peaks(tracker: "MultiKernelTracker", image: np.ndarray,

@@ -15,7 +15,8 @@ compiled with ``cache=True`` (a few seconds on first use, then loaded from ``__p
 
 * :func:`_quantize_loops` reads the strided search region, converts each pixel to HSV exactly
   as ``cv2.COLOR_BGR2HSV`` does for 8-bit images (checked on all 2^24 colours) and looks up its
-  bin, in one pass without intermediate images;
+  bin, in one pass without intermediate images (or, for ``grey``, to the fixed-point
+  luminance of :func:`~mk_tracker.tracking.kernel_histograms.grey_levels`);
 * :func:`_kernels_loops` evaluates every kernel in one call: histogram (pass 1), ``q / p~``
   and ``J_i``, then the mean-shift and scale-ratio sums (pass 2).
 
@@ -32,7 +33,7 @@ import numpy as np
 from mk_tracker.numba_support import import_numba
 from mk_tracker.tracking.kernel_histograms import (
     _HUE_RANGE, PIXEL_WEIGHTINGS, PROFILES, KernelBatch, KernelTemplate, PaddedBins,
-    bin_lookup_tables, quantize, roi_has_nan)
+    _GREY_B, _GREY_G, _GREY_R, _GREY_SHIFT, bin_lookup_tables, quantize, roi_has_nan)
 
 BACKENDS = ("auto", "numpy", "compiled")
 
@@ -45,6 +46,9 @@ class BinMismatchError(ValueError):
     """Bin indices or target models do not fit the number of histogram bins."""
 
 
+#: how :func:`_quantize_loops` converts a pixel before its table look-up
+_MODES = {"bgr": 0, "hsv": 1, "grey": 2}
+
 #: Fixed-point reciprocals of OpenCV's 8-bit BGR->HSV conversion (12 fractional bits):
 #: ``255 / v`` for the saturation and ``180 / (6 * diff)`` for the hue.
 _HSV_SHIFT = 12
@@ -54,16 +58,18 @@ _HUE_RECIPROCAL = np.array([0] + [int(np.rint((_HUE_RANGE << _HSV_SHIFT) / (6.0 
                                   for i in range(1, 256)], dtype=np.int64)
 
 
-def _quantize_loops(image, y0, x0, stride, hsv, table, sat_rec, hue_rec, out):
+def _quantize_loops(image, y0, x0, stride, mode, table, sat_rec, hue_rec, out):
     """Bin index of pixel ``image[y0 + r * stride, x0 + c * stride]`` into ``out[r, c]``.
 
-    With ``hsv`` the pixel is first converted as ``cv2.COLOR_BGR2HSV`` does for 8-bit images
+    ``mode`` is one of :data:`_MODES`.  Grey (2) takes the luminance of
+    :func:`~mk_tracker.tracking.kernel_histograms.grey_levels`.  With HSV (1) the pixel is first converted as ``cv2.COLOR_BGR2HSV`` does for 8-bit images
     (V = max, S = 255 (V - min) / V, H = 30 (hue sector offset + difference) / (V - min), in
     fixed point with the reciprocal tables ``sat_rec``, ``hue_rec``); equal to OpenCV on all
     2^24 colours (tested).  Then ``table`` of :func:`bin_lookup_tables`.
     """
     h_out, w_out = out.shape
     half = 1 << (_HSV_SHIFT - 1)
+    grey_half = 1 << (_GREY_SHIFT - 1)
     for r in range(h_out):
         row = image[y0 + r * stride]
         dst = out[r]
@@ -72,7 +78,10 @@ def _quantize_loops(image, y0, x0, stride, hsv, table, sat_rec, hue_rec, out):
             b = np.int64(row[x, 0])
             g = np.int64(row[x, 1])
             red = np.int64(row[x, 2])
-            if hsv:
+            if mode == 2:
+                lum = (b * _GREY_B + g * _GREY_G + red * _GREY_R + grey_half) >> _GREY_SHIFT
+                dst[c] = table[2, lum]
+            elif mode == 1:
                 v = max(b, g, red)
                 diff = v - min(b, g, red)
                 s = (diff * sat_rec[v] + half) >> _HSV_SHIFT
@@ -218,7 +227,7 @@ def compiled_kernels():
 def _warm_up(quantize_loops, kernels_loops) -> None:
     """Compile (or load from numba's disk cache) the loops for the argument types the
     tracker passes, so the first frame of a node is not the one that pays for it."""
-    quantize_loops(np.zeros((2, 2, 3), np.uint8), 0, 0, 1, True,
+    quantize_loops(np.zeros((2, 2, 3), np.uint8), 0, 0, 1, _MODES["hsv"],
                    bin_lookup_tables("hsv", (2, 2, 2)), _SAT_RECIPROCAL, _HUE_RECIPROCAL,
                    np.empty((2, 2), np.int32))
     m = 8
@@ -263,9 +272,9 @@ def quantize_region(image: np.ndarray, region: tuple[int, int, int, int], stride
         # would compile another version): copy the region's rows, cheap next to the rest
         image = np.array(image[y0:y1, x0:x1], order="C", copy=True)
         x0, y0 = 0, 0
-    return kernels[0](image, y0, x0, st, colour_space == "hsv",
-                      bin_lookup_tables(colour_space, bins), _SAT_RECIPROCAL, _HUE_RECIPROCAL,
-                      np.empty((h, w), np.int32))
+    table = bin_lookup_tables(colour_space, bins)     # raises for an unknown colour space
+    return kernels[0](image, y0, x0, st, _MODES[colour_space], table, _SAT_RECIPROCAL,
+                      _HUE_RECIPROCAL, np.empty((h, w), np.int32))
 
 
 class SearchRegion:

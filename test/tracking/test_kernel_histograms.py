@@ -277,7 +277,7 @@ def test_compiled_quantisation_equals_numpy(stride):
     rng = np.random.default_rng(stride)
     img = rng.integers(0, 256, size=(90, 130, 3)).astype(np.uint8)
     for region in [(0, 0, 130, 90), (stride * 3, stride * 2, 101, 77), (5, 7, 6, 8)]:
-        for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2))]:
+        for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2)), ("grey", (1, 1, 16))]:
             a = quantize_region(img, region, stride, cs, bins, "compiled")
             b = quantize_region(img, region, stride, cs, bins, "numpy")
             assert a.dtype == np.int32 and np.array_equal(a, b)
@@ -383,7 +383,7 @@ def _plain_quantize(img, region, stride, colour_space, bins):
     from mk_tracker.tracking import search_region as kh
     x0, y0, x1, y1 = region
     out = np.empty((-(-(y1 - y0) // stride), -(-(x1 - x0) // stride)), np.int32)
-    return kh._quantize_loops(img, y0, x0, stride, colour_space == "hsv",
+    return kh._quantize_loops(img, y0, x0, stride, kh._MODES[colour_space],
                               bin_lookup_tables(colour_space, bins), kh._SAT_RECIPROCAL,
                               kh._HUE_RECIPROCAL, out)
 
@@ -410,7 +410,7 @@ def test_plain_quantize_loops_equal_the_numpy_quantisation(stride):
     img = rng.integers(0, 256, size=(30, 41, 3)).astype(np.uint8)
     for region in [(0, 0, 41, 30), (stride * 2, stride, 38, 29)]:
         x0, y0, x1, y1 = region
-        for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2))]:
+        for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2)), ("grey", (1, 1, 16))]:
             expected = quantize(img[y0:y1:stride, x0:x1:stride], cs, bins)
             assert np.array_equal(_plain_quantize(img, region, stride, cs, bins), expected)
 
@@ -461,7 +461,7 @@ def test_compiled_backend_glue_with_plain_loops_quantises_like_numpy(plain_compi
     for image in (img, frozen, np.ascontiguousarray(img[:, ::-1])[:, ::-1]):
         for region in [(0, 0, 31, 23), (stride * 2, stride, 29, 20), (5, 7, 6, 8)]:
             x0, y0, x1, y1 = region
-            for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2))]:
+            for cs, bins in [("hsv", BINS), ("bgr", (4, 8, 2)), ("grey", (1, 1, 16))]:
                 got = quantize_region(image, region, stride, cs, bins, "compiled")
                 expected = quantize(img[y0:y1:stride, x0:x1:stride], cs, bins)
                 assert got.dtype == np.int32 and np.array_equal(got, expected)
@@ -540,7 +540,7 @@ from mk_tracker.tracking import search_region as _sr  # noqa: E402
 def test_error_messages_name_the_bad_value():
     cases = [
         (lambda: bin_lookup_tables("lab", BINS),
-         "colour_space must be one of ('hsv', 'bgr'), got 'lab'"),
+         "colour_space must be one of ('hsv', 'bgr', 'grey'), got 'lab'"),
         (lambda: bin_lookup_tables("hsv", (0, 8, 4)), "bins must lie in [1, 256], got (0, 8, 4)"),
         (lambda: profile_values(np.zeros(2), "box"),
          "profile must be one of ('roof', 'gaussian'), got 'box'"),
