@@ -337,3 +337,30 @@ def test_initial_box_and_start_track_topic(peer, start_tracker):
     for obj in frame.objects:
         best = max(tracks, key=lambda t: iou(t.box, obj.box_rgb))
         assert iou(best.box, obj.box_rgb) > 0.6 and best.id == str(obj.id)
+
+
+def test_single_channel_frames_switch_to_the_thermal_colour_space(peer, start_tracker):
+    # thermal-only tracking (issue #19 item 2): a mono8 image makes the node rebuild its tracker
+    # with multi_kernel.thermal_colour_space (frame_processing.tracker_config_for_encoding)
+    node = start_tracker("-p", "image_qos.reliability:=reliable",
+                         "-p", "tracker.multi_kernel.thermal_colour_space:=grey",
+                         "-p", "tracker.multi_kernel.grey_bins:=16")
+    player = Player(peer, node)
+    player.wait_connected()
+    tracks = []
+    for k in range(8):                    # a warm person walking 3 px per frame
+        grey = np.full((240, 320), 60, np.uint8)
+        x = 100 + 3 * k
+        grey[60:140, x:x + 30] = 180
+        grey[60:80, x + 5:x + 25] = 210
+        stamp = 1.0 + 0.1 * k
+        first = len(player.tracks)
+        player.send_detections([(x, 60, 30, 80)], stamp, frame_id="camera")
+        player.peer.spin_for(0.01)
+        player.send_image(grey, stamp, encoding="mono8")
+        player.peer.spin_until(lambda: player.tracks_at(stamp, first) is not None, 30.0)
+        msg = player.tracks_at(stamp, first)
+        assert msg is not None, f"no tracks for frame {k}:\n{node.output()}"
+        tracks = read_detection_array(msg)
+    assert "mono8 images: the tracker uses grey histograms" in node.output()
+    assert len(tracks) == 1 and iou(tracks[0].box, (121, 60, 30, 80)) > 0.7, tracks
