@@ -25,7 +25,9 @@ boxes it matched (as ByteTrack does).  Not a test: nothing is asserted.
     nice -n 10 .venv/bin/python benchmarks/bench_still_people.py --seeds 201 202
 
 ``--set NAME=VALUE`` overrides a tracker parameter in every configuration (YAML value), for
-ablations on the seeds the choices are made on (101-103).
+ablations on the seeds the choices are made on (101-103); ``--no-recovery-off --no-peer
+--modes thermal-only`` runs only the defaults thermal-only (a sweep, e.g. of
+``multi_kernel.grey_bins``).
 """
 
 from __future__ import annotations
@@ -165,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="override a tracker parameter (YAML value) in every run")
     parser.add_argument("--no-peer", action="store_true", help="skip the SORT-style peer")
     parser.add_argument("--detail", action="store_true", help="print every stopper's row")
+    parser.add_argument("--no-recovery-off", action="store_true",
+                        help="skip the 'recovery off' configuration (parameter sweeps)")
     args = parser.parse_args(argv)
 
     base = load_pipeline_config()
@@ -187,7 +191,9 @@ def main(argv: list[str] | None = None) -> int:
                 if mode == "thermal-only":
                     src = tmp / f"thermal_{seed}"
                     thermal_only_copy(bag, src)
-                runs = [("defaults", base), ("recovery off", no_recovery)]
+                runs = [("defaults", base)]
+                if not args.no_recovery_off:
+                    runs.append(("recovery off", no_recovery))
                 peer_dets = None
                 for name, config in runs:
                     tracks, dets = run_ours(src, tmp / f"run_{seed}_{mode}_{name}".replace(
