@@ -141,8 +141,8 @@ def quantize(roi_bgr: np.ndarray, colour_space: str, bins: tuple[int, int, int])
 
     ``colour_space`` ``"hsv"`` converts with OpenCV (8-bit hue in ``[0, 180)``) and bins
     ``(hue, saturation, value)``; ``"bgr"`` bins the raw channels; ``"grey"`` the luminance
-    alone (see :func:`bin_lookup_tables`).  Float ROIs are taken to be in ``[0, 255]`` and clipped; they
-    must not hold NaN (see :func:`roi_has_nan`).
+    alone (see :func:`bin_lookup_tables`).  Float ROIs are taken to be in ``[0, 255]`` and
+    clipped; they must not hold NaN (see :func:`roi_has_nan`).
     """
     table = bin_lookup_tables(colour_space, bins)
     if roi_bgr.dtype != np.uint8:

@@ -62,8 +62,8 @@ def _quantize_loops(image, y0, x0, stride, mode, table, sat_rec, hue_rec, out):
     """Bin index of pixel ``image[y0 + r * stride, x0 + c * stride]`` into ``out[r, c]``.
 
     ``mode`` is one of :data:`_MODES`.  Grey (2) takes the luminance of
-    :func:`~mk_tracker.tracking.kernel_histograms.grey_levels`.  With HSV (1) the pixel is first converted as ``cv2.COLOR_BGR2HSV`` does for 8-bit images
-    (V = max, S = 255 (V - min) / V, H = 30 (hue sector offset + difference) / (V - min), in
+    :func:`~mk_tracker.tracking.kernel_histograms.grey_levels`.  With HSV (1) the pixel is
+    first converted as ``cv2.COLOR_BGR2HSV`` does for 8-bit images (V = max, S = 255 (V - min) / V, H = 30 (hue sector offset + difference) / (V - min), in
     fixed point with the reciprocal tables ``sat_rec``, ``hue_rec``); equal to OpenCV on all
     2^24 colours (tested).  Then ``table`` of :func:`bin_lookup_tables`.
     """
