@@ -38,6 +38,7 @@ DDS_PROCESS_MODULES = {
     "test_faults_nodes", "test_load_nodes", "test_parameters_runtime",
     "test_bag_player", "test_recorder", "test_launcher", "test_demo", "test_colcon_build",
     "test_nodes_tud_campus", "test_nodes_detection_wait", "test_nodes_diagnostics",
+    "test_nodes_namespaces", "test_nodes_tracks_detailed",
 }
 RERUNS = 1
 

@@ -14,6 +14,8 @@
 * :func:`publishers_matched`, :meth:`Peer.wait_matched` -- wait until both ends of every
   connection between the test and the nodes have matched (discovery is not symmetric; see
   :meth:`Peer.wait_matched`).
+* :func:`call_service` -- a service call that re-sends an idempotent request until it is
+  answered (a service's two DDS directions match independently).
 * :func:`start_bag_player`, :func:`stop_process_group` -- our ``bag_player`` playing a bag
   into the test's domain, and its clean-up.
 * Fixtures ``domain`` (own ROS_DOMAIN_ID, also in the test process) and ``peer``: a test
@@ -272,6 +274,33 @@ class Peer:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+
+
+def call_service(peer: "Peer", client: Any, request: Any, timeout: float,
+                 resend_after: float | None = None) -> Any:
+    """The answer of ``client`` (a service client of ``peer.node``) to ``request``.
+
+    Waits up to ``timeout`` s for the service, then for an answer.  The two directions of a
+    service are two DDS topics discovered independently: a request sent after the client
+    saw the server's request reader but before the server's response writer matched the
+    client's response reader is answered into the void, and its future never completes
+    (seen once in CI, under load, on a namespaced parameter service).  So an *idempotent*
+    request (get or set parameters) is sent again every ``resend_after`` s until one of the
+    sends is answered; the first answer counts, whenever it comes.  Not for requests with
+    effects (start a track): leave ``resend_after`` None there.
+    """
+    assert client.wait_for_service(timeout_sec=timeout), "service not available"
+    deadline = time.monotonic() + timeout
+    futures = [client.call_async(request)]
+    while True:
+        remaining = deadline - time.monotonic()
+        step = remaining if resend_after is None else min(resend_after, remaining)
+        if step > 0 and peer.spin_until(lambda: any(f.done() for f in futures), step):
+            return next(f for f in futures if f.done()).result()
+        if resend_after is None or time.monotonic() >= deadline:
+            raise AssertionError(f"no answer from the service within {timeout} s "
+                                 f"({len(futures)} request(s) sent)")
+        futures.append(client.call_async(request))
 
 
 def stamp_of(msg: Any) -> float:

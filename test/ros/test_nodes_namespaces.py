@@ -43,7 +43,7 @@ from mk_tracker.messages.image_conversion import numpy_to_image  # noqa: E402
 from mk_tracker.messages.message_types import ros_message_types  # noqa: E402
 from mk_tracker.ros.launcher import READY_LINES  # noqa: E402
 
-from nodes_harness import (REPO, domain, make_stamp, node_group,  # noqa: E402,F401
+from nodes_harness import (REPO, call_service, domain, make_stamp, node_group,  # noqa: E402,F401
                            peer, reliable_qos)
 
 TYPES = ros_message_types()
@@ -88,10 +88,8 @@ def rgb_frame(cam: str) -> np.ndarray:
 
 
 def call(peer, client, request):
-    assert client.wait_for_service(timeout_sec=ANSWER_TIMEOUT_S), "no parameter service"
-    future = client.call_async(request)
-    assert peer.spin_until(future.done, ANSWER_TIMEOUT_S), "no answer from the service"
-    return future.result()
+    # get / set parameters are idempotent: re-sent until answered (see call_service)
+    return call_service(peer, client, request, ANSWER_TIMEOUT_S, resend_after=5.0)
 
 
 def get_values(peer, node: str, names: list[str]):

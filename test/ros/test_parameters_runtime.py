@@ -35,7 +35,8 @@ from mk_tracker.parameters import parameter_specs  # noqa: E402
 from mk_tracker.ros import detector_node, tracker_node  # noqa: E402
 from mk_tracker.ros.parameter_bridge import ros_name, to_ros_value  # noqa: E402
 
-from nodes_harness import READY_TIMEOUT_S, NodeProcess, Peer, make_stamp, ros_env  # noqa: E402
+from nodes_harness import (READY_TIMEOUT_S, NodeProcess, Peer, call_service,  # noqa: E402
+                           make_stamp, ros_env)
 from quiet_domain import quiet_domain  # noqa: E402
 
 TYPES = ros_message_types()
@@ -105,10 +106,8 @@ def running(request, monkeypatch, tmp_path):
 
 
 def call(peer: Peer, client, request, timeout: float = 60.0):
-    assert client.wait_for_service(timeout_sec=timeout), "parameter service not available"
-    future = client.call_async(request)
-    assert peer.spin_until(future.done, timeout), "no answer from the parameter service"
-    return future.result()
+    # get / set parameters are idempotent: re-sent until answered (see call_service)
+    return call_service(peer, client, request, timeout, resend_after=5.0)
 
 
 def test_every_bad_runtime_value_is_rejected_and_the_old_value_kept(running):
