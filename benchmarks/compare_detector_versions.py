@@ -18,7 +18,6 @@ differs.  Not a test, but the equality check is the one of issue #19's speed wor
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pickle
 import subprocess

@@ -43,7 +43,8 @@ from mk_tracker.detection.kernel_covariance import (_levels_block_covariance, _l
                                           block_variance_levels, compiled_level_kernels,
                                           kernel_table, pixel_kernel_variance,
                                           range_for_variance)
-from mk_tracker.detection.sparse_factorization import (_factorize_block, _factorize_blocks_one_column,
+from mk_tracker.detection.sparse_factorization import (_factorize_block,
+                                             _factorize_blocks_one_column,
                                              compiled_block_factorizer,
                                              compiled_lockstep_factorizer,
                                              sparse_factorize, zero_factor_threshold)
