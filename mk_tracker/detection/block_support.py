@@ -17,8 +17,11 @@ Two paths do the same arithmetic:
 * :func:`_support_loops`, compiled with numba (``nogil``) by :func:`_fused_kernel`: one loop
   over the blocks that reads the detector's ring buffer in place and runs the skip rule,
   (3.5) and Algorithm 1 per block, for integer levels (mono8, mono16) whose range fits the
-  kernel table.  ``MK_TRACKER_NO_NUMBA=1`` selects the reference; tests check both give the
-  same support.
+  kernel table.  With one column (the default) the active blocks wait in batches of
+  ``_LOCKSTEP_BLOCKS`` and Algorithm 1 runs on a batch in lock step
+  (:func:`_factor_waiting`): the same values as one block at a time, faster because the
+  blocks' dependent steps overlap.  ``MK_TRACKER_NO_NUMBA=1`` selects the reference; tests
+  check both give the same support.
 
 The compiled loop embeds the level kernels of :mod:`mk_tracker.detection.kernel_covariance`
 and the block factorizer of :mod:`mk_tracker.detection.sparse_factorization`; numba's disk
@@ -40,7 +43,10 @@ from mk_tracker.detection.kernel_covariance import (_levels_block_covariance, _l
                                           block_variance_levels, compiled_level_kernels,
                                           kernel_table, pixel_kernel_variance,
                                           range_for_variance)
-from mk_tracker.detection.sparse_factorization import (_factorize_block, compiled_block_factorizer,
+from mk_tracker.detection.sparse_factorization import (_factorize_block,
+                                             _factorize_blocks_one_column,
+                                             compiled_block_factorizer,
+                                             compiled_lockstep_factorizer,
                                              sparse_factorize, zero_factor_threshold)
 from mk_tracker.detection.thermal_image import ThermalInputError
 
@@ -224,6 +230,18 @@ def _support_loops(frames, order, offset, listed, rho, table, threshold, max_ran
     sv = np.zeros((n_cols, p))
     norms = np.zeros(n_cols)
     gram = np.zeros((n_cols, n_cols))
+    # one column (the default): active blocks wait in a batch and are factored in lock step
+    lockstep = n_cols == 1
+    batch = _LOCKSTEP_BLOCKS if lockstep else 1
+    sigmas = np.zeros((batch, p, p))
+    factors = np.zeros((batch, p))
+    svs = np.zeros((batch, p))
+    norms_b = np.zeros(batch)
+    changes = np.zeros(batch)
+    done = np.zeros(batch, dtype=np.bool_)
+    variances = np.zeros((batch, p))
+    corners = np.zeros((batch, 2), dtype=np.int64)
+    waiting = 0
     factored = 0
     nby, nbx = listed.shape
     for by in range(nby):
@@ -280,6 +298,18 @@ def _support_loops(frames, order, offset, listed, rho, table, threshold, max_ran
             if not active:
                 continue
             factored += 1
+            if lockstep:
+                _levels_block_covariance(x, table, same, cross, sigmas[waiting])
+                variances[waiting, :] = var
+                corners[waiting, 0] = y0
+                corners[waiting, 1] = x0
+                waiting += 1
+                if waiting == batch:
+                    _factor_waiting(sigmas, factors, svs, waiting, lam, max_cycles, tol,
+                                    norms_b, changes, done, variances, corners, rho,
+                                    support, variance)
+                    waiting = 0
+                continue
             _levels_block_covariance(x, table, same, cross, sigma)
             m[:, :] = 0.0
             # sigma is exactly symmetric (each entry is written to both halves), so it is its
@@ -298,7 +328,37 @@ def _support_loops(frames, order, offset, listed, rho, table, threshold, max_ran
                         if m[i, r] != 0.0:
                             on = True
                     support[y0 + dy, x0 + dx] = on
+    if waiting:
+        _factor_waiting(sigmas, factors, svs, waiting, lam, max_cycles, tol, norms_b, changes,
+                        done, variances, corners, rho, support, variance)
     return factored
+
+#: active one-column blocks factored together (:func:`_factor_waiting`)
+_LOCKSTEP_BLOCKS = 8
+
+
+def _factor_waiting(sigmas, factors, svs, n, lam, max_cycles, tol, norms, changes, done,
+                    variances, corners, rho, support, variance):
+    """Algorithm 1 on the ``n`` waiting blocks (kernel covariances ``sigmas``, top-left
+    corners ``corners``) in lock step (:func:`~mk_tracker.detection.sparse_factorization.
+    _factorize_blocks_one_column`, the same values as one block at a time); writes their
+    support and kernel variances (``variances``) into the frame-sized arrays."""
+    h, w = support.shape
+    factors[:n, :] = 0.0
+    _factorize_blocks_one_column(sigmas, factors, svs, n, lam, max_cycles, tol, norms,
+                                 changes, done)
+    for k in range(n):
+        y0 = corners[k, 0]
+        x0 = corners[k, 1]
+        for dy in range(rho):
+            if y0 + dy >= h:
+                break
+            for dx in range(rho):
+                if x0 + dx >= w:
+                    break
+                i = dy * rho + dx
+                variance[y0 + dy, x0 + dx] = variances[k, i]
+                support[y0 + dy, x0 + dx] = factors[k, i] != 0.0
 
 
 _FUSED: list = []
@@ -316,19 +376,24 @@ def _fused_kernel():
         return None
     import numba
     global _levels_block_variance, _levels_block_covariance, _factorize_block
+    global _factorize_blocks_one_column, _factor_waiting
     _levels_block_variance = level["block_variance"]
     _levels_block_covariance = level["block_covariance"]
     _factorize_block = block
+    _factorize_blocks_one_column = compiled_lockstep_factorizer()
+    _factor_waiting = numba.njit(cache=True, nogil=True)(_factor_waiting)
+    _drop_stale_cache(_factor_waiting, "_factor_waiting")
     kernel = numba.njit(cache=True, nogil=True)(_support_loops)
     _drop_stale_cache(kernel)
     _FUSED.append(kernel)
     return _FUSED[0]
 
 
-def _drop_stale_cache(kernel: Any) -> bool:
+def _drop_stale_cache(kernel: Any, name: str = "_support_loops") -> bool:
     """numba's disk cache of a function is keyed on its own source file only, but the
-    compiled :func:`_support_loops` contains the level kernels and the block factorizer of
-    two other modules: when their source changes, drop its cache (recompiled on first use).
+    compiled :func:`_support_loops` (and :func:`_factor_waiting`, ``name``) contains the
+    level kernels and the block factorizers of two other modules: when their source changes,
+    drop its cache (recompiled on first use).
     The sources' digest is kept next to the cache.  Returns whether the cache was dropped."""
     import hashlib
     from mk_tracker.detection import kernel_covariance
@@ -341,7 +406,7 @@ def _drop_stale_cache(kernel: Any) -> bool:
     cache_path = getattr(cache, "cache_path", None)
     if not cache_path:
         return False                       # no disk cache: nothing can be stale
-    path = os.path.join(cache_path, "block_support._support_loops.deps")
+    path = os.path.join(cache_path, f"block_support.{name}.deps")
     try:
         with open(path, encoding="ascii") as fh:
             if fh.read().strip() == digest.hexdigest():

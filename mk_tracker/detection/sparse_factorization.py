@@ -394,6 +394,60 @@ def _factorize_block_one_column(cols, m, sv, lam, max_cycles, tol):
     return max_cycles, False
 
 
+def _factorize_blocks_one_column(cols, m, sv, n, lam, max_cycles, tol, norm, change, done):
+    """:func:`_factorize_block_one_column` on the first ``n`` blocks of ``cols`` ``(B, p, p)``
+    at once, in lock step: coordinate ``j`` of every block not yet converged, then ``j + 1``.
+    ``m`` ``(B, p)`` holds the factors (zeros on entry, the results on exit); ``sv``
+    ``(B, p)``, ``norm``, ``change`` (``(B,)`` float) and ``done`` (``(B,)`` bool) are
+    scratch arrays.
+
+    Each block goes through exactly the operations of the one-block loop, in the same order
+    (its own ``norm``, ``change`` and stopping test per cycle), so its factor is the same to
+    the last bit; only the blocks are interleaved.  One block's coordinate descent is a
+    chain of dependent steps (a coordinate's ``c1``, ``c2`` need the previous coordinate's
+    root); the steps of independent blocks side by side let the processor overlap those
+    latencies (docs/profile_thermal_detector.md, "Lock-step factorisation")."""
+    p = cols.shape[1]
+    for k in range(n):
+        done[k] = False
+        for mu in range(p):
+            sv[k, mu] = 0.0
+    left = n
+    for _ in range(max_cycles):
+        for k in range(n):
+            if done[k]:
+                continue
+            change[k] = 0.0
+            acc = 0.0
+            for mu in range(p):
+                acc += m[k, mu] * m[k, mu]
+            norm[k] = acc
+        for j in range(p):
+            for k in range(n):
+                if done[k]:
+                    continue
+                col = cols[k, j]
+                sjj = col[j]
+                old = m[k, j]
+                c1 = 2.0 * (norm[k] - old * old) - 2.0 * sjj
+                c2 = -4.0 * (sv[k, j] - sjj * old)
+                new = _minimizer_scalar(c1, c2, lam)
+                change[k] += (new - old) * (new - old)
+                if new != old:
+                    m[k, j] = new
+                    delta = new - old
+                    svk = sv[k]
+                    for mu in range(p):
+                        svk[mu] += col[mu] * delta
+                    norm[k] += new * new - old * old
+        for k in range(n):
+            if not done[k] and np.sqrt(change[k]) <= tol:
+                done[k] = True
+                left -= 1
+        if left == 0:
+            break
+
+
 def _factorize_loops(s, lam, n_cols, max_cycles, tol):
     n_blocks, p, _ = s.shape
     out = np.zeros((n_blocks, p, n_cols))
@@ -427,9 +481,12 @@ def _compiled_kernel():
         _COMPILED.append(None)
         return None
     global _root_scalar, _minimizer_scalar, _factorize_block, _factorize_block_one_column
+    global _factorize_blocks_one_column
     _root_scalar = numba.njit(cache=True, nogil=True)(_root_scalar)
     _minimizer_scalar = numba.njit(cache=True, nogil=True)(_minimizer_scalar)
     _factorize_block_one_column = numba.njit(cache=True, nogil=True)(_factorize_block_one_column)
+    _factorize_blocks_one_column = numba.njit(cache=True, nogil=True)(
+        _factorize_blocks_one_column)
     _factorize_block = numba.njit(cache=True, nogil=True)(_factorize_block)
     kernel = numba.njit(cache=True, nogil=True)(_factorize_loops)
     _COMPILED.append(kernel)
@@ -440,3 +497,10 @@ def compiled_block_factorizer():
     """The numba-compiled :func:`_factorize_block` (one block, scratch arrays passed in), or
     ``None`` when the compiled backend is unavailable."""
     return _factorize_block if _compiled_kernel() is not None else None
+
+
+def compiled_lockstep_factorizer():
+    """The numba-compiled :func:`_factorize_blocks_one_column` (several one-column blocks in
+    lock step, scratch arrays passed in), or ``None`` when the compiled backend is
+    unavailable."""
+    return _factorize_blocks_one_column if _compiled_kernel() is not None else None

@@ -258,6 +258,53 @@ def _call_block(sigma, lam, n_cols, max_cycles, tol):
     return m, int(cycles), bool(converged)
 
 
+@pytest.mark.parametrize("lam,tol,max_cycles", [(0.05, 1e-6, 12), (0.2, 1e-2, 10),
+                                                (0.02, 1e-9, 3)])
+def test_lockstep_factorizer_equals_one_block_at_a_time(lam, tol, max_cycles):
+    """The lock-step factoriser of the detector's block loop gives every block exactly the
+    factor of the one-block loop (bit for bit), also when the blocks stop after different
+    numbers of cycles or hit max_cycles, with fewer blocks than scratch slots; and the
+    numpy reference's factor to 1e-9."""
+    rng = np.random.default_rng(int(lam * 1000) + max_cycles)
+    sigmas = np.concatenate([_random_sigma(rng, 7, 16, 1), 3.0 * _random_sigma(rng, 6, 16, 2),
+                             0.2 * _random_sigma(rng, 6, 16, 3)])
+    lockstep = sf.compiled_lockstep_factorizer() or sf._factorize_blocks_one_column
+    slots = 24
+    m = np.zeros((slots, 16))
+    lockstep(np.ascontiguousarray(sigmas.transpose(0, 2, 1)), m, np.zeros((slots, 16)),
+             sigmas.shape[0], lam, max_cycles, tol, np.zeros(slots), np.zeros(slots),
+             np.zeros(slots, dtype=bool))
+    cycles = set()
+    for b in range(sigmas.shape[0]):
+        one, c, _ = _call_block(sigmas[b], lam, 1, max_cycles, tol)
+        cycles.add(c)
+        np.testing.assert_array_equal(m[b], one[:, 0])
+    assert len(cycles) > 1                      # blocks stopped at different cycles
+    assert np.count_nonzero(m) > 10
+    assert not m[sigmas.shape[0]:].any()         # slots beyond n untouched
+    ref = sparse_factorize(sigmas, lam, columns=1, max_cycles=max_cycles, tol=tol,
+                           backend="numpy")
+    np.testing.assert_allclose(m[:sigmas.shape[0]], ref.factors[:, :, 0], atol=1e-9)
+
+
+def test_plain_lockstep_factorizer_equals_the_compiled_one():
+    """The Python source of the lock-step loop (what numba compiles) run uncompiled gives
+    the compiled result: the two cannot drift apart."""
+    compiled = sf.compiled_lockstep_factorizer()
+    if compiled is None:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(7)
+    sigmas = _random_sigma(rng, 5, 9, 2)
+    outs = []
+    for fn in (compiled, compiled.py_func):
+        m = np.zeros((5, 9))
+        fn(sigmas, m, np.zeros((5, 9)), 5, 0.03, 10, 1e-6, np.zeros(5), np.zeros(5),
+           np.zeros(5, dtype=bool))
+        outs.append(m)
+    assert np.count_nonzero(outs[0]) > 5
+    np.testing.assert_array_equal(outs[0], outs[1])
+
+
 @pytest.mark.parametrize("n_cols", [1, 2])
 def test_fused_block_factorizer_cycle_count_by_hand(n_cols):
     m, cycles, converged = _call_block(np.diag([4.0, 1.0]), 0.0, n_cols, 10, 1e-9)

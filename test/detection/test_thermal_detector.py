@@ -301,6 +301,26 @@ def test_compiled_support_equals_the_numpy_reference(h, w, offset):
         support_in_frame(window, cfg, 1 / 255, False, backend="compiled")
 
 
+def test_compiled_support_with_many_active_blocks_equals_the_numpy_reference():
+    """More active blocks than the lock-step batch holds, and not a multiple of it: full
+    batches and the last partial one are factored and written where their blocks are."""
+    from mk_tracker.detection.block_support import (_LOCKSTEP_BLOCKS, _fused_kernel,
+                                                    support_in_frame)
+    if _fused_kernel() is None:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(11)
+    cfg = ThermalDetectorConfig()
+    window = _moving_blob_levels(rng, 4, 62, 70)
+    window[:, 40:56, 10:50] = rng.integers(20, 230, size=(4, 16, 40))    # busy patch
+    ref = support_in_frame(window, cfg, 1 / 255, True, backend="numpy")
+    fast = support_in_frame(window, cfg, 1 / 255, True, backend="compiled")
+    assert ref.blocks_factored > 3 * _LOCKSTEP_BLOCKS
+    assert ref.blocks_factored % _LOCKSTEP_BLOCKS != 0
+    assert fast.blocks_factored == ref.blocks_factored
+    np.testing.assert_array_equal(fast.support, ref.support)
+    np.testing.assert_allclose(fast.variance, ref.variance, atol=1e-6)
+
+
 def test_compiled_detector_equals_the_numpy_reference(monkeypatch):
     """Whole detector, 5 people at 320x240: the compiled support loop, support ownership and
     footprint flood fill give exactly the detections of the numpy/OpenCV reference
