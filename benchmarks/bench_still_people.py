@@ -153,6 +153,33 @@ def run_ours(bag: Path, out: Path, config) -> tuple[list, list]:
     return tracks, [(ns, dets.get(ns, [])) for ns in stamps]
 
 
+def config_with(sets: list[str]):
+    """The pipeline configuration with ``--set name=value`` tracker overrides."""
+    base = load_pipeline_config()
+    if not sets:
+        return base
+    return replace(base, tracker=updated(base.tracker, {
+        n: yaml.safe_load(v) for n, _, v in (i.partition("=") for i in sets)}))
+
+
+def scene_bags(args, tmp: Path):
+    """``(seed, mode, bag, truth, stills)`` for each seed of ``args`` and each of its modes:
+    the scene with people who stop, written as a bag (thermal-only: a copy without the RGB
+    topic), its ground truth per frame and each stopper's still frames."""
+    for seed in args.seeds:
+        scene = crowd_scene(args.people, seed=seed, frames=args.frames,
+                            stop_fraction=args.stop_fraction)
+        truth, stills = scene_truth(scene), still_frames(scene)
+        bag = tmp / f"scene_{seed}"
+        write_scene_bag(scene, bag, preset="crowd")
+        for mode in args.modes:
+            src = bag
+            if mode == "thermal-only":
+                src = tmp / f"thermal_{seed}"
+                thermal_only_copy(bag, src)
+            yield seed, mode, src, truth, stills
+
+
 def main(argv: list[str] | None = None) -> int:
     from peers.sort_tracker import SortTracker
 
@@ -171,50 +198,37 @@ def main(argv: list[str] | None = None) -> int:
                         help="skip the 'recovery off' configuration (parameter sweeps)")
     args = parser.parse_args(argv)
 
-    base = load_pipeline_config()
-    if args.set:
-        base = replace(base, tracker=updated(base.tracker, {
-            n: yaml.safe_load(v) for n, _, v in (i.partition("=") for i in args.set)}))
+    base = config_with(args.set)
     no_recovery = replace(base, tracker=replace(
         base.tracker, recovery=replace(base.tracker.recovery, enabled=False)))
     results: dict[tuple[str, str], list] = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        for seed in args.seeds:
-            scene = crowd_scene(args.people, seed=seed, frames=args.frames,
-                                stop_fraction=args.stop_fraction)
-            truth, stills = scene_truth(scene), still_frames(scene)
-            bag = tmp / f"scene_{seed}"
-            write_scene_bag(scene, bag, preset="crowd")
-            for mode in args.modes:
-                src = bag
-                if mode == "thermal-only":
-                    src = tmp / f"thermal_{seed}"
-                    thermal_only_copy(bag, src)
-                runs = [("defaults", base)]
-                if not args.no_recovery_off:
-                    runs.append(("recovery off", no_recovery))
-                peer_dets = None
-                for name, config in runs:
-                    tracks, dets = run_ours(src, tmp / f"run_{seed}_{mode}_{name}".replace(
-                        " ", "_"), config)
-                    peer_dets = peer_dets or dets
-                    results.setdefault((mode, name), []).append(
-                        (seed, still_figures(truth, tracks, stills),
-                         scene_metrics(truth, tracks)))
-                if not args.no_peer:
-                    peer = SortTracker()
-                    tracks = [peer.update(ns * 1e-9, d) for ns, d in peer_dets]
-                    results.setdefault((mode, "SORT-style peer"), []).append(
-                        (seed, still_figures(truth, tracks, stills),
-                         scene_metrics(truth, tracks)))
-                for name in ("defaults", "recovery off", "SORT-style peer"):
-                    if (mode, name) in results:
-                        seed_, rows, m = results[(mode, name)][-1]
-                        print(f"seed {seed_} {mode} {name}: mota {m['mota']:.3f} idf1 "
-                              f"{m['idf1']:.3f} " + " ".join(
-                                  f"p{r['person']}:{r['frames']}f cov {r['covered']:.2f} "
-                                  f"same {r['same_id']:.2f}" for r in rows), flush=True)
+        for seed, mode, src, truth, stills in scene_bags(args, tmp):
+            runs = [("defaults", base)]
+            if not args.no_recovery_off:
+                runs.append(("recovery off", no_recovery))
+            peer_dets = None
+            for name, config in runs:
+                tracks, dets = run_ours(src, tmp / f"run_{seed}_{mode}_{name}".replace(
+                    " ", "_"), config)
+                peer_dets = peer_dets or dets
+                results.setdefault((mode, name), []).append(
+                    (seed, still_figures(truth, tracks, stills),
+                     scene_metrics(truth, tracks)))
+            if not args.no_peer:
+                peer = SortTracker()
+                tracks = [peer.update(ns * 1e-9, d) for ns, d in peer_dets]
+                results.setdefault((mode, "SORT-style peer"), []).append(
+                    (seed, still_figures(truth, tracks, stills),
+                     scene_metrics(truth, tracks)))
+            for name in ("defaults", "recovery off", "SORT-style peer"):
+                if (mode, name) in results:
+                    seed_, rows, m = results[(mode, name)][-1]
+                    print(f"seed {seed_} {mode} {name}: mota {m['mota']:.3f} idf1 "
+                          f"{m['idf1']:.3f} " + " ".join(
+                              f"p{r['person']}:{r['frames']}f cov {r['covered']:.2f} "
+                              f"same {r['same_id']:.2f}" for r in rows), flush=True)
     command = "nice -n 10 .venv/bin/python benchmarks/bench_still_people.py " + shlex.join(
         argv if argv is not None else sys.argv[1:])
     print(f"\n{command.rstrip()}\n")

@@ -32,24 +32,18 @@ import argparse
 import sys
 import tempfile
 from collections import Counter
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_still_people import (MIN_VISIBLE, covering_id, scene_truth, still_frames,  # noqa
-                                thermal_only_copy)
+from bench_still_people import (MIN_VISIBLE, config_with, covering_id,  # noqa: E402
+                                scene_bags)
 from mk_tracker.boxes import iou  # noqa: E402
-from mk_tracker.parameters import updated  # noqa: E402
-from mk_tracker.synthetic.presets import crowd_scene  # noqa: E402
-from mk_tracker.synthetic.scene_bag import write_scene_bag  # noqa: E402
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
-from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking import multi_object_tracker as mot  # noqa: E402
 
 
@@ -138,29 +132,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     parser.add_argument("--verbose", action="store_true")
     args = parser.parse_args(argv)
-    config = load_pipeline_config()
-    if args.set:
-        config = replace(config, tracker=updated(config.tracker, {
-            n: yaml.safe_load(v) for n, _, v in (i.partition("=") for i in args.set)}))
+    config = config_with(args.set)
     totals: dict[str, Counter] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
-        for seed in args.seeds:
-            scene = crowd_scene(args.people, seed=seed, frames=args.frames,
-                                stop_fraction=args.stop_fraction)
-            truth, stills = scene_truth(scene), still_frames(scene)
-            bag = tmp / f"scene_{seed}"
-            write_scene_bag(scene, bag, preset="crowd")
-            for mode in args.modes:
-                src = bag
-                if mode == "thermal-only":
-                    src = tmp / f"thermal_{seed}"
-                    thermal_only_copy(bag, src)
-                print(f"seed {seed} {mode}")
-                frames = recorded_run(src, tmp / f"run_{seed}_{mode}", config)
-                c = classify(truth, frames, stills, args.verbose)
-                print(f"  {dict(c)}")
-                totals.setdefault(mode, Counter()).update(c)
+        for seed, mode, src, truth, stills in scene_bags(args, Path(tmp)):
+            print(f"seed {seed} {mode}")
+            frames = recorded_run(src, Path(tmp) / f"run_{seed}_{mode}", config)
+            c = classify(truth, frames, stills, args.verbose)
+            print(f"  {dict(c)}")
+            totals.setdefault(mode, Counter()).update(c)
     for mode, c in totals.items():
         print(f"{mode}: {dict(c)}")
     return 0
