@@ -45,7 +45,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -63,6 +62,7 @@ from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking.association import assign  # noqa: E402
 from bench_thermal_detector import centroid_cost  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 VARIANTS = ("as is", "truth box", "truth box, one person", "truth size")
 DETECTIONS_TOPIC = "/box_quality/detections"
@@ -192,9 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     base = load_pipeline_config()
     detector_config = base.detector
     if args.set:
-        detector_config = updated(detector_config, {
-            name: yaml.safe_load(value)
-            for name, _, value in (item.partition("=") for item in args.set)})
+        detector_config = updated(detector_config, setting_changes(args.set))
     print("| size | people | seed | matched | IoU median thermal / RGB | IoU >= 0.5 thermal / "
           "RGB | height ratio | width ratio | top missing | bottom missing | side missing "
           "| covers 2+ | one person: matched | IoU median | IoU >= 0.5 | height ratio | width "

@@ -49,7 +49,7 @@ from mk_tracker.tracking.duplicate_tracks import stacked_pairs  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker  # noqa: E402
 from mk_tracker.tracking.track import OUTPUT_STATES  # noqa: E402
 from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig  # noqa: E402
-from setting_values import setting_value as _value  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 
 class RecordingTracker(MultiObjectTracker):
@@ -221,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="captured tracker inputs (as diagnose_reacquire.py --cache)")
     parser.add_argument("--born-iou", type=float, default=0.3)
     args = parser.parse_args(argv)
-    changes = {n: _value(v) for n, _, v in (s.partition("=") for s in args.set)}
+    changes = setting_changes(args.set)
     if args.cache is not None and args.cache.is_file():
         with open(args.cache, "rb") as fh:
             inputs, _ = pickle.load(fh)

@@ -32,7 +32,7 @@ import bench_single_target as bst  # noqa: E402
 from mk_tracker.boxes import iou  # noqa: E402
 from mk_tracker.parameters import updated  # noqa: E402
 from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig  # noqa: E402
-from setting_values import setting_value  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 
 def border_side(box, width: int, margin: float) -> str:
@@ -59,11 +59,7 @@ def main(argv=None) -> int:
     p.add_argument("--sequences", default="")
     p.add_argument("--frames", action="store_true")
     args = p.parse_args(argv)
-    changes = {}
-    for item in args.set:
-        name, value = item.split("=", 1)
-        changes[name] = setting_value(value)
-    config = updated(MultiObjectTrackerConfig(), changes)
+    config = updated(MultiObjectTrackerConfig(), setting_changes(args.set))
     peers = [("ours", bst.full_tracker_factory(config))]
     csrt = bst._contrib("CSRT")
     if csrt is not None:

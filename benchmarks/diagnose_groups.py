@@ -33,7 +33,6 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -45,6 +44,7 @@ from mk_tracker.parameters import updated  # noqa: E402
 from mk_tracker.synthetic.scene_bag import build_preset  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking.association import assign  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 MISS_CAUSES = ("merged, centre in box", "merged, box covers", "partial overlap",
                "no detection near")
@@ -135,8 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     config = load_pipeline_config().detector
     if args.set:
-        config = updated(config, {name: yaml.safe_load(value) for name, _, value in
-                                  (item.partition("=") for item in args.set)})
+        config = updated(config, setting_changes(args.set))
     print("| size | people | recall | precision | pass | " + " | ".join(MISS_CAUSES)
           + " | " + " | ".join(f"extra: {c}" for c in EXTRA_CAUSES) + " |")
     print("|---|---:|---:|---:|---|" + "---:|" * (len(MISS_CAUSES) + len(EXTRA_CAUSES)))

@@ -51,7 +51,7 @@ from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker  # noqa: E402
 from mk_tracker.tracking.track import TrackState  # noqa: E402
-from setting_values import setting_value as _value  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 DEFAULT_CLIP = ROOT.parent / "shared" / "data" / "thermal" / "BU-TIV-lab" / "BU-TIV-lab.mp4"
 COUNTER_REGION = (0.0, 0.0, 110.0, 50.0)
@@ -298,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.clip.exists():
         print(f"{args.clip} not found", file=sys.stderr)
         return 1
-    changes = {n: _value(v) for n, _, v in (s.partition("=") for s in args.set)}
+    changes = setting_changes(args.set)
     if args.cache is not None and args.cache.is_file():
         with open(args.cache, "rb") as fh:
             inputs, piped = pickle.load(fh)
@@ -314,7 +314,7 @@ def main(argv: list[str] | None = None) -> int:
     if rows is not None:
         print(table(rows), flush=True)
     for item in args.sweep:
-        extra = {n: _value(v) for n, _, v in (s.partition("=") for s in item.split(";"))}
+        extra = setting_changes(item.split(";"))
         f, _ = replay(inputs, {**changes, **extra})
         print(_line(item, f), flush=True)
     return 0

@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from mk_tracker.parameters import updated  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker  # noqa: E402
 from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig  # noqa: E402
-from setting_values import setting_value as _value  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 
 class LoggingTracker(MultiObjectTracker):
@@ -196,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-tracks", type=int, default=3)
     parser.add_argument("--max-rows", type=int, default=400)
     args = parser.parse_args(argv)
-    changes = {n: _value(v) for n, _, v in (s.partition("=") for s in args.set)}
+    changes = setting_changes(args.set)
     return lab(args, changes) if args.mode == "lab" else single(args, changes)
 
 

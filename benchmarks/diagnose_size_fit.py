@@ -32,7 +32,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -47,6 +46,7 @@ from mk_tracker.messages.image_conversion import image_to_numpy  # noqa: E402
 from mk_tracker.parameters import updated  # noqa: E402
 from mk_tracker.synthetic.scene_bag import build_preset  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 PATHS = {"size split": {"split_by_person_size": True},
          "cluster split": {"split_clusters": True}}
@@ -107,8 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     cfg = load_pipeline_config()
     base = replace(cfg.detector, size_max_residual=100.0, size_min_samples=2.5)
-    base = updated(base, {n: yaml.safe_load(v) for n, _, v in
-                          (s.partition("=") for s in args.set)})
+    base = updated(base, setting_changes(args.set))
     rows = []
 
     def run(label: str, frames_of, regions=()) -> None:
