@@ -153,13 +153,18 @@ def run_ours(bag: Path, out: Path, config) -> tuple[list, list]:
     return tracks, [(ns, dets.get(ns, [])) for ns in stamps]
 
 
-def config_with(sets: list[str]):
-    """The pipeline configuration with ``--set name=value`` tracker overrides."""
+def config_with(sets: list[str], detector_sets: list[str] = ()):
+    """The pipeline configuration with ``--set name=value`` tracker overrides and
+    ``--set-detector name=value`` detector overrides."""
     base = load_pipeline_config()
-    if not sets:
-        return base
-    return replace(base, tracker=updated(base.tracker, {
-        n: yaml.safe_load(v) for n, _, v in (i.partition("=") for i in sets)}))
+
+    def changes(items):
+        return {n: yaml.safe_load(v) for n, _, v in (i.partition("=") for i in items)}
+    if sets:
+        base = replace(base, tracker=updated(base.tracker, changes(sets)))
+    if detector_sets:
+        base = replace(base, detector=updated(base.detector, changes(detector_sets)))
+    return base
 
 
 def scene_bags(args, tmp: Path):
@@ -192,13 +197,15 @@ def main(argv: list[str] | None = None) -> int:
                         choices=["thermal+rgb", "thermal-only"])
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                         help="override a tracker parameter (YAML value) in every run")
+    parser.add_argument("--set-detector", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="override a detector parameter (YAML value) in every run")
     parser.add_argument("--no-peer", action="store_true", help="skip the SORT-style peer")
     parser.add_argument("--detail", action="store_true", help="print every stopper's row")
     parser.add_argument("--no-recovery-off", action="store_true",
                         help="skip the 'recovery off' configuration (parameter sweeps)")
     args = parser.parse_args(argv)
 
-    base = config_with(args.set)
+    base = config_with(args.set, args.set_detector)
     no_recovery = replace(base, tracker=replace(
         base.tracker, recovery=replace(base.tracker.recovery, enabled=False)))
     results: dict[tuple[str, str], list] = {}

@@ -20,8 +20,8 @@ import numpy as np
 from mk_tracker.detection.block_support import SupportResult
 from mk_tracker.detection.footprint import (_UNSET, _VoronoiCell, _median, _owned_support,
                                             _similarity_radius)
-from mk_tracker.detection.person_size import (is_person_shaped, people_in_width,
-                                              split_columns)
+from mk_tracker.detection.person_size import (is_person_shaped, parts_are_people,
+                                              people_in_width, split_columns)
 from mk_tracker.detection.pixel_clustering import describe_parts, describe_pixels, valley_split
 
 __all__ = ["FootprintSplitting"]
@@ -125,7 +125,9 @@ class FootprintSplitting:
         bottom row (:mod:`mk_tracker.detection.person_size`): one per person side by side,
         cut at the emptiest columns; one detection, as :meth:`_candidate` gives it, while
         the footprint is no wider than ``split_ratio`` persons or no size is known (not yet
-        learnt, or refused by the size check: ``size_max_residual``)."""
+        learnt, or refused by the size check: ``size_max_residual``), and while a part is
+        shorter than ``min_part_height_fraction`` expected heights at its own row
+        (:func:`~mk_tracker.detection.person_size.parts_are_people`)."""
         c = self.config
         fp = self._group_footprint(frame, result, rows, cols, bounds, footprint)
         if fp is None:
@@ -153,6 +155,9 @@ class FootprintSplitting:
                 continue
             part = describe_pixels(pc + x0 + first + a, pr + y0)
             out.append(_Candidate(part.centroid, part.box, score, part.pixel_count, *levels))
+        if len(out) > 1 and not parts_are_people([p.box for p in out], self.heights.height_at,
+                                                 c.min_part_height_fraction):
+            return [_Candidate(now.centroid, now.box, score, now.pixel_count, *levels)]
         return out
 
     def _valley_parts(self, frame: np.ndarray, footprint: tuple[tuple[int, int], np.ndarray]

@@ -15,6 +15,8 @@ than one person at its row is a group:
   docs/benchmark_groups.md);
 * :func:`people_in_width` says how many people a region of a given width holds
   (``round(width / expected width)`` once it is ``split_ratio`` expected widths wide);
+* :func:`parts_are_people` (``detector.min_part_height_fraction``, off by default) keeps a
+  split only when every part is as tall as a person at its own row;
 * :func:`projection_cuts` cuts the region at the emptiest columns of its mask (the vertical
   projection) near the evenly spaced positions; :func:`split_columns` takes one person
   fewer while a part would be narrower than a person.
@@ -27,11 +29,12 @@ use them the same way.
 from __future__ import annotations
 
 import math
+from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["PersonHeightModel", "is_person_shaped", "people_in_width", "projection_cuts",
-           "split_columns"]
+__all__ = ["PersonHeightModel", "is_person_shaped", "parts_are_people", "people_in_width",
+           "projection_cuts", "split_columns"]
 
 
 class PersonHeightModel:
@@ -135,6 +138,22 @@ def people_in_width(width: float, expected_width: float, split_ratio: float) -> 
     if not expected_width > 0 or width <= split_ratio * expected_width:
         return 1
     return max(2, int(round(width / expected_width)))
+
+
+def parts_are_people(boxes: Sequence[Sequence[float]],
+                     height_at: Callable[[float], float | None], fraction: float) -> bool:
+    """Whether every part box ``(x, y, w, h)`` of a split is a whole person: at least
+    ``fraction`` of the expected height ``height_at(y + h)`` at its *own* bottom row.  A
+    part whose row has no expected height is not one.  ``fraction`` 0 accepts every split.
+    Not in the paper: a guard on the size split for scenes where the width rule cuts a
+    near person's body or a far person's head into pieces (docs/benchmark_groups.md)."""
+    if fraction <= 0.0:
+        return True
+    for _, y, _, h in boxes:
+        expected = height_at(float(y) + float(h))
+        if expected is None or float(h) < fraction * expected:
+            return False
+    return True
 
 
 def projection_cuts(columns: np.ndarray, people: int) -> list[int]:

@@ -105,6 +105,11 @@ class ThermalDetectorConfig:
         0.6, "split_by_person_size: a part narrower than this fraction of the expected "
         "person width is not a person (a limb): the footprint is cut into one person fewer",
         minimum=0.0, maximum=1.0)
+    min_part_height_fraction: float = parameter(
+        0.0, "split_by_person_size: the split is kept only when every part is at least this "
+        "fraction of the expected person height at its own bottom row, else the footprint "
+        "stays whole (0: no check; not in the paper; docs/benchmark_groups.md)",
+        minimum=0.0, maximum=1.0)
     group_recheck_frames: int = parameter(
         5, "split_by_person_size: when a tracking pass finds a footprint as wide as several "
         "people, the next full-frame pass (which splits it) runs this many frames after the "

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
-                                              people_in_width, projection_cuts, split_columns)
+                                              parts_are_people, people_in_width,
+                                              projection_cuts, split_columns)
 
 
 def test_person_shape_is_an_upright_box_near_the_aspect():
@@ -198,3 +199,49 @@ def test_the_size_split_stops_while_the_height_fit_is_refused(max_residual):
     spread = det.heights.relative_residual()
     assert 0.5 < spread < 0.75
     assert len(last) == {0.1: 3, 100.0: 4}[max_residual]     # the pair: one, or two
+
+
+def test_parts_are_people_only_when_each_is_a_persons_height_at_its_own_row():
+    flat = lambda y: 40.0                                        # noqa: E731
+    assert parts_are_people([(0, 0, 16, 40), (16, 5, 16, 35)], flat, 0.8)   # 35 >= 32
+    assert not parts_are_people([(0, 0, 16, 40), (16, 10, 16, 30)], flat, 0.8)  # 30 < 32
+    assert parts_are_people([(0, 0, 16, 40), (16, 30, 16, 2)], flat, 0.0)   # 0: no check
+    assert not parts_are_people([(0, 0, 16, 40)], lambda y: None, 0.5)      # no size known
+    # the expected height is read at each part's own bottom row: h = y_bottom / 2
+    rows = lambda y: y / 2.0                                     # noqa: E731
+    assert parts_are_people([(0, 60, 10, 40)], rows, 0.8)         # 40 >= 0.8 * 50
+    assert not parts_are_people([(0, 100, 10, 40)], rows, 0.8)    # 40 < 0.8 * 70
+
+
+@pytest.mark.parametrize("fraction, expected", [(0.0, 4), (0.4, 4), (0.8, 3)])
+def test_a_split_with_a_part_shorter_than_a_person_keeps_the_footprint_whole(fraction,
+                                                                            expected):
+    """The split scene above, but the right member of the touching pair is 20 px tall (its
+    lower body only) beside a 40 px person whose feet are on the same row: the cut at
+    column 16 gives parts 40 and 20 px tall, against 40 px expected at that row.  20 >=
+    0.4 * 40 keeps the split (4 detections); 20 < 0.8 * 40 keeps the pair one (3)."""
+    from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
+
+    config = dataclasses.replace(ThermalDetectorConfig(), split_by_person_size=True,
+                                 person_aspect=0.4, split_ratio=1.5, reconfigure_period=5,
+                                 min_part_height_fraction=fraction)
+    det = ThermalDetector(config)
+    rng = np.random.default_rng(0)
+    base = rng.integers(40, 60, (200, 320)).astype(np.uint8)
+    for i in range(40):
+        f = base.copy()
+        x = 2 * i
+        for x0, y0 in [(10, 20), (10, 120), (150, 70)]:
+            f[y0 + 10:y0 + 40, x0 + x:x0 + x + 16] = 200      # body
+            f[y0:y0 + 10, x0 + x + 4:x0 + x + 12] = 200       # head
+        f[90:110, 166 + x:182 + x] = 200                       # the short member, feet at 110
+        out = det.process(f, i * 0.04, "mono8")
+        if det.last_mode == "reconfiguration":
+            last, shift = out, x
+    assert det.heights.height_at(110.0) == pytest.approx(40.0, abs=2.0)
+    assert len(last) == expected
+    pair = [d for d in last if 150 <= d.centroid[0] - shift <= 200]
+    if expected == 4:
+        assert sorted(round(d.box[3]) for d in pair) == [20, 40]
+    else:
+        assert len(pair) == 1 and round(pair[0].box[2]) == 32 and round(pair[0].box[3]) == 40
