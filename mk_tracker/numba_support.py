@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 from types import ModuleType
+from typing import Callable
 
 DISABLE_VARIABLE = "MK_TRACKER_NO_NUMBA"
 #: Measured slow-down of the numpy fallback (module docstring), for the start-up warning.
@@ -44,3 +45,41 @@ def fallback_warning() -> str | None:
         return None
     return (f"compiled (numba) kernels unavailable ({reason}): using the numpy fallback, "
             f"slower ({FALLBACK_SLOWDOWN}); install python3-numba or pip install numba")
+
+
+_BIT_CASTS: list = []
+
+
+def register_bit_casts(float_bits: Callable, bits_float: Callable) -> None:
+    """Compile the plain-Python bit casts ``float_bits`` (a float64's bit pattern as an
+    int64) and ``bits_float`` (the reverse) to an LLVM ``bitcast`` (no arithmetic) in numba
+    code, for compiled functions that read a double's exponent bits
+    (:func:`mk_tracker.detection.sparse_factorization._cube_root`); the Python functions
+    stay what Python calls.  Once per process; needs numba."""
+    if _BIT_CASTS:
+        return
+    numba = import_numba()
+    from llvmlite import ir
+    from numba.extending import intrinsic, overload
+
+    @intrinsic
+    def to_bits(typingctx, x):
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], ir.IntType(64))
+        return numba.types.int64(numba.types.float64), codegen
+
+    @intrinsic
+    def from_bits(typingctx, i):
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], ir.DoubleType())
+        return numba.types.float64(numba.types.int64), codegen
+
+    @overload(float_bits)
+    def _float_bits_impl(x):
+        return lambda x: to_bits(x)
+
+    @overload(bits_float)
+    def _bits_float_impl(i):
+        return lambda i: from_bits(i)
+
+    _BIT_CASTS.append(True)

@@ -238,7 +238,8 @@ def _support_loops(frames, order, offset, listed, rho, table, threshold, max_ran
     svs = np.zeros((batch, p))
     norms_b = np.zeros(batch)
     changes = np.zeros(batch)
-    done = np.zeros(batch, dtype=np.bool_)
+    live = np.zeros(batch, dtype=np.int64)
+    coef = np.zeros((5, batch))
     variances = np.zeros((batch, p))
     corners = np.zeros((batch, 2), dtype=np.int64)
     waiting = 0
@@ -306,8 +307,8 @@ def _support_loops(frames, order, offset, listed, rho, table, threshold, max_ran
                 waiting += 1
                 if waiting == batch:
                     _factor_waiting(sigmas, factors, svs, waiting, lam, max_cycles, tol,
-                                    norms_b, changes, done, variances, corners, rho,
-                                    support, variance)
+                                    norms_b, changes, live, coef, variances, corners,
+                                    rho, support, variance)
                     waiting = 0
                 continue
             _levels_block_covariance(x, table, same, cross, sigma)
@@ -330,15 +331,15 @@ def _support_loops(frames, order, offset, listed, rho, table, threshold, max_ran
                     support[y0 + dy, x0 + dx] = on
     if waiting:
         _factor_waiting(sigmas, factors, svs, waiting, lam, max_cycles, tol, norms_b, changes,
-                        done, variances, corners, rho, support, variance)
+                        live, coef, variances, corners, rho, support, variance)
     return factored
 
 #: active one-column blocks factored together (:func:`_factor_waiting`)
-_LOCKSTEP_BLOCKS = 8
+_LOCKSTEP_BLOCKS = 16
 
 
-def _factor_waiting(sigmas, factors, svs, n, lam, max_cycles, tol, norms, changes, done,
-                    variances, corners, rho, support, variance):
+def _factor_waiting(sigmas, factors, svs, n, lam, max_cycles, tol, norms, changes, live,
+                    coef, variances, corners, rho, support, variance):
     """Algorithm 1 on the ``n`` waiting blocks (kernel covariances ``sigmas``, top-left
     corners ``corners``) in lock step (:func:`~mk_tracker.detection.sparse_factorization.
     _factorize_blocks_one_column`, the same values as one block at a time); writes their
@@ -346,7 +347,7 @@ def _factor_waiting(sigmas, factors, svs, n, lam, max_cycles, tol, norms, change
     h, w = support.shape
     factors[:n, :] = 0.0
     _factorize_blocks_one_column(sigmas, factors, svs, n, lam, max_cycles, tol, norms,
-                                 changes, done)
+                                 changes, live, coef)
     for k in range(n):
         y0 = corners[k, 0]
         x0 = corners[k, 1]

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mk_tracker.numba_support import import_numba
+from mk_tracker.numba_support import import_numba, register_bit_casts
 
 
 class FactorizationError(ValueError):
@@ -56,18 +56,85 @@ def coordinate_cost(h: np.ndarray, c1: np.ndarray, c2: np.ndarray, lam: float) -
     return h2 * h2 + c1 * h2 + c2 * h + lam * np.abs(h)
 
 
+#: Seed of :func:`cube_root`: dividing the bit pattern of a positive double by 3 divides
+#: its exponent by 3 (and scales its mantissa bits); the bias ``1023`` then needs
+#: ``1023 - 1023 / 3`` added back, less 0.033 (in units of the exponent's lowest bit) to
+#: centre the linear mantissa's relative error (at most 3.2 %).  ``(715094163 << 32)`` is
+#: ``(1023 - 1023 / 3 - 0.0330624) * 2^52`` rounded to the upper word.
+_CUBE_ROOT_SEED = 715094163 << 32
+#: Range of :func:`_cube_root`'s own arithmetic: there ``y^3``, ``y (y^3 + 2a)`` (about
+#: ``a^(4/3)``) neither overflow nor underflow; beyond it, ``np.cbrt``.
+_ROOT_LOW = 2.0 ** -600
+_ROOT_HIGH = 2.0 ** 600
+
+
+def _float_bits(x):
+    """The IEEE-754 bit pattern of a double as an int64 (a bit cast when compiled:
+    :func:`mk_tracker.numba_support.register_bit_casts`)."""
+    return int(np.float64(x).view(np.int64))
+
+
+def _bits_float(i):
+    """The double whose bit pattern is the int64 ``i`` (a bit cast when compiled)."""
+    return float(np.int64(i).view(np.float64))
+
+
+def _cube_root(w):
+    """Real cube root of a double, for the Cardano branch of :func:`_root_scalar`.
+
+    The libm ``cbrt`` is an opaque call of about 20 ns, and Algorithm 1 takes one per
+    coordinate step that needs a root (docs/profile_thermal_detector.md); this is the same
+    root from arithmetic the compiler inlines: a seed from the bit pattern
+    (:data:`_CUBE_ROOT_SEED`, relative error <= 3.2 %), then three Halley steps
+    ``y <- y (y^3 + 2a) / (2 y^3 + a)`` for ``a = |w|`` (cubic convergence; largest
+    relative error over 2e6 inputs 3.2e-2, 2.1e-5, 6.4e-15, 4.4e-16), within 3 units in the
+    last place of ``cbrt``.  Cardano's root is then
+    polished by a Newton step on the cubic, so these last bits do not matter.  Inputs with
+    ``|w|`` outside ``[2^-600, 2^600]`` (where the steps could overflow or underflow; also
+    zero, infinities and NaN) go to ``np.cbrt``.  :func:`cube_root` is the same
+    arithmetic on arrays (bit for bit)."""
+    a = abs(w)
+    if not (a >= _ROOT_LOW and a <= _ROOT_HIGH):
+        return np.cbrt(w)
+    y = _bits_float(_float_bits(a) // 3 + _CUBE_ROOT_SEED)
+    y3 = y * y * y
+    y = y * (y3 + 2.0 * a) / (2.0 * y3 + a)
+    y3 = y * y * y
+    y = y * (y3 + 2.0 * a) / (2.0 * y3 + a)
+    y3 = y * y * y
+    y = y * (y3 + 2.0 * a) / (2.0 * y3 + a)
+    return y if w > 0 else -y
+
+
+def cube_root(w: np.ndarray) -> np.ndarray:
+    """:func:`_cube_root` elementwise on a float64 array (the same operations, so the same
+    bits as the compiled scalar)."""
+    w = np.asarray(w, dtype=np.float64)
+    a = np.abs(w)
+    normal = (a >= _ROOT_LOW) & (a <= _ROOT_HIGH)
+    a = np.where(normal, a, 1.0)
+    y = (a.view(np.int64) // 3 + np.int64(_CUBE_ROOT_SEED)).view(np.float64)
+    for _ in range(3):
+        y3 = y * y * y
+        y = y * (y3 + 2.0 * a) / (2.0 * y3 + a)
+    y = np.where(w > 0, y, -y)
+    with np.errstate(invalid="ignore"):
+        return np.where(normal, y, np.cbrt(np.where(normal, 0.0, w)))
+
+
 def largest_real_root(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Largest real root of ``y^3 + p y + q = 0``, vectorised (float64 arrays of one shape).
 
     One real root (discriminant ``D = (q/2)^2 + (p/3)^3 > 0``): Cardano in the form
-    ``u - p/(3u)`` with ``u = cbrt(-q/2 - sign(q) sqrt(D))``, which avoids cancellation.
+    ``u - p/(3u)`` with ``u = cbrt(-q/2 - sign(q) sqrt(D))``, which avoids cancellation
+    (the cube root of :func:`cube_root`, the one the compiled loops use).
     Three real roots (``D <= 0``, so ``p <= 0``): the trigonometric form
     ``2 sqrt(-p/3) cos(arccos(3q/(2p) sqrt(-3/p)) / 3)``.  One Newton step polishes it.
     """
     disc = 0.25 * q * q + (p * p * p) / 27.0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         sq = np.sqrt(np.abs(disc))
-        u = np.cbrt(np.where(q >= 0, -0.5 * q - sq, -0.5 * q + sq))
+        u = cube_root(np.where(q >= 0, -0.5 * q - sq, -0.5 * q + sq))
         card = np.where(u != 0, u - p / (3.0 * u), 0.0)
         m = np.sqrt(np.maximum(-p / 3.0, 0.0))
         arg = np.where(m > 0, -0.5 * q / (m * m * m), 0.0)
@@ -268,17 +335,23 @@ def _factorize_numpy(s: np.ndarray, lam: float, columns: int, max_cycles: int, t
 # Plain-Python scalar versions of largest_real_root / coordinate_minimizer and the cycle
 # loop of _factorize_numpy, compiled with numba when it is installed (optional dependency).
 
+def _trigonometric_root(p, q):
+    """Largest root ``2 sqrt(-p/3) cos(arccos(3q/(2p) sqrt(-3/p)) / 3)`` of
+    ``y^3 + p y + q`` when it has three real roots (before the Newton polish)."""
+    m = np.sqrt(max(-p / 3.0, 0.0))
+    arg = -0.5 * q / (m * m * m) if m > 0 else 0.0
+    arg = min(1.0, max(-1.0, arg))
+    return 2.0 * m * np.cos(np.arccos(arg) / 3.0)
+
+
 def _root_scalar(p, q):
     disc = 0.25 * q * q + p * p * p / 27.0
     if disc > 0:
         sq = np.sqrt(disc)
-        u = np.cbrt(-0.5 * q - sq) if q >= 0 else np.cbrt(-0.5 * q + sq)
+        u = _cube_root(-0.5 * q - sq) if q >= 0 else _cube_root(-0.5 * q + sq)
         y = u - p / (3.0 * u) if u != 0 else 0.0
     else:
-        m = np.sqrt(max(-p / 3.0, 0.0))
-        arg = -0.5 * q / (m * m * m) if m > 0 else 0.0
-        arg = min(1.0, max(-1.0, arg))
-        y = 2.0 * m * np.cos(np.arccos(arg) / 3.0)
+        y = _trigonometric_root(p, q)
     fp = 3.0 * y * y + p
     if abs(fp) > 1e-12 * (1.0 + abs(p)):
         y = y - (y * y * y + p * y + q) / fp
@@ -394,57 +467,109 @@ def _factorize_block_one_column(cols, m, sv, lam, max_cycles, tol):
     return max_cycles, False
 
 
-def _factorize_blocks_one_column(cols, m, sv, n, lam, max_cycles, tol, norm, change, done):
+def _factorize_blocks_one_column(cols, m, sv, n, lam, max_cycles, tol, norm, change, live,
+                                 coef):
     """:func:`_factorize_block_one_column` on the first ``n`` blocks of ``cols`` ``(B, p, p)``
     at once, in lock step: coordinate ``j`` of every block not yet converged, then ``j + 1``.
     ``m`` ``(B, p)`` holds the factors (zeros on entry, the results on exit); ``sv``
-    ``(B, p)``, ``norm``, ``change`` (``(B,)`` float) and ``done`` (``(B,)`` bool) are
-    scratch arrays.
+    ``(B, p)``, ``norm``, ``change`` (``(B,)`` float), ``live`` (``(B,)`` int64) and ``coef``
+    (``(5, B)`` float) are scratch arrays.
 
     Each block goes through exactly the operations of the one-block loop, in the same order
     (its own ``norm``, ``change`` and stopping test per cycle), so its factor is the same to
     the last bit; only the blocks are interleaved.  One block's coordinate descent is a
     chain of dependent steps (a coordinate's ``c1``, ``c2`` need the previous coordinate's
     root); the steps of independent blocks side by side let the processor overlap those
-    latencies (docs/profile_thermal_detector.md, "Lock-step factorisation")."""
+    latencies (docs/profile_thermal_detector.md, "Lock-step factorisation").  To let it,
+    a coordinate step of the live blocks is cut into three short loops without calls or
+    hard-to-predict branches in the common path: the coefficients of (3.9), the zero test
+    and Cardano's radicand of :func:`_minimizer_scalar` / :func:`_root_scalar`; the cube
+    roots (:func:`_cube_root`); the root's polish, the choice of the minimiser and the
+    update.  The trigonometric case of the root (three real roots, about 1 % of the
+    steps) stays a branch of the last loop."""
     p = cols.shape[1]
+    c1s = coef[0]
+    c2s = coef[1]
+    roots = coef[2]                  # Cardano's radicand, then its cube root
+    discs = coef[3]
+    zeros = coef[4]                  # 1.0 where (3.9) is decided 0 without a root
+    n_live = 0
     for k in range(n):
-        done[k] = False
+        live[n_live] = k
+        n_live += 1
         for mu in range(p):
             sv[k, mu] = 0.0
-    left = n
     for _ in range(max_cycles):
-        for k in range(n):
-            if done[k]:
-                continue
+        for i in range(n_live):
+            k = live[i]
             change[k] = 0.0
             acc = 0.0
             for mu in range(p):
                 acc += m[k, mu] * m[k, mu]
             norm[k] = acc
         for j in range(p):
-            for k in range(n):
-                if done[k]:
-                    continue
-                col = cols[k, j]
-                sjj = col[j]
+            for i in range(n_live):
+                k = live[i]
+                sjj = cols[k, j, j]
                 old = m[k, j]
                 c1 = 2.0 * (norm[k] - old * old) - 2.0 * sjj
                 c2 = -4.0 * (sv[k, j] - sjj * old)
-                new = _minimizer_scalar(c1, c2, lam)
+                c1s[i] = c1
+                c2s[i] = c2
+                gap = lam - abs(c2)
+                t = -c1 / 3.0
+                if c1 >= 0.0:
+                    zeros[i] = 1.0 if gap >= 0.0 else 0.0
+                else:
+                    zeros[i] = 1.0 if gap >= 2.0 * t * np.sqrt(t) else 0.0
+                pk = 0.5 * c1
+                qk = 0.25 * gap
+                disc = 0.25 * qk * qk + pk * pk * pk / 27.0
+                discs[i] = disc
+                sq = np.sqrt(abs(disc))               # used only where disc > 0
+                roots[i] = -0.5 * qk - sq if qk >= 0 else -0.5 * qk + sq
+            for i in range(n_live):
+                roots[i] = _cube_root(roots[i])
+            for i in range(n_live):
+                k = live[i]
+                old = m[k, j]
+                new = 0.0
+                if zeros[i] == 0.0:
+                    c1 = c1s[i]
+                    c2 = c2s[i]
+                    a = abs(c2)
+                    pk = 0.5 * c1
+                    qk = 0.25 * (lam - a)
+                    if discs[i] > 0:
+                        u = roots[i]
+                        y = u - pk / (3.0 * u) if u != 0 else 0.0
+                    else:
+                        y = _trigonometric_root(pk, qk)
+                    fp = 3.0 * y * y + pk
+                    if abs(fp) > 1e-12 * (1.0 + abs(pk)):
+                        y = y - (y * y * y + pk * y + qk) / fp
+                    if y > 0:
+                        y2 = y * y
+                        cost = y2 * y2 + c1 * y2 - a * y + lam * y
+                        if cost < -1e-15 * (1.0 + abs(c1) + a):
+                            new = -y if c2 > 0 else y
                 change[k] += (new - old) * (new - old)
                 if new != old:
                     m[k, j] = new
                     delta = new - old
+                    col = cols[k, j]
                     svk = sv[k]
                     for mu in range(p):
                         svk[mu] += col[mu] * delta
                     norm[k] += new * new - old * old
-        for k in range(n):
-            if not done[k] and np.sqrt(change[k]) <= tol:
-                done[k] = True
-                left -= 1
-        if left == 0:
+        kept = 0
+        for i in range(n_live):
+            k = live[i]
+            if not np.sqrt(change[k]) <= tol:
+                live[kept] = k
+                kept += 1
+        n_live = kept
+        if n_live == 0:
             break
 
 
@@ -481,7 +606,10 @@ def _compiled_kernel():
         _COMPILED.append(None)
         return None
     global _root_scalar, _minimizer_scalar, _factorize_block, _factorize_block_one_column
-    global _factorize_blocks_one_column
+    global _factorize_blocks_one_column, _cube_root, _trigonometric_root
+    register_bit_casts(_float_bits, _bits_float)
+    _cube_root = numba.njit(cache=True, nogil=True)(_cube_root)
+    _trigonometric_root = numba.njit(cache=True, nogil=True)(_trigonometric_root)
     _root_scalar = numba.njit(cache=True, nogil=True)(_root_scalar)
     _minimizer_scalar = numba.njit(cache=True, nogil=True)(_minimizer_scalar)
     _factorize_block_one_column = numba.njit(cache=True, nogil=True)(_factorize_block_one_column)
