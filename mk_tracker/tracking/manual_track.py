@@ -36,6 +36,7 @@ import numpy as np
 
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
+from mk_tracker.tracking.background_weighting import BACKGROUND_WEIGHTINGS
 from mk_tracker.tracking.kernel_layouts import (COLUMN_SPACING, column_best, column_coverage,
                                                 has_columns)
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
@@ -192,6 +193,13 @@ class ManualTrackConfig:
         "multi_kernel.recovery_growth): box sizes added on every side of the scan per "
         "earlier frame of the same failure", minimum=0.0, maximum=100.0)
 
+    background_weighting: str = parameter(
+        "none", "Background weighting of the kernel models of a track started by hand "
+        "(replaces multi_kernel.background_weighting): none, or cbwh, Ning et al.'s "
+        "corrected background-weighted histogram (colours frequent in a ring around the "
+        "box count less in the model; mk_tracker.tracking.background_weighting)",
+        choices=BACKGROUND_WEIGHTINGS)
+
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
         "paper): a first box of a track started by hand that touches the left or right "
@@ -238,7 +246,8 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    similarity_reference_rate=m.similarity_reference_rate,
                    failure_sigmas=m.failure_sigmas,
                    learnt_measure=m.learnt_measure,
-                   similarity_spread_prior=m.similarity_spread_prior)
+                   similarity_spread_prior=m.similarity_spread_prior,
+                   background_weighting=m.background_weighting)
 
 
 def columns_cover(res: Any, floor: float) -> bool:
