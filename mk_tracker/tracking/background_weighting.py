@@ -41,6 +41,11 @@ appearance, as the plain model's ``exp(-J_i)`` is (up to the smoothing of ``p~``
 lower where the target-specific colours are missing.  The ordering of positions by ``J_i``
 (what Algorithm 1 minimises) is unchanged by the constant.
 
+**Scale.**  The scale step (9)-(11) is taken with the plain models
+(:meth:`~mk_tracker.tracking.multi_kernel.MultiKernelTracker._update_scale`): the weighted
+density leaves out the colours the person shares with the background, so its bandwidth
+derivative measures the extent of the target-specific colours and shrank the box onto them.
+
 **Re-computing the background** (Ning et al.): after a frame in which the target is seen
 (mean corrected similarity above ``similarity_gate``), the ring histogram ``o'`` at the new
 box is compared with ``o`` by the Bhattacharyya coefficient; below
