@@ -88,7 +88,9 @@ class ManualTrackConfig:
     start on a grid around the Kalman prediction (``multi_start_radius``) and a failure
     re-search with the target's colour back-projection, confirmed by the multiple-kernel
     similarity (``recovery_similarity``).  ``num_kernels``, ``multi_start_radius``,
-    ``recovery_similarity`` and ``max_coast_position_std`` are the settings chosen by the
+    ``recovery_similarity``, ``max_coast_position_std`` and ``background_weighting`` (the
+    corrected background-weighted histograms of Ning et al. 2012,
+    :mod:`mk_tracker.tracking.background_weighting`) are the settings chosen by the
     leave-one-clip-out protocol of ``benchmarks/bench_single_target.py``
     (docs/benchmark_single_target.md); the others were set earlier (above).
 
@@ -194,10 +196,12 @@ class ManualTrackConfig:
         "earlier frame of the same failure", minimum=0.0, maximum=100.0)
 
     background_weighting: str = parameter(
-        "none", "Background weighting of the kernel models of a track started by hand "
-        "(replaces multi_kernel.background_weighting): none, or cbwh, Ning et al.'s "
-        "corrected background-weighted histogram (colours frequent in a ring around the "
-        "box count less in the model; mk_tracker.tracking.background_weighting)",
+        "cbwh", "Background weighting of the kernel models of a track started by hand "
+        "(replaces multi_kernel.background_weighting): cbwh, Ning et al.'s corrected "
+        "background-weighted histogram (colours frequent in a ring around the box count "
+        "less in the model, mk_tracker.tracking.background_weighting; chosen by the "
+        "leave-one-clip-out protocol of bench_single_target.py over none, the plain "
+        "models: a look-alike passer-by no longer takes the track), or none",
         choices=BACKGROUND_WEIGHTINGS)
 
     border_person_aspect: float = parameter(
