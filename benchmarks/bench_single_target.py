@@ -1323,6 +1323,17 @@ The tables above are the evidence.
   36.0 -> 145.4 and person 8 at 6.25 fps 76.1 -> 117.9; the clip 57.6 -> 43.6 px, AUC 0.38 ->
   0.43.  Median time per frame 0.55 -> 0.78 ms (the ring's histogram at the start, one more
   evaluation for the scale step).
+* **Not for tracks born from detections.**  `benchmarks/bench_multi_object.py --grid
+  multi_kernel.background_weighting=none,cbwh` (its leave-one-sequence-out protocol, 64
+  settings, floor 0.25; run once, 2026-11-27 15:48 UTC, report not committed): only the
+  TUD-Campus fold chose cbwh (TUD-Campus held out 0.515 / 0.680 -> 0.515 / 0.676);
+  held-out mean MOTA / IDF1 / HOTA 0.721 / 0.783 / 0.631 against
+  0.721 / 0.784 / 0.632 without it in the grid (docs/benchmark_multi_object.md).  Between
+  settings that differ only in it, MOTA + IDF1 changes by -0.052 on TUD-Campus, -0.010 on
+  TUD-Stadtmitte, +0.013 on crowd-15 and -0.002 on far-7fps (mean over 32 pairs each), and
+  over all four sequences the plain models are preferred.  A detection corrects those
+  tracks every frame, so the refinement rarely has to tell a look-alike apart; it stays off
+  there (`multi_kernel.background_weighting` none).
 * **cbwh variants that lost.**  Ning et al.'s weights without a floor (floor 0): no fold chose
   them; in-sample TUD-Campus 12.2 -> 48.7 px, OTB Crossing 5.9 -> 17.5, Woman 40.4 -> 94.3
   (a target colour that is also frequent in the ring drops to ~1% of its weight, and the

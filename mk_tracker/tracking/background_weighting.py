@@ -53,6 +53,12 @@ box is compared with ``o`` by the Bhattacharyya coefficient; below
 the ring), so ``o <- o'`` and ``v``, ``q'`` and ``J0`` are derived again from the plain
 models (which a model update or the completion of models at the image border change; the
 weighted ones are always derived from them).
+
+Where it is used: tracks started by hand (``manual_track.background_weighting`` cbwh, chosen
+by the leave-one-clip-out protocol of ``benchmarks/bench_single_target.py``); tracks born
+from detections keep the plain models (``multi_kernel.background_weighting`` none: it did
+not win held out in ``benchmarks/bench_multi_object.py``).  Both measured in
+docs/benchmark_single_target.md, "Findings".
 """
 
 from __future__ import annotations
