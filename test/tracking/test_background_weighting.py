@@ -237,3 +237,22 @@ def test_tud_stadtmitte_person_3_is_kept_where_the_plain_model_follows_a_passer_
     # (it coasts on a small velocity), then holds; it never goes with him        [0.68 w]
     assert cbwh.max() < 0.8 * width
     assert cbwh[-10:].mean() < 0.7 * width                                       # [0.62 w]
+
+
+def test_the_scale_follows_the_person_not_its_target_specific_colours():
+    """The scale step (9)-(11) is taken with the plain models: on a still person the box
+    keeps its size, where the same step with the weighted models (the grey head and the blue
+    legs, shared with the background, left out of the density) shrinks it."""
+    from mk_tracker.tracking.scale_estimation import scale_step
+    cfg = _cbwh(scale_gate_statistic="mean", scale_similarity_gate=0.5)
+    tracker = MultiKernelTracker(cfg, backend="numpy")
+    state = tracker.start(_scene(0), (120, 60, 30, 80))
+    weighted = MultiKernelTracker(cfg, backend="numpy")
+    weighted._update_scale = lambda search, st, w, ev, stat: scale_step(
+        weighted._evaluate, search, st, w, ev, cfg, stat)
+    shrunk = weighted.start(_scene(0), (120, 60, 30, 80))
+    for k in range(30):
+        tracker.refine(_scene(10 + k), state, state.center)
+        weighted.refine(_scene(10 + k), shrunk, shrunk.center)
+    assert state.scale == pytest.approx(1.0, abs=0.02)                        # [1.000]
+    assert shrunk.scale < 0.9                                                  # [0.857]
