@@ -36,6 +36,7 @@ import numpy as np
 
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
+from mk_tracker.tracking.background_weighting import BACKGROUND_WEIGHTINGS
 from mk_tracker.tracking.kernel_layouts import (COLUMN_SPACING, column_best, column_coverage,
                                                 has_columns)
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
@@ -87,7 +88,9 @@ class ManualTrackConfig:
     start on a grid around the Kalman prediction (``multi_start_radius``) and a failure
     re-search with the target's colour back-projection, confirmed by the multiple-kernel
     similarity (``recovery_similarity``).  ``num_kernels``, ``multi_start_radius``,
-    ``recovery_similarity`` and ``max_coast_position_std`` are the settings chosen by the
+    ``recovery_similarity``, ``max_coast_position_std`` and ``background_weighting`` (the
+    corrected background-weighted histograms of Ning et al. 2012,
+    :mod:`mk_tracker.tracking.background_weighting`) are the settings chosen by the
     leave-one-clip-out protocol of ``benchmarks/bench_single_target.py``
     (docs/benchmark_single_target.md); the others were set earlier (above).
 
@@ -192,6 +195,15 @@ class ManualTrackConfig:
         "multi_kernel.recovery_growth): box sizes added on every side of the scan per "
         "earlier frame of the same failure", minimum=0.0, maximum=100.0)
 
+    background_weighting: str = parameter(
+        "cbwh", "Background weighting of the kernel models of a track started by hand "
+        "(replaces multi_kernel.background_weighting): cbwh, Ning et al.'s corrected "
+        "background-weighted histogram (colours frequent in a ring around the box count "
+        "less in the model, mk_tracker.tracking.background_weighting; chosen by the "
+        "leave-one-clip-out protocol of bench_single_target.py over none, the plain "
+        "models: a look-alike passer-by no longer takes the track), or none",
+        choices=BACKGROUND_WEIGHTINGS)
+
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
         "paper): a first box of a track started by hand that touches the left or right "
@@ -238,7 +250,8 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    similarity_reference_rate=m.similarity_reference_rate,
                    failure_sigmas=m.failure_sigmas,
                    learnt_measure=m.learnt_measure,
-                   similarity_spread_prior=m.similarity_spread_prior)
+                   similarity_spread_prior=m.similarity_spread_prior,
+                   background_weighting=m.background_weighting)
 
 
 def columns_cover(res: Any, floor: float) -> bool:

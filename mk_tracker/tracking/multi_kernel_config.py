@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mk_tracker.parameters import parameter
+from mk_tracker.tracking.background_weighting import BACKGROUND_WEIGHTINGS
 from mk_tracker.tracking.kernel_histograms import COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
 from mk_tracker.tracking.redetection import LEARNT_MEASURES
@@ -173,6 +174,25 @@ class MultiKernelConfig:
     border_model_gain: float = parameter(
         0.02, "A kernel of a target started past the image border completes its model when its "
         "in-image share grew by more than this (image_border.complete_models)",
+        minimum=0.0, maximum=1.0)
+    background_weighting: str = parameter(
+        "none", "Target models weighted by how rare each colour is in a ring of background "
+        "around the box (not in Chu et al.): none, or cbwh, the corrected background-weighted "
+        "histogram of Ning et al. 2012 (v_u = min(o*/o_u, 1) on the model only; decisions "
+        "use the cost above the first box's, mk_tracker.tracking.background_weighting)",
+        choices=BACKGROUND_WEIGHTINGS)
+    background_ring: float = parameter(
+        0.5, "Background ring of cbwh: the box grown by this many box sizes on every side, "
+        "minus the box (Ning et al.: three times the target's area, about 0.37)",
+        minimum=0.05, maximum=5.0)
+    background_weight_floor: float = parameter(
+        0.25, "Smallest background weight v_u of cbwh (0 = Ning et al.'s weights, which lost "
+        "to 0.25 in the leave-one-clip-out protocol of bench_single_target.py; 1 = no "
+        "weighting)", minimum=0.0, maximum=1.0)
+    background_update_similarity: float = parameter(
+        0.5, "cbwh re-computes the ring histogram at the tracked box in a frame where the "
+        "target is seen and replaces it when its Bhattacharyya coefficient with the old one "
+        "is below this (the background changed enough, Ning et al.); 0 = first frame only",
         minimum=0.0, maximum=1.0)
     recovery_scan_cells: int = parameter(
         8, "Sampling of the back-projection scan: about this many samples across the box "

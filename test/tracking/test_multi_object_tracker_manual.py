@@ -163,7 +163,8 @@ def test_one_refiner_serves_both_when_the_kernel_settings_agree():
                                                "manual_track.multi_start_radius": 0.0,
                                                "manual_track.recovery_similarity": 0.0,
                                                "manual_track.recovery_growth": 0.0,
-                                               "manual_track.similarity_reference_rate": 0.0})
+                                               "manual_track.similarity_reference_rate": 0.0,
+                                               "manual_track.background_weighting": "none"})
     trk = MultiObjectTracker(cfg)
     assert trk.manual_refiner is trk.refiner
 
