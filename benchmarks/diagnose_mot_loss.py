@@ -269,7 +269,7 @@ def main(argv=None) -> int:
         name, _, value = item.partition("=")
         changes[name] = setting_value(value)
     config = updated(MultiObjectTrackerConfig(), changes)
-    print(f"# Our errors by cause, next to SORT's\n\nsetting: defaults"
+    print(f"# Our errors by cause, next to the peers'\n\nsetting: defaults"
           f"{' + ' + str(changes) if changes else ''}\n")
     for name in args.sequences:
         if name.startswith("TUD"):
