@@ -159,3 +159,21 @@ def test_a_coasting_track_whose_last_detection_jumped_is_not_reported():
     assert not any(rep for _, rep in frames[1:])  # coasting after it: left out
     frames = _standing_then_jump(10.0, 0.5)       # 0.5: at the bound, reported
     assert all(rep for _, rep in frames)
+
+
+def test_a_group_measurement_leaves_the_match_iou_alone():
+    """Two people standing side by side at x = 100 and 140 (30 x 60), then one detection
+    (105, 200, 60, 60) around both (a group measurement, group_measurement.py: 25 of each
+    one's 30 px inside it, twice their area).  A member's measurement is its own predicted
+    box moved inside the group box, derived from the prediction, not an observation of it,
+    so the match IoU stays that of the last own detection (1: standing still, predicted
+    exactly); recorded, the 5 px move would give 25 x 60 / (3600 - 1500) = 0.714."""
+    trk = MultiObjectTracker(updated(MultiObjectTrackerConfig(), {"use_multi_kernel": False}))
+    for i in range(10):
+        r = trk.step(IMG, i * DT, [FrameDetection((100, 200, 30, 60), 0.9),
+                                   FrameDetection((140, 200, 30, 60), 0.9)])
+    assert sorted(t.state for t in r.tracks) == ["confirmed", "confirmed"]
+    r = trk.step(IMG, 10 * DT, [FrameDetection((105, 200, 60, 60), 0.9)])
+    assert trk.totals["group_measurements"] == 1
+    assert len(r.tracks) == 2
+    assert all(t.last_match_iou == pytest.approx(1.0) for t in r.tracks)
