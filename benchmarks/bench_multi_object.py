@@ -335,6 +335,16 @@ DEFAULTS_NOTE = [
     "0.002; at the shipped defaults it costs TUD-Campus 0.593 / 0.696 -> 0.554 / 0.671.  "
     "Kept as an option, off by default and out of the grid: the grid it was tried in "
     "lowers the held-out mean MOTA.",
+    "* OC-SORT's velocity-direction consistency (Cao et al. 2023, OCM: angle / pi between "
+    "a track's direction over its last 4 detections and the direction from its last "
+    "detection to the candidate, times a weight, added to the association cost), as a grid "
+    "dimension (0, 0.1, 0.2; 96 settings, `--people 15 --grid "
+    "association.direction_weight=0,0.1,0.2` at commit fa51984, our tracker only): chosen "
+    "by the TUD-Campus fold alone (0.1: TUD-Campus 0.515 / 0.680 -> 0.521 / 0.685), never "
+    "for TUD-Stadtmitte; held-out mean 0.723 / 0.785.  At fixed settings it moves "
+    "TUD-Stadtmitte's IDF1 either way (0.2 at the defaults 0.779 -> 0.760, 0.1 at the "
+    "TUD-Campus fold's setting 0.782 -> 0.814) and TUD-Campus's MOTA by up to 0.16.  "
+    "Deleted.",
     "",
     "Mechanisms tried in earlier sessions and their held-out means (MOTA / IDF1), measured "
     "before `duplicates.*` and `lifecycle.still_speed` existed, with the grid of that time "

@@ -52,11 +52,6 @@ class AssociationConfig:
     min_iou: float = parameter(
         0.0, "Pairs with less overlap than this are not matched (0 = distance gate only)",
         minimum=0.0, maximum=1.0)
-    direction_weight: float = parameter(
-        0.0, "Weight of OC-SORT's velocity-direction consistency (Cao et al. 2023, OCM): "
-        "angle / pi between a track's observed direction of motion and the direction from "
-        "its last detection to the candidate detection, added to the cost; 0 = off",
-        minimum=0.0, maximum=10.0)
 
 
 @dataclass(frozen=True)
@@ -133,29 +128,6 @@ def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,
     forbidden = (m > config.gate) | (ious < config.min_iou)
     cost[forbidden] = np.inf
     return cost
-
-
-def direction_cost(directions: np.ndarray, last_centres: np.ndarray,
-                   points: np.ndarray) -> np.ndarray:
-    """OC-SORT's velocity-direction consistency (Cao et al. 2023, Sec. 4.2, "OCM"), ``(T, D)``
-    in [0, 1]: the angle between track ``i``'s direction of motion ``directions[i]`` (from
-    its own detections, any length; zero = unknown) and the direction from its last
-    detected centre ``last_centres[i]`` to ``points[j]`` (``(D, 2)``, or ``(T, D, 2)`` per
-    track), divided by pi.  0 where either direction is unknown (zero length)."""
-    d = np.asarray(directions, dtype=np.float64).reshape(-1, 2)
-    c = np.asarray(last_centres, dtype=np.float64).reshape(-1, 2)
-    p = np.asarray(points, dtype=np.float64)
-    if p.ndim == 2:
-        p = np.broadcast_to(p.reshape(1, -1, 2), (d.shape[0], p.shape[0], 2))
-    if d.shape[0] != c.shape[0] or p.ndim != 3 or p.shape[0] != d.shape[0]:
-        raise AssociationError("directions, last centres and points do not fit")
-    to = p - c[:, None, :]                                   # (T, D, 2)
-    n_d = np.hypot(d[:, 0], d[:, 1])[:, None]
-    n_t = np.hypot(to[..., 0], to[..., 1])
-    known = (n_d > 0) & (n_t > 0)
-    cos = (d[:, None, 0] * to[..., 0] + d[:, None, 1] * to[..., 1]) / np.where(known, n_d * n_t,
-                                                                              1.0)
-    return np.where(known, np.arccos(np.clip(cos, -1.0, 1.0)) / np.pi, 0.0)
 
 
 def assign(cost: np.ndarray, max_cost: float) -> Assignment:

@@ -63,8 +63,7 @@ from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
 
-from mk_tracker.tracking.association import (assign, association_cost, direction_cost,
-                                             mahalanobis_matrix)
+from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
 from mk_tracker.tracking.detection_input import (PLANES, FrameDetection,  # noqa: F401
@@ -606,13 +605,7 @@ class MultiObjectTracker:
         maha = mahalanobis_matrix(np.array([t.center for t in tracks]),
                                   self._innovation_covs(tracks), centres)
         track_boxes = np.array([t.box for t in tracks])
-        weight = self.config.association.direction_weight
-        extra = None
-        if weight > 0.0:
-            extra = weight * direction_cost(np.array([t.observed_direction for t in tracks]),
-                                            np.array([t.observed_centres[-1] for t in tracks]),
-                                            centres)
-        cost = association_cost(track_boxes, boxes, maha, self.config.association, extra)
+        cost = association_cost(track_boxes, boxes, maha, self.config.association)
         return assign(cost, self.config.association.max_cost)
 
     def _reacquire(self, lost: list[Track], dets: list[PreparedDetection], image: np.ndarray
@@ -722,7 +715,6 @@ class MultiObjectTracker:
             if not group:
                 t.detected_box = np.array(det_box, dtype=np.float64)
                 t.detected_stamp = stamp
-                t.remember_detection(det_box)
             t.last_seen = stamp
             t.score = sim if sim is not None else _quality(det.score)
         else:

@@ -233,9 +233,6 @@ class Track:
         #: observation (1 until a prediction has met one); FrameResult.reported() leaves a
         #: coasting track out below min_reported_coast_match_iou (tracker_config.py)
         self.last_match_iou = 1.0
-        #: centres of the last detections (oldest first, at most 4), for the direction of
-        #: motion of OC-SORT's consistency term (association.direction_cost)
-        self.observed_centres: list[np.ndarray] = [np.array([x + w / 2.0, y + h / 2.0])]
         self.score = float(score)
         self.smoothed_velocity = np.zeros(2)
         self.target: Any = None            # the refiner's working target (TargetState)
@@ -347,19 +344,6 @@ class Track:
         kf.predict(step)
         self.kf = kf
         return True
-
-    def remember_detection(self, box: np.ndarray) -> None:
-        """Keep the centre of an assigned detection (at most the last 4)."""
-        x, y, w, h = (float(v) for v in box)
-        self.observed_centres = (self.observed_centres + [np.array([x + w / 2.0,
-                                                                    y + h / 2.0])])[-4:]
-
-    @property
-    def observed_direction(self) -> np.ndarray:
-        """Direction of motion from the track's detections: the last detected centre minus
-        the one up to 3 detections earlier (OC-SORT's delta_t = 3); zero with one."""
-        c = self.observed_centres
-        return c[-1] - c[0] if len(c) > 1 else np.zeros(2)
 
     def is_still(self) -> bool:
         """Whether the track's Kalman velocity is below ``still_speed`` box heights per

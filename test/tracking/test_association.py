@@ -251,16 +251,3 @@ def test_float32_distances_are_used_in_float64():
     t = np.array([[0, 0, 4, 2]], float)
     cost = association_cost(t, t, np.array([[1.0]], np.float32), cfg)
     assert cost[0, 0] == 1.0 / 3.0
-
-
-def test_direction_cost_is_the_angle_over_pi():
-    from mk_tracker.tracking.association import direction_cost
-    # a track moving right from (0, 0): straight on 0, at right angles 1/2, backwards 1,
-    # on its last centre (no direction) 0; a track with no direction yet: 0 everywhere
-    points = np.array([[5.0, 0.0], [0.0, 3.0], [-2.0, 0.0], [0.0, 0.0]])
-    cost = direction_cost(np.array([[2.0, 0.0], [0.0, 0.0]]),
-                          np.array([[0.0, 0.0], [0.0, 0.0]]), points)
-    np.testing.assert_allclose(cost, [[0.0, 0.5, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0]], atol=1e-12)
-    # 45 degrees: 1/4
-    assert direction_cost(np.array([[1.0, 0.0]]), np.array([[1.0, 1.0]]),
-                          np.array([[3.0, 3.0]]))[0, 0] == pytest.approx(0.25)
