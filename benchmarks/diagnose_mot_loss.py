@@ -1,7 +1,8 @@
 """Where our multi-object MOTA goes, next to SORT's (issue #16 item 2).
 
 MOTA = 1 - (FN + FP + IDSW) / GT.  This script runs our tracker (the shipped defaults, or
-``--set name=value`` overrides) and the SORT-style peer on the same detections as
+``--set name=value`` overrides), the SORT-style peer and (with the peers' requirements
+installed) ByteTrack on the same detections as
 ``benchmarks/bench_multi_object.py`` (its loading functions), scores every frame with
 motmetrics (IoU >= 0.5, ``acc.mot_events``) and splits each of our errors by its cause,
 read from the tracker's own state in that frame:
@@ -35,8 +36,8 @@ member, refinement only, coasting by the std of its centre per box side, the qua
 unmatched box costs one false positive, a matched one saves one miss.
 
 ID switches are split by whether the person was matched in the frame before (a hand-over
-between neighbours) or came back after a gap.  The SORT-style peer's FP / FN / IDSW are
-split only by "a detection of the person existed".
+between neighbours) or came back after a gap.  The peers' FP / FN / IDSW are split only by
+"a detection of the person existed".
 
     nice -n 10 .venv/bin/python benchmarks/diagnose_mot_loss.py [--sequences TUD-Campus ...] \
         [--set lifecycle.min_hits=2 ...]
@@ -215,22 +216,41 @@ def diagnose_peer(frames, hyp):
     return n_gt, int((ev.Type == "FP").sum()), fn, int((ev.Type == "SWITCH").sum())
 
 
-def report(name, frames, config) -> list[str]:
+def peer_hypotheses(frames, fps) -> dict:
+    """SORT-style and, when the ``trackers`` package is installed
+    (benchmarks/requirements-peers.txt), ByteTrack on the same detections."""
+    peers = {"SORT": bmo.SortTracker()}
+    try:
+        from peers.trackers_peers import TrackersPeer
+        peers["ByteTrack"] = TrackersPeer("bytetrack", fps)
+    except ImportError as exc:
+        print(f"ByteTrack left out ({exc})", file=sys.stderr)
+    return {name: bmo.run_tracker(peer, frames)[0] for name, peer in peers.items()}
+
+
+def report(name, frames, config, fps=25.0) -> list[str]:
     hyp, states = run_ours(config, frames)
     n_gt, fp, fn, sw = diagnose_ours(frames, hyp, states)
-    shyp, _, _ = bmo.run_tracker(bmo.SortTracker(), frames)
-    _, s_fp, s_fn, s_sw = diagnose_peer(frames, shyp)
+    peers = {p: diagnose_peer(frames, h) for p, h in peer_hypotheses(frames, fps).items()}
     o_fp, o_fn, o_sw = sum(fp.values()), sum(fn.values()), sum(sw.values())
+    names = list(peers)
+    head = " | ".join(names)
+    cells = {p: (v[1], sum(v[2].values()), v[2]["detected"], v[3]) for p, v in peers.items()}
+
+    def row(label, ours, idx, points=True):
+        vals = " | ".join(str(cells[p][idx]) for p in names)
+        diff = f"{-(ours - cells['SORT'][idx]) / n_gt:+.3f}" if points else ""
+        return f"| {label} | {ours} | {vals} | {diff} |"
+
+    mota = " | ".join(f"{1 - (c[0] + c[1] + c[3]) / n_gt:.3f}" for c in cells.values())
     lines = [f"## {name} ({n_gt} gt boxes)", "",
-             "| | ours | SORT | ours - SORT (MOTA points) |", "|---|---|---|---|",
-             f"| MOTA | {1 - (o_fp + o_fn + o_sw) / n_gt:.3f} | "
-             f"{1 - (s_fp + sum(s_fn.values()) + s_sw) / n_gt:.3f} | |",
-             f"| FP | {o_fp} | {s_fp} | {-(o_fp - s_fp) / n_gt:+.3f} |",
-             f"| FN | {o_fn} | {sum(s_fn.values())} | "
-             f"{-(o_fn - sum(s_fn.values())) / n_gt:+.3f} |",
-             f"| FN with a detection | {sum(v for k, v in fn.items() if k.startswith('detected'))}"
-             f" | {s_fn['detected']} | |",
-             f"| ID switches | {o_sw} | {s_sw} | {-(o_sw - s_sw) / n_gt:+.3f} |", "",
+             f"| | ours | {head} | ours - SORT (MOTA points) |",
+             "|---|---|" + "---|" * len(names) + "---|",
+             f"| MOTA | {1 - (o_fp + o_fn + o_sw) / n_gt:.3f} | {mota} | |",
+             row("FP", o_fp, 0), row("FN", o_fn, 1),
+             row("FN with a detection",
+                 sum(v for k, v in fn.items() if k.startswith('detected')), 2, points=False),
+             row("ID switches", o_sw, 3), "",
              "| our error | cause | count | MOTA points |", "|---|---|---|---|"]
     for label, counter in (("FP", fp), ("FN", fn), ("IDSW", sw)):
         for cause, n in counter.most_common():
@@ -249,16 +269,17 @@ def main(argv=None) -> int:
         name, _, value = item.partition("=")
         changes[name] = setting_value(value)
     config = updated(MultiObjectTrackerConfig(), changes)
-    print(f"# Our errors by cause, next to SORT's\n\nsetting: defaults"
+    print(f"# Our errors by cause, next to the peers'\n\nsetting: defaults"
           f"{' + ' + str(changes) if changes else ''}\n")
     for name in args.sequences:
         if name.startswith("TUD"):
-            frames, _ = bmo.tud_frames(args.data / "mot" / name)
+            frames, fps = bmo.tud_frames(args.data / "mot" / name)
         elif name.startswith("crowd-"):
-            frames, _ = bmo.crowd_frames(int(name.split("-")[1]), 1, 300, 0.5, 0.1, 0.3, 2.0)
+            frames, fps = bmo.crowd_frames(int(name.split("-")[1]), 1, 300, 0.5, 0.1, 0.3,
+                                           2.0)
         else:
-            frames, _ = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0)
-        print("\n".join(report(name, frames, config)), flush=True)
+            frames, fps = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0)
+        print("\n".join(report(name, frames, config, fps)), flush=True)
     return 0
 
 

@@ -71,6 +71,7 @@ class FrameResult:
 
     max_reported_coast_time: float = float("inf")
     max_reported_coast_std: float = 0.0
+    min_reported_coast_match_iou: float = 0.0
     #: live tracks stacked on another one of the same person, not reported
     suppressed_ids: set[int] = field(default_factory=set)
 
@@ -78,15 +79,25 @@ class FrameResult:
         """Tracks to draw or score: confirmed ones, and occluded (coasting) ones for at most
         ``max_reported_coast_time`` seconds since their last detection and while their
         position is certain to ``max_reported_coast_std`` of the box
-        (:func:`coast_position_std`; 0 = no such bound); always for tracks started by
+        (:func:`coast_position_std`; 0 = no such bound) and while their prediction met
+        their last detection at an IoU of at least ``min_reported_coast_match_iou``
+        (``TrackOutput.last_match_iou``; 0 = no such bound); always for tracks started by
         hand, which have no detector; never those in ``suppressed_ids``."""
         return [t for t in self.tracks if t.id not in self.suppressed_ids and (
                 t.state == TrackState.CONFIRMED.value
                 or (t.state == TrackState.OCCLUDED.value
-                    and (t.manual or (t.time_since_detection <= self.max_reported_coast_time
-                                      and (self.max_reported_coast_std <= 0.0
-                                           or coast_position_std(t)
-                                           <= self.max_reported_coast_std)))))]
+                    and (t.manual or self._report_coasting(t))))]
+
+    def _report_coasting(self, t: TrackOutput) -> bool:
+        """The bounds of :meth:`reported` on a coasting track not started by hand."""
+        if t.time_since_detection > self.max_reported_coast_time:
+            return False
+        if self.max_reported_coast_std > 0.0 and \
+                not coast_position_std(t) <= self.max_reported_coast_std:
+            return False
+        # NaN match IoU (never produced by the tracker) fails the bound like a low one
+        return self.min_reported_coast_match_iou <= 0.0 or \
+            t.last_match_iou >= self.min_reported_coast_match_iou
 
 
 def coast_position_std(output: TrackOutput) -> float:

@@ -251,7 +251,9 @@ class MultiObjectTracker:
         stamp = self._check_stamp(stamp)
         result = FrameResult(stamp=stamp,
                              max_reported_coast_time=self.config.max_reported_coast_time,
-                             max_reported_coast_std=self.config.max_reported_coast_std)
+                             max_reported_coast_std=self.config.max_reported_coast_std,
+                             min_reported_coast_match_iou=(
+                                 self.config.min_reported_coast_match_iou))
         self.totals["frames"] += 1
         size = tuple(image_bgr.shape[:2])
         if self.last_stamp is not None and \
@@ -686,6 +688,9 @@ class MultiObjectTracker:
         lo, hi = measurement.refinement_similarity_range
         quality = 0.0 if sim is None else min(max((sim - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
         if det_box is not None:
+            if not group:
+                # the prediction (4.2) against the observation, before any correction
+                t.last_match_iou = iou(t.box, det_box)
             if restart and self.config.recovery.restart != "correct":   # (recovery.py)
                 restart_filter(t, det_box, stamp, self.config.kalman,
                                self.config.recovery.restart == "observations")

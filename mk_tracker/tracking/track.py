@@ -187,7 +187,8 @@ class TrackOutput:
     ``velocity_covariance`` and ``position_covariance`` are the velocity ((px/s)^2) and
     centre (px^2) blocks of the Kalman error covariance P(t|t) ((4.3), (4.5)), row-major
     ``(xx, xy, yx, yy)``; the velocity's is that of the filter's own velocity estimate, of
-    which ``velocity`` is the exponentially smoothed value.
+    which ``velocity`` is the exponentially smoothed value.  ``last_match_iou`` is
+    :attr:`Track.last_match_iou` (how well the prediction met the last detection).
     """
 
     id: int
@@ -201,6 +202,7 @@ class TrackOutput:
     manual: bool = False
     velocity_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     position_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    last_match_iou: float = 1.0
 
 
 class Track:
@@ -226,6 +228,11 @@ class Track:
         self.lost_since: float | None = None
         self.hits = 1
         self.tentative_misses = 0
+        #: IoU of the predicted box (4.2) with the detection assigned at the last detected
+        #: update, before the correction: how well the motion and size model met the last
+        #: observation (1 until a prediction has met one); FrameResult.reported() leaves a
+        #: coasting track out below min_reported_coast_match_iou (tracker_config.py)
+        self.last_match_iou = 1.0
         self.score = float(score)
         self.smoothed_velocity = np.zeros(2)
         self.target: Any = None            # the refiner's working target (TargetState)
@@ -370,4 +377,5 @@ class Track:
                            velocity_covariance=(float(p[2, 2]), float(p[2, 3]),
                                                 float(p[3, 2]), float(p[3, 3])),
                            position_covariance=(float(p[0, 0]), float(p[0, 1]),
-                                                float(p[1, 0]), float(p[1, 1])))
+                                                float(p[1, 0]), float(p[1, 1])),
+                           last_match_iou=float(self.last_match_iou))

@@ -139,5 +139,11 @@ class MultiObjectTrackerConfig:
         "person by the IoU it needs to count (chosen by 3 of 4 leave-one-sequence-out "
         "folds of benchmarks/bench_multi_object.py); 0 = only max_reported_coast_time",
         minimum=0.0, maximum=100.0)
+    min_reported_coast_match_iou: float = parameter(
+        0.0, "FrameResult.reported() also drops an occluded (coasting) track whose Kalman "
+        "prediction (4.2) met its last detection at an IoU below this (the filter's "
+        "innovation at its last update, in the IoU the scoring uses): a filter that already "
+        "missed the one-frame-ahead observation (a box around two people, a person turning) "
+        "extrapolates a box off the person; 0 = no such bound", minimum=0.0, maximum=1.0)
     max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
                                 "not started", minimum=1, maximum=100000)

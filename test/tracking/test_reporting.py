@@ -100,3 +100,80 @@ def test_a_coasting_track_of_unknown_uncertainty_is_not_reported():
     result = FrameResult(stamp=1.0, tracks=tracks, max_reported_coast_time=1.0,
                          max_reported_coast_std=0.15)
     assert [t.id for t in result.reported()] == [3]
+
+
+def _matched(track_id, state, last_match_iou, manual=False) -> TrackOutput:
+    return TrackOutput(id=track_id, state=state, box=(0, 0, 30, 80), score=0.0,
+                       velocity=(0.0, 0.0), age=1.0, time_since_detection=0.1, hits=5,
+                       manual=manual, position_covariance=(1.0, 0.0, 0.0, 1.0),
+                       last_match_iou=last_match_iou)
+
+
+def test_reported_drops_coasting_tracks_whose_prediction_missed_the_last_detection():
+    tracks = [_matched(1, "occluded", 0.8),              # met it: kept
+              _matched(2, "occluded", 0.4),              # missed it: dropped
+              _matched(3, "occluded", 0.5),              # at the bound: kept
+              _matched(4, "confirmed", 0.1),             # detected or seen: kept
+              _matched(5, "occluded", 0.1, manual=True),  # by hand: kept
+              _matched(6, "occluded", math.nan)]         # unknown: dropped
+    result = FrameResult(stamp=1.0, tracks=tracks, max_reported_coast_time=0.3,
+                         min_reported_coast_match_iou=0.5)
+    assert [t.id for t in result.reported()] == [1, 3, 4, 5]
+    # 0 = no such bound
+    result.min_reported_coast_match_iou = 0.0
+    assert [t.id for t in result.reported()] == [1, 2, 3, 4, 5, 6]
+
+
+def _standing_then_jump(jump_px: float, bound: float) -> list[tuple[float, bool]]:
+    """A person standing still at (100, 200, 30, 60) for 10 frames, then one detection
+    ``jump_px`` to the right, then none; per frame after the jump (match IoU, reported?).
+    The gate is opened wide so that the jumped detection is still assigned to the track."""
+    trk = MultiObjectTracker(updated(MultiObjectTrackerConfig(), {
+        "use_multi_kernel": False, "association.gate": 1e4, "max_reported_coast_time": 10.0,
+        "max_reported_coast_std": 0.0, "lifecycle.max_coast_time": 10.0,
+        "lifecycle.max_undetected_time": 0.0, "min_reported_coast_match_iou": bound}))
+    for i in range(10):
+        trk.step(IMG, i * DT, [FrameDetection((100, 200, 30, 60), 0.9)])
+    out = []
+    for i in range(10, 14):
+        dets = [FrameDetection((100 + jump_px, 200, 30, 60), 0.9)] if i == 10 else []
+        r = trk.step(IMG, i * DT, dets)
+        (t,) = r.tracks
+        out.append((t.last_match_iou, t.id in {u.id for u in r.reported()}))
+    return out
+
+
+def test_the_match_iou_is_the_prediction_against_the_detection_before_the_update():
+    # the same box ten times: velocity 0, the prediction is that box, IoU 1
+    # a 10 px jump of a 30 x 60 box: overlap 20 x 60 = 1200 of 1800 + 1800 - 1200 -> 0.5
+    # a 20 px jump: 10 x 60 = 600 of 3000 -> 0.2
+    for jump, expected in ((0.0, 1.0), (10.0, 0.5), (20.0, 0.2)):
+        frames = _standing_then_jump(jump, 0.0)
+        assert all(m == pytest.approx(expected) for m, _ in frames), (jump, frames)
+        assert all(rep for _, rep in frames)      # no bound: detected, then coasting
+
+
+def test_a_coasting_track_whose_last_detection_jumped_is_not_reported():
+    frames = _standing_then_jump(20.0, 0.5)       # match IoU 0.2 < 0.5
+    assert frames[0][1]                           # detected in that frame: reported
+    assert not any(rep for _, rep in frames[1:])  # coasting after it: left out
+    frames = _standing_then_jump(10.0, 0.5)       # 0.5: at the bound, reported
+    assert all(rep for _, rep in frames)
+
+
+def test_a_group_measurement_leaves_the_match_iou_alone():
+    """Two people standing side by side at x = 100 and 140 (30 x 60), then one detection
+    (105, 200, 60, 60) around both (a group measurement, group_measurement.py: 25 of each
+    one's 30 px inside it, twice their area).  A member's measurement is its own predicted
+    box moved inside the group box, derived from the prediction, not an observation of it,
+    so the match IoU stays that of the last own detection (1: standing still, predicted
+    exactly); recorded, the 5 px move would give 25 x 60 / (3600 - 1500) = 0.714."""
+    trk = MultiObjectTracker(updated(MultiObjectTrackerConfig(), {"use_multi_kernel": False}))
+    for i in range(10):
+        r = trk.step(IMG, i * DT, [FrameDetection((100, 200, 30, 60), 0.9),
+                                   FrameDetection((140, 200, 30, 60), 0.9)])
+    assert sorted(t.state for t in r.tracks) == ["confirmed", "confirmed"]
+    r = trk.step(IMG, 10 * DT, [FrameDetection((105, 200, 60, 60), 0.9)])
+    assert trk.totals["group_measurements"] == 1
+    assert len(r.tracks) == 2
+    assert all(t.last_match_iou == pytest.approx(1.0) for t in r.tracks)
