@@ -66,7 +66,7 @@ from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjec
                                              MultiObjectTrackerConfig)
 from mk_tracker.parameters import get_value, updated  # noqa: E402
 from hota import hota  # noqa: E402
-from setting_values import setting_value as _value  # noqa: E402
+from setting_values import setting_changes, setting_value as _value  # noqa: E402
 from peers.norfair_peer import NorfairPeer  # noqa: E402
 from peers.sort_tracker import SortTracker  # noqa: E402
 
@@ -645,9 +645,7 @@ def main(argv=None) -> int:
                         help="override a parameter of our tracker (YAML value), e.g. "
                              "lifecycle.min_hits=4 (also fixed during the grid)")
     args = parser.parse_args(argv)
-    for item in args.set:
-        name, _, value = item.partition("=")
-        OUR_CHANGES[name] = _value(value)
+    OUR_CHANGES.update(setting_changes(args.set))
     for item in args.grid:
         name, _, values = item.partition("=")
         GRID[name] = tuple(_value(v) for v in values.split(","))

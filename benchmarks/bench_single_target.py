@@ -78,7 +78,7 @@ from mk_tracker.tracking.multi_object_tracker import (MultiObjectTracker,  # noq
                                               MultiObjectTrackerConfig, TrackerInputError)
 from mk_tracker.tracking.track import TrackState  # noqa: E402
 from mk_tracker.parameters import updated  # noqa: E402
-from setting_values import setting_value  # noqa: E402
+from setting_values import setting_changes, setting_value  # noqa: E402
 from mk_tracker.synthetic.presets import (approach_scene, crossing_scene,  # noqa: E402
                                           crowd_scene, occlusion_scene)
 
@@ -473,7 +473,7 @@ def main(argv=None) -> int:
                         help="override a parameter of our tracker (YAML value) under every "
                         "grid setting, e.g. multi_kernel.scale.acceptance=lower")
     args = parser.parse_args(argv)
-    BASE_CHANGES.update({n: setting_value(v) for n, _, v in (s.partition("=") for s in args.set)})
+    BASE_CHANGES.update(setting_changes(args.set))
     if not args.legacy:
         return loso_main(args, argv)
     try:

@@ -40,7 +40,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -57,6 +56,7 @@ from mk_tracker.synthetic.presets import crowd_scene  # noqa: E402
 from mk_tracker.synthetic.scene_bag import write_scene_bag  # noqa: E402
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 MATCH_IOU = 0.5
 LOOSE_IOU = 0.3          # the issue's second bound: a box on part of the person
@@ -157,13 +157,10 @@ def config_with(sets: list[str], detector_sets: list[str] = ()):
     """The pipeline configuration with ``--set name=value`` tracker overrides and
     ``--set-detector name=value`` detector overrides."""
     base = load_pipeline_config()
-
-    def changes(items):
-        return {n: yaml.safe_load(v) for n, _, v in (i.partition("=") for i in items)}
     if sets:
-        base = replace(base, tracker=updated(base.tracker, changes(sets)))
+        base = replace(base, tracker=updated(base.tracker, setting_changes(sets)))
     if detector_sets:
-        base = replace(base, detector=updated(base.detector, changes(detector_sets)))
+        base = replace(base, detector=updated(base.detector, setting_changes(detector_sets)))
     return base
 
 

@@ -20,7 +20,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from setting_values import setting_value  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 from mk_tracker.detection.thermal_detector import ThermalDetector  # noqa: E402
 from mk_tracker.parameters import updated  # noqa: E402
@@ -38,8 +38,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="detector parameters of the variant (YAML values)")
     args = parser.parse_args(argv)
     base = load_pipeline_config().detector
-    variant = updated(base, {name: setting_value(value) for name, _, value in
-                             (item.partition("=") for item in args.set)})
+    variant = updated(base, setting_changes(args.set))
     width, height = (int(v) for v in args.size.split("x"))
     print("| people | seed | settings | full pass ms (n) | tracking frame ms (n) | mean ms/frame |")
     print("|---:|---:|---|---:|---:|---:|")

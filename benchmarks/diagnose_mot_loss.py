@@ -69,7 +69,7 @@ from mk_tracker.tracking.multi_object_tracker import (FrameDetection,  # noqa: E
                                                       MultiObjectTracker,
                                                       MultiObjectTrackerConfig,
                                                       coast_position_std)
-from setting_values import setting_value  # noqa: E402
+from setting_values import setting_changes  # noqa: E402
 
 MATCHED = ["MATCH", "SWITCH", "TRANSFER", "ASCEND", "MIGRATE"]
 
@@ -264,10 +264,7 @@ def main(argv=None) -> int:
     parser.add_argument("--sequences", nargs="+", default=["TUD-Campus", "TUD-Stadtmitte"])
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     args = parser.parse_args(argv)
-    changes = {}
-    for item in args.set:
-        name, _, value = item.partition("=")
-        changes[name] = setting_value(value)
+    changes = setting_changes(args.set)
     config = updated(MultiObjectTrackerConfig(), changes)
     print(f"# Our errors by cause, next to the peers'\n\nsetting: defaults"
           f"{' + ' + str(changes) if changes else ''}\n")

@@ -29,6 +29,7 @@ from bench_single_target import (_contrib, _names, _selected, development_set,  
                                  opencv_tracker_factory, run)
 from mk_tracker.tracking.multi_object_tracker import (MultiObjectTracker,  # noqa: E402
                                                       MultiObjectTrackerConfig)
+from setting_values import setting_changes  # noqa: E402
 
 
 def _centre(box) -> np.ndarray:
@@ -100,7 +101,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     csrt = _contrib("CSRT")
     config = MultiObjectTrackerConfig()
-    overrides = {k: float(v) for k, v in (a.split("=", 1) for a in args.set)}
+    overrides = setting_changes(args.set)
     config = replace(config, manual_track=replace(config.manual_track, **overrides))
     print("| sequence | ours err | CSRT err | failure frame | state (3 frames before) | "
           "score | truth motion px (box widths) | width / first width | back under w/2 at | "
