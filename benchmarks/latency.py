@@ -11,6 +11,16 @@ publishes RGB (bgr8, ``image_raw``) and thermal (mono8, ``thermal/image_raw``) a
 Hz for ``--seconds`` with header stamp = wall-clock publication time, and subscribes to
 ``tracks`` and ``thermal/detections`` on a background executor thread.
 
+``--thermal-clip VIDEO`` measures the thermal-only set-up instead (issue #19): the frames of
+a real thermal recording (mono8, e.g. BU-TIV-lab 512x512, played back and forth when the run
+needs more frames than it has) go on ``thermal/image_raw`` only, the tracker's ``image_raw`` is
+remapped to it (as ``ros2 launch ... thermal_only:=true`` does) and the detector gets
+``--ignore-region`` (the burned-in counter of BU-TIV-lab by default); nothing is published on
+``image_raw``.  Visible people are unknown there (no ground truth)::
+
+    .venv/bin/python benchmarks/latency.py --thermal-clip ../shared/data/thermal/BU-TIV-lab/BU-TIV-lab.mp4 \
+        --output docs/latency_thermal_only.md
+
 Per crowd size it reports frames published, messages received, sustained rate, latency =
 receive time - image stamp carried by the message (median, p95, max) for both outputs, the
 nodes' own dropped-frame counters, and the load average before/after.  Writes
@@ -87,6 +97,27 @@ def warmup_index(j: int, frames: int) -> int:
     return m if m < frames else 2 * frames - 2 - m
 
 
+def clip_messages(path: Path) -> tuple[list[tuple], list[float]]:
+    """(thermal mono8, None) Image messages of every frame of a thermal recording, and NaN
+    visible-people counts (a recording has no ground truth)."""
+    import cv2
+    from std_msgs.msg import Header
+
+    from mk_tracker.bags.recording_import import open_recording
+    from mk_tracker.messages.image_conversion import numpy_to_image
+    from mk_tracker.messages.message_types import ros_message_types
+
+    types = ros_message_types()
+    out = []
+    for frame in open_recording(path, None).frames():
+        grey = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        out.append((numpy_to_image(np.ascontiguousarray(grey, dtype=np.uint8), "mono8",
+                                   Header(frame_id="thermal_camera"), types=types), None))
+    if len(out) < 2:
+        raise RuntimeError(f"{path}: fewer than 2 frames")
+    return out, [float("nan")] * len(out)
+
+
 def render_messages(n_people: int, seed: int, frames: int) -> tuple[list[tuple], list[int]]:
     """(thermal mono8, RGB bgr8) Image messages of every frame, rendered before timing, and
     the number of people visible in the RGB plane of each frame (ground truth)."""
@@ -122,7 +153,13 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
     warm_frames = int(round(args.warmup_seconds * args.rate))
     count = int(round(args.seconds * args.rate))
     t_render = time.monotonic()
-    messages, visible = render_messages(n_people, args.seed, warm_frames + count)
+    clip = args.thermal_clip is not None
+    if clip:
+        messages, visible = clip_messages(args.thermal_clip)
+        frames = len(messages)
+    else:
+        messages, visible = render_messages(n_people, args.seed, warm_frames + count)
+        frames = warm_frames + count
     render_s = time.monotonic() - t_render
 
     domain = quiet_domain(_EnvSetter())       # also sets the ROS/Fast DDS env of this process
@@ -138,15 +175,23 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
     peer = None
     stop_spin = threading.Event()
     spinner = None
-    result: dict = {"people": n_people, "domain": domain, "render_s": render_s}
+    result: dict = {"people": n_people, "clip": clip, "domain": domain, "render_s": render_s}
     try:
+        extra = {DETECTOR: [], TRACKER: []}
+        if clip:
+            regions = ", ".join(f"{float(v)}" for v in args.ignore_region)
+            extra = {DETECTOR: ["-p", f"ignore_regions:=[{regions}]"],
+                     TRACKER: ["-r", "image_raw:=thermal/image_raw"]}
         for module, config in ((DETECTOR, "detector"), (TRACKER, "tracker")):
             nodes[module] = NodeProcess(
                 module, ["--params-file", str(REPO / "config" / f"{config}.yaml"),
-                         "-p", "report_period:=0.1"], env,
+                         "-p", "report_period:=0.1", *extra[module]], env,
                 args.log_dir / f"{config}_node_{n_people}.log")
+        ready = dict(READY)
+        if clip:
+            ready[TRACKER] = "tracking /thermal/image_raw"
         for module, node in nodes.items():
-            if not node.wait_for_output(READY[module], 60.0):
+            if not node.wait_for_output(ready[module], 60.0):
                 raise RuntimeError(f"{module} did not start:\n{node.output()}")
         peer = Peer(domain, "latency_bench")
         thermal_pub = peer.publisher(Image, "thermal/image_raw", image_qos)
@@ -163,8 +208,9 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
                                       output_qos)
         peer.node.create_subscription(Detection2DArray, "thermal/detections",
                                       collector("detections"), output_qos)
-        if not peer.spin_until(lambda: thermal_pub.get_subscription_count() > 0
-                               and rgb_pub.get_subscription_count() > 0
+        if not peer.spin_until(lambda: thermal_pub.get_subscription_count() >= (2 if clip
+                                                                             else 1)
+                               and (clip or rgb_pub.get_subscription_count() > 0)
                                and peer.node.count_publishers("tracks") > 0
                                and peer.node.count_publishers("thermal/detections") > 0,
                                30.0):
@@ -184,9 +230,10 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
             now_ns = time.time_ns()
             stamp = Time(sec=now_ns // 1_000_000_000, nanosec=now_ns % 1_000_000_000)
             thermal.header.stamp = stamp
-            rgb.header.stamp = stamp
             thermal_pub.publish(thermal)
-            rgb_pub.publish(rgb)
+            if rgb is not None:
+                rgb.header.stamp = stamp
+                rgb_pub.publish(rgb)
             return now_ns
 
         # warm-up: the scene's first frames at the publish rate (played back and forth if
@@ -196,7 +243,7 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
         i = 0
         warmed = False
         while time.monotonic() - t_warm < args.warmup_timeout:
-            publish(warmup_index(i, warm_frames))
+            publish(warmup_index(i, min(warm_frames, frames)))
             i += 1
             if (any(n > 0 for _, _, n in received["detections"])
                     and any(n > 0 for _, _, n in received["tracks"])):
@@ -210,14 +257,15 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
         # measurement includes the warm-up's drops
         for _ in range(int(round(args.settle * args.rate))):
             time.sleep(max(0.0, t_warm + i * period - time.monotonic()))
-            publish(warmup_index(i, warm_frames))
+            publish(warmup_index(i, min(warm_frames, frames)))
             i += 1
         # the measurement continues the scene's motion (a jump only after back-and-forth)
-        first = i if i <= warm_frames else warm_frames
-        result["continuous"] = i <= warm_frames
+        first = i if i <= min(warm_frames, frames) else min(warm_frames, frames)
+        result["continuous"] = i <= min(warm_frames, frames)
 
         # measurement
-        result["visible_mean"] = float(np.mean(visible[first:first + count]))
+        shown = [warmup_index(first + k, frames) for k in range(count)]
+        result["visible_mean"] = float(np.mean([visible[j] for j in shown]))
         published: set[int] = set()
         late = 0
         t0_wall = time.time()
@@ -228,7 +276,7 @@ def measure(n_people: int, args: argparse.Namespace) -> dict:
                 time.sleep(delay)
             elif delay < -period:
                 late += 1
-            published.add(publish(first + k))
+            published.add(publish(shown[k]))
         t_end = time.monotonic()
         time.sleep(args.drain)
         stop_spin.set()
@@ -269,9 +317,29 @@ def _fmt(x: float) -> str:
     return "n/a" if x != x else f"{x:.1f}"
 
 
+def _label(r: dict) -> str:
+    return "thermal clip" if r.get("clip") else f"{r['people']} people"
+
+
 def report(results: list[dict], args: argparse.Namespace, command: str) -> str:
+    clip = args.thermal_clip
+    setup = (f"thermal only, {clip.name}" if clip is not None else "640x480")
+    what = (
+        f"The benchmark process reads `{clip.name if clip else ''}` into mono8 Image messages "
+        "(played back and forth when the run needs more frames than the clip has), warms the "
+        "nodes up (publishes until the first non-empty detections and tracks arrive), then "
+        "publishes them on `thermal/image_raw` only (the tracker's `image_raw` remapped to "
+        "it, as `thermal_only:=true` does; the detector's `ignore_regions` = "
+        f"{list(args.ignore_region)}), best effort, at {args.rate:g} Hz for {args.seconds:g} "
+        "s with header stamp = wall-clock publication time" if clip is not None else
+        "The benchmark process pre-renders "
+        f"`crowd_scene(n, seed={args.seed}, width=640, height=480)` into Image messages, "
+        "warms the nodes up (publishes until the first non-empty detections and tracks "
+        "arrive), then publishes thermal mono8 (`thermal/image_raw`) and RGB bgr8 "
+        f"(`image_raw`), best effort, at {args.rate:g} Hz for {args.seconds:g} s with header "
+        "stamp = wall-clock publication time")
     lines = [
-        "# End-to-end latency of detector_node + tracker_node (640x480, "
+        f"# End-to-end latency of detector_node + tracker_node ({setup}, "
         f"{args.rate:g} Hz)",
         "",
         f"Produced by (finished {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, 2-core "
@@ -284,12 +352,7 @@ def report(results: list[dict], args: argparse.Namespace, command: str) -> str:
         "Both nodes are separate processes started with config/detector.yaml / "
         "config/tracker.yaml (plus `report_period:=0.1` so their drop counters are logged "
         "every 0.1 s), own ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, Fast DDS "
-        "profile config/fastdds_shm.xml.  The benchmark process pre-renders "
-        f"`crowd_scene(n, seed={args.seed}, width=640, height=480)` into Image messages, "
-        "warms the nodes up (publishes until the first non-empty detections and tracks "
-        "arrive), then publishes thermal mono8 (`thermal/image_raw`) and RGB bgr8 "
-        f"(`image_raw`), best effort, at {args.rate:g} Hz for {args.seconds:g} s with header "
-        "stamp = wall-clock publication time, and receives `tracks` and `thermal/detections` "
+        "profile config/fastdds_shm.xml.  " + what + ", and receives `tracks` and `thermal/detections` "
         "(reliable) in the same process on an executor thread.  Latency = receive time - "
         "the image stamp the message carries (transport + queueing + processing + "
         "transport); only messages answering a frame of the measurement count.  'Dropped' "
@@ -298,7 +361,7 @@ def report(results: list[dict], args: argparse.Namespace, command: str) -> str:
         "the measurement started, +-0.1 s; the warm-up is followed by "
         f"{args.settle:g} s of streaming before the measurement).",
         "",
-        "| | " + " | ".join(f"{r['people']} people, run {r['repeat']}" for r in results)
+        "| | " + " | ".join(f"{_label(r)}, run {r['repeat']}" for r in results)
         + " |",
         "|---|" + "---|" * len(results),
     ]
@@ -350,26 +413,30 @@ def interpretation(results: list[dict], rate: float) -> list[str]:
         det = [r["detections_rate"] for r in runs]
         keeps_up = min(share) >= 95.0
         out.append(
-            f"* {n} people: the tracker answered {_span(share, '%')} of the {rate:g} Hz "
+            f"* {_label(runs[0])}: the tracker answered {_span(share, '%')} of the {rate:g} Hz "
             f"frames ({_span([r['tracks_rate'] for r in runs], '/s')}), so it "
             + ("keeps up" if keeps_up else "does not keep up; it skips to the newest frame "
                "(the dropped counter) instead of queueing, which bounds the latency")
             + f"; median tracks latency {_span([r['tracks_latency']['median'] for r in runs], ' ms')}"
             f", p95 {_span([r['tracks_latency']['p95'] for r in runs], ' ms')}.  It held "
-            f"{_span([r['tracks_mean_objects'] for r in runs], '')} tracks per frame for "
-            f"{_span([r['visible_mean'] for r in runs], '')} visible people.  The detector "
+            f"{_span([r['tracks_mean_objects'] for r in runs], '')} tracks per frame"
+            + (" (visible people unknown: no ground truth)" if runs[0].get("clip") else
+               f" for {_span([r['visible_mean'] for r in runs], '')} visible people")
+            + f".  The detector "
             f"ran at {_span(det, '/s')} ({_span([100 * d / rate for d in det], '%')} of the "
             f"frames), median detections latency "
             f"{_span([r['detections_latency']['median'] for r in runs], ' ms')}."
             + (" The tracker followed fewer than half of the visible people, so this is a "
                "light tracking load, not the load of tracking all of them."
-               if max(r["tracks_mean_objects"] for r in runs)
+               if not runs[0].get("clip") and max(r["tracks_mean_objects"] for r in runs)
                < 0.5 * min(r["visible_mean"] for r in runs) else ""))
+    if not any(r.get("clip") for r in results):
+        out.append(
+            "* The tracker runs one multiple-kernel mean shift per track, so its cost should "
+            "follow the number of tracks it holds rather than the number of people in the "
+            "scene: compare the tracks per frame of the two crowd sizes before reading the "
+            "rates as 'more people = slower'.")
     out += [
-        "* The tracker runs one multiple-kernel mean shift per track, so its cost should "
-        "follow the number of tracks it holds rather than the number of people in the "
-        "scene: compare the tracks per frame of the two crowd sizes before reading the "
-        "rates as 'more people = slower'.",
         "* Latency includes the publisher's serialization, shared-memory transport both ways, "
         "waiting in the node's newest-frame slot, processing, and the receiving executor "
         "thread of this Python process (which shares the GIL with the publishing loop).  "
@@ -407,7 +474,18 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds to keep receiving after the last publication")
     parser.add_argument("--output", type=Path, default=REPO / "docs" / "latency.md")
     parser.add_argument("--log-dir", type=Path, default=Path("/tmp/mk_tracker_latency"))
+    parser.add_argument("--thermal-clip", type=Path, default=None,
+                        help="thermal-only set-up on this recording instead of generated "
+                        "crowds (--people is then ignored)")
+    parser.add_argument("--ignore-region", type=float, nargs=4, default=[0.0, 0.0, 110.0, 50.0],
+                        metavar=("X", "Y", "W", "H"),
+                        help="with --thermal-clip: the detector's ignore region (default: "
+                        "BU-TIV-lab's burned-in counter)")
     args = parser.parse_args(argv)
+    if args.thermal_clip is not None:
+        if not args.thermal_clip.is_file():
+            parser.error(f"{args.thermal_clip}: no such file")
+        args.people = [0]
     shown = [a for a in (sys.argv[1:] if argv is None else argv)]
     command = " ".join([".venv/bin/python benchmarks/latency.py", *shown])
 
@@ -418,7 +496,7 @@ def main(argv: list[str] | None = None) -> int:
             r["repeat"] = repeat
             results.append(r)
             t, d = r["tracks_latency"], r["detections_latency"]
-            print(f"{n} people, run {repeat}: published {r['published']}, tracks "
+            print(f"{_label(r)}, run {repeat}: published {r['published']}, tracks "
                   f"{r['tracks_received']} ({r['tracks_rate']:.1f}/s) latency median "
                   f"{_fmt(t['median'])} p95 {_fmt(t['p95'])} max {_fmt(t['max'])} ms, "
                   f"tracker dropped {r.get('tracker_dropped_measured')}; detections "
