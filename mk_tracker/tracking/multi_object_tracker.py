@@ -64,6 +64,7 @@ from typing import Any, Iterable, Protocol, Sequence
 import numpy as np
 
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
+from mk_tracker.tracking.body_parts import is_other_part
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
 from mk_tracker.tracking.detection_input import (PLANES, FrameDetection,  # noqa: F401
@@ -390,10 +391,13 @@ class MultiObjectTracker:
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
                                and t.state is not TrackState.LOST]).reshape(-1, 4)
+        # (a detection of a tracked person's other half is explained too: body_parts.py)
+        reported_boxes = [t.box for t in live if t.state in OUTPUT_STATES]
         candidates = [k for k in single if k not in matched_track
                       and dets[k].score >= self.config.new_track_score
                       and explained_fraction(dets[k].box, live_boxes)
-                      < self.config.group.explained_coverage]
+                      < self.config.group.explained_coverage
+                      and not is_other_part(dets[k].box, reported_boxes, self.config.parts)]
         overlap = iou_matrix(np.array([dets[k].box for k in candidates]).reshape(-1, 4),
                              live_boxes)
         started: list[np.ndarray] = []
