@@ -192,7 +192,7 @@ def _centre(box) -> np.ndarray:
 
 
 def write_frames(inputs: list, reported: list, frames: list[int], path: Path,
-                 tile: int = 256) -> None:
+                 tile: int = 200) -> None:
     """A strip of ``frames``: detections green, reported ids red (magenta when still)."""
     import cv2
     tiles = []
