@@ -51,7 +51,7 @@ class BodyPartConfig:
     """When an unassigned detection is the other half of a tracked person (``parts.*``)."""
 
     enabled: bool = parameter(
-        False, "A detection directly above or below a live track's box, in its column and "
+        True, "A detection directly above or below a live track's box, in its column and "
         "together with it shaped like one upright person, starts no track (the detector "
         "cut the tracked person into torso and legs; tracking/body_parts.py)")
     min_column_overlap: float = parameter(
@@ -60,6 +60,10 @@ class BodyPartConfig:
     max_width_ratio: float = parameter(
         1.5, "Largest ratio of the two boxes' widths (torso and legs of one person are about "
         "as wide)", minimum=1.0, maximum=100.0)
+    max_height_ratio: float = parameter(
+        1.6, "Largest ratio of the two boxes' heights (a torso with the head and a pair of "
+        "legs are each about half a person; a box much shorter than its neighbour is a "
+        "person part-hidden in front, not a half)", minimum=1.0, maximum=100.0)
     max_row_overlap: float = parameter(
         0.35, "Largest overlap of the two boxes' y-ranges, as a fraction of the shorter "
         "height (more: side by side or one behind the other, not stacked)",
@@ -93,7 +97,8 @@ def stacked_part(track_box, detection_box, config: BodyPartConfig) -> bool:
     column = min(tx + tw, dx + dw) - max(tx, dx)
     if column < config.min_column_overlap * min(tw, dw):
         return False
-    if max(tw, dw) > config.max_width_ratio * min(tw, dw):
+    if max(tw, dw) > config.max_width_ratio * min(tw, dw) or \
+            max(th, dh) > config.max_height_ratio * min(th, dh):
         return False
     rows = min(ty + th, dy + dh) - max(ty, dy)        # negative: a gap between them
     if rows > config.max_row_overlap * min(th, dh):

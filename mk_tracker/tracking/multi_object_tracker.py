@@ -26,7 +26,8 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    by the Kalman prediction or by the track's last detection (whose spread grows with the
    time since it, :mod:`mk_tracker.tracking.reacquisition`), where the appearance model
    must also match (re-acquisition with the old id).  Remaining detections start tentative
-   tracks.
+   tracks, unless live tracks explain them: mostly covered (group measurements) or the
+   other half, torso or legs, of a tracked person (:mod:`mk_tracker.tracking.body_parts`).
 5. **Multiple-kernel refinement** (Chu et al. 2013, Sec. IV-D): for each confirmed or
    occluded track with an appearance model and no detection this frame (or every such track
    with ``refine_when_detected``), the Kalman prediction initialises the multiple-kernel

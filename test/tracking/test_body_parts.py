@@ -14,9 +14,9 @@ from mk_tracker.tracking.body_parts import BodyPartConfig, is_other_part, stacke
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                                       MultiObjectTrackerConfig)
 
-# on (off by default); column 0.6, width ratio 1.5, rows 0.35, gap 0.15, parts at most 2.0
-# times as tall as wide, the union 1.8-4.0 times
-CFG = dataclasses.replace(BodyPartConfig(), enabled=True)
+# the defaults: column 0.6, width ratio 1.5, height ratio 1.6, rows 0.35, gap 0.15, parts at
+# most 2.0 times as tall as wide, the union 1.8-4.0 times
+CFG = BodyPartConfig()
 TORSO = (100.0, 100.0, 60.0, 80.0)          # x 100-160, y 100-180
 
 
@@ -40,6 +40,8 @@ def test_overlapping_rows_up_to_the_limit_still_stack():
     ((170.0, 185.0, 60.0, 90.0), "side by side: columns 160 - 170 = -10 < 36"),
     ((135.0, 185.0, 60.0, 90.0), "column 160 - 135 = 25 < 0.6 * 60 = 36"),
     ((90.0, 185.0, 100.0, 90.0), "widths 100 / 60 = 1.67 > 1.5"),
+    ((105.0, 185.0, 60.0, 45.0), "heights 80 / 45 = 1.78 > 1.6 (union 65 x 130 is 2.0: "
+                                 "a person's shape; a short box in front, not a half)"),
     ((110.0, 120.0, 50.0, 100.0), "one behind the other: rows 60 > 0.35 * 80 = 28"),
     ((100.0, 200.0, 60.0, 80.0), "gap 20 > 0.15 * 80 = 12"),
 ])
@@ -66,8 +68,8 @@ def test_a_whole_person_is_no_part():
 
 def test_disabled_or_degenerate_boxes_are_no_parts():
     legs = (105.0, 185.0, 60.0, 90.0)
-    assert not BodyPartConfig().enabled                     # off by default
-    assert not is_other_part(legs, [TORSO], BodyPartConfig())
+    assert CFG.enabled                                      # on by default
+    assert not is_other_part(legs, [TORSO], dataclasses.replace(CFG, enabled=False))
     assert not is_other_part(legs, [], CFG)
     assert not stacked_part(TORSO, (105.0, 185.0, 0.0, 90.0), CFG)
     assert not stacked_part(TORSO, (math.nan, 185.0, 60.0, 90.0), CFG)
