@@ -26,7 +26,8 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    by the Kalman prediction or by the track's last detection (whose spread grows with the
    time since it, :mod:`mk_tracker.tracking.reacquisition`), where the appearance model
    must also match (re-acquisition with the old id).  Remaining detections start tentative
-   tracks.
+   tracks, unless live tracks explain them: mostly covered (group measurements) or the
+   other half, torso or legs, of a tracked person (:mod:`mk_tracker.tracking.body_parts`).
 5. **Multiple-kernel refinement** (Chu et al. 2013, Sec. IV-D): for each confirmed or
    occluded track with an appearance model and no detection this frame (or every such track
    with ``refine_when_detected``), the Kalman prediction initialises the multiple-kernel
@@ -64,6 +65,7 @@ from typing import Any, Iterable, Protocol, Sequence
 import numpy as np
 
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
+from mk_tracker.tracking.body_parts import is_other_part
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
 from mk_tracker.tracking.detection_input import (PLANES, FrameDetection,  # noqa: F401
@@ -394,10 +396,13 @@ class MultiObjectTracker:
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
                                and t.state is not TrackState.LOST]).reshape(-1, 4)
+        # (a detection of a tracked person's other half is explained too: body_parts.py)
+        reported_boxes = [t.box for t in live if t.state in OUTPUT_STATES]
         candidates = [k for k in single if k not in matched_track
                       and dets[k].score >= self.config.new_track_score
                       and explained_fraction(dets[k].box, live_boxes)
-                      < self.config.group.explained_coverage]
+                      < self.config.group.explained_coverage
+                      and not is_other_part(dets[k].box, reported_boxes, self.config.parts)]
         overlap = iou_matrix(np.array([dets[k].box for k in candidates]).reshape(-1, 4),
                              live_boxes)
         started: list[np.ndarray] = []

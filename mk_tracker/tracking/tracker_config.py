@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
 from mk_tracker.tracking.association import AssociationConfig
+from mk_tracker.tracking.body_parts import BodyPartConfig
 from mk_tracker.tracking.camera_motion import CameraMotionConfig
 from mk_tracker.tracking.duplicate_tracks import DuplicateConfig
 from mk_tracker.tracking.group_measurement import GroupConfig
@@ -38,6 +39,9 @@ class MultiObjectTrackerConfig:
     recovery: RecoveryConfig = parameter(
         RecoveryConfig(), "Second association round of drifted active tracks from their last "
         "detection (OC-SORT's observation-centric recovery)")
+    parts: BodyPartConfig = parameter(
+        BodyPartConfig(), "A detection of a tracked person's other half (torso / legs) "
+        "starts no track (tracking/body_parts.py)")
     multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
                                                 "Multiple-kernel refinement (Chu et al. 2013)")
     manual_track: ManualTrackConfig = parameter(
