@@ -338,7 +338,8 @@ DEFAULTS_NOTE = [
     "of seed 201 at 640x480, 8 / 15 people, 0.159 / 0.426 and 0.017 / 0.247, off 0.159 / "
     "0.426 and 0.016 / 0.247).  Kept as an option, off by default and out of the grid: "
     "the grid it was tried in lowers the held-out mean MOTA.",
-    "* `min_reported_coast_expected_iou` (new, off): one level instead of the two "
+    "* `min_reported_coast_expected_iou` (measured, then deleted: reproduce at commit "
+    "ecc72d9): one level instead of the two "
     "coasting bounds above, which stand in for each other in the grid.  A coasting box is"
     " reported only while the expected IoU of its box with the person "
     "(`frame_result.coast_expected_iou`) is at least this level: the last match IoU m as "

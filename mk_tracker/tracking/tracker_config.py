@@ -149,11 +149,5 @@ class MultiObjectTrackerConfig:
         "innovation at its last update, in the IoU the scoring uses): a filter that already "
         "missed the one-frame-ahead observation (a box around two people, a person turning) "
         "extrapolates a box off the person; 0 = no such bound", minimum=0.0, maximum=1.0)
-    min_reported_coast_expected_iou: float = parameter(
-        0.0, "FrameResult.reported() also drops an occluded (coasting) track once the "
-        "expected IoU of its box with the person falls below this: the last match IoU "
-        "decayed by the Kalman position std per box side (coast_expected_iou in "
-        "frame_result.py), one level for both bounds above; 0 = no such bound",
-        minimum=0.0, maximum=1.0)
     max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
                                 "not started", minimum=1, maximum=100000)
