@@ -31,10 +31,21 @@ ground truth) is driven by detection bags made from the same detections:
 The box figures are given for all matched detections and for those of one person (not
 ``covers 2+``).
 
+``--causes`` prints instead, per scene, why each matched detection misses IoU 0.5 in the
+thermal image (its share of the matched detections; first cause that applies):
+
+* ``merged``: the box covers a second person (``covers 2+``: a merged pair or group);
+* ``part``: one person, height ratio < ``--short`` (head, torso or legs only);
+* ``too big``: one person, height or width ratio > 1 / ``--short`` (box around more than
+  the person: a shadow, a limb, a neighbour's fringe);
+* ``offset``: the rest (right size, wrong place).
+
 Not a test: nothing is asserted.
 
     nice -n 10 .venv/bin/python benchmarks/diagnose_box_quality.py --people 3 8 15 \\
         --sizes 320x240 640x480 --seeds 101 102 103
+    nice -n 10 .venv/bin/python benchmarks/diagnose_box_quality.py --causes --people 8 15 \\
+        --seeds 101 102 [--set split_by_valleys=true]
 """
 
 from __future__ import annotations
@@ -153,6 +164,35 @@ def detection_bag(src: Path, dst: Path, frames, variant: str) -> None:
                  for score, boxes in dets], header, types))
 
 
+CAUSES = ("merged", "part", "too big", "offset")
+
+
+def cause(figure: dict, short: float) -> str | None:
+    """Why one matched detection misses IoU 0.5 (``--causes``); None when it does not."""
+    if figure["iou"] >= 0.5:
+        return None
+    if figure["covers"]:
+        return "merged"
+    if figure["h_ratio"] < short:
+        return "part"
+    if figure["h_ratio"] > 1.0 / short or figure["w_ratio"] > 1.0 / short:
+        return "too big"
+    return "offset"
+
+
+def cause_cells(figures, short: float) -> str:
+    """Markdown cells of ``--causes``: matched, IoU >= 0.5, then each cause's share, and the
+    median height / width ratio."""
+    if not figures:
+        return " | ".join(["-"] * (4 + len(CAUSES)))
+    found = [cause(f, short) for f in figures]
+    n = len(figures)
+    return " | ".join([f"{n}", f"{found.count(None) / n:.2f}"]
+                      + [f"{found.count(c) / n:.2f}" for c in CAUSES]
+                      + [f"{np.median([f['h_ratio'] for f in figures]):.2f}",
+                         f"{np.median([f['w_ratio'] for f in figures]):.2f}"])
+
+
 def summary(figures) -> str:
     """Markdown cells of the box figures: all matched detections, then those of one
     person."""
@@ -184,6 +224,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="an edge is missing when the box falls short of the person's "
                              "by more than this fraction of its height (top, bottom) or "
                              "width (sides)")
+    parser.add_argument("--causes", action="store_true",
+                        help="only the causes of IoU < 0.5 per scene (no pipeline)")
+    parser.add_argument("--short", type=float, default=0.7,
+                        help="--causes: height ratio below which a box is a part, and "
+                             "whose inverse a ratio must exceed to be too big")
     parser.add_argument("--no-pipeline", action="store_true",
                         help="box figures only (no MOTA bound)")
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
@@ -193,6 +238,8 @@ def main(argv: list[str] | None = None) -> int:
     detector_config = base.detector
     if args.set:
         detector_config = updated(detector_config, setting_changes(args.set))
+    if args.causes:
+        return print_causes(args, detector_config)
     print("| size | people | seed | matched | IoU median thermal / RGB | IoU >= 0.5 thermal / "
           "RGB | height ratio | width ratio | top missing | bottom missing | side missing "
           "| covers 2+ | one person: matched | IoU median | IoU >= 0.5 | height ratio | width "
@@ -234,6 +281,27 @@ def main(argv: list[str] | None = None) -> int:
                          for v in VARIANTS]
                 print(f"| {size} | {people} | all | {summary(pooled)} | "
                       + " | ".join(means) + " |", flush=True)
+    return 0
+
+
+def print_causes(args, detector_config) -> int:
+    """The ``--causes`` table: per scene and pooled over the seeds."""
+    print("| size | people | seed | matched | IoU >= 0.5 | " + " | ".join(CAUSES)
+          + " | height ratio | width ratio |")
+    print("|---|---:|---:|" + "---:|" * (4 + len(CAUSES)))
+    for size in args.sizes:
+        width, height = (int(v) for v in size.split("x"))
+        for people in args.people:
+            pooled = []
+            for seed in args.seeds:
+                scene = build_preset("crowd", seed=seed, people=people, frames=args.frames,
+                                     width=width, height=height)
+                _, figures = run_detector(scene, detector_config, args.edge)
+                pooled += figures
+                print(f"| {size} | {people} | {seed} | {cause_cells(figures, args.short)} |",
+                      flush=True)
+            print(f"| {size} | {people} | all | {cause_cells(pooled, args.short)} |",
+                  flush=True)
     return 0
 
 

@@ -21,7 +21,7 @@ from mk_tracker.detection.block_support import SupportResult
 from mk_tracker.detection.footprint import (_UNSET, _VoronoiCell, _median, _owned_support,
                                             _similarity_radius)
 from mk_tracker.detection.person_size import (is_person_shaped, parts_are_people,
-                                              people_in_width, split_columns)
+                                              people_in_width, split_columns, valley_columns)
 from mk_tracker.detection.pixel_clustering import describe_parts, describe_pixels, valley_split
 
 __all__ = ["FootprintSplitting"]
@@ -167,7 +167,10 @@ class FootprintSplitting:
         intensity valleys (:func:`mk_tracker.detection.pixel_clustering.valley_split` with depth = the
         kernel's similarity radius, so each part is dissimilar, k < 1/2, to the valley that
         separates it); parts smaller than ``min_object_pixels`` are left out.  ``None``
-        when the footprint has one peak (it does not split)."""
+        when the footprint has one peak (it does not split).  With ``valley_columns`` the
+        parts are upright people's column ranges
+        (:func:`~mk_tracker.detection.person_size.valley_columns`), ``None`` when all its
+        parts are stacked in one."""
         c = self.config
         (y0, x0), mask = footprint
         h, w = mask.shape
@@ -186,6 +189,18 @@ class FootprintSplitting:
         if n <= 1:
             return None
         out = []
+        if c.valley_columns:
+            ranges = valley_columns(labels, n, c.valley_column_overlap,
+                                    patch * np.float32(polarity), depth)
+            if len(ranges) < 2:
+                return None
+            for a, b in ranges:
+                pr, pc = np.nonzero(mask[:, a:b])
+                if pr.size < c.min_object_pixels:
+                    continue
+                part = describe_pixels(pc + x0 + a, pr + y0)
+                out.append((part.centroid, part.box, part.pixel_count))
+            return out
         for cnt, sx, sy, xmin, xmax, ymin, ymax in describe_parts(labels, n).tolist():
             if cnt < c.min_object_pixels:
                 continue

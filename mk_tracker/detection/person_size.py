@@ -19,7 +19,11 @@ than one person at its row is a group:
   split only when every part is as tall as a person at its own row;
 * :func:`projection_cuts` cuts the region at the emptiest columns of its mask (the vertical
   projection) near the evenly spaced positions; :func:`split_columns` takes one person
-  fewer while a part would be narrower than a person.
+  fewer while a part would be narrower than a person;
+* :func:`valley_columns` (``detector.valley_columns``, with ``split_by_valleys``) turns the
+  parts of a valley split into column ranges: parts stacked in one column range are one
+  upright person, and neighbours are cut at the emptiest column between them, so a split
+  never makes a head or a leg box.
 
 The background-subtraction detector (:mod:`mk_tracker.detection.background_detector`) and the
 thermal detector (:mod:`mk_tracker.detection.thermal_detector`, ``split_by_person_size``)
@@ -34,7 +38,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 __all__ = ["PersonHeightModel", "is_person_shaped", "parts_are_people", "people_in_width",
-           "projection_cuts", "split_columns"]
+           "projection_cuts", "split_columns", "valley_columns"]
 
 
 class PersonHeightModel:
@@ -194,3 +198,72 @@ def split_columns(mask: np.ndarray, people: int, min_width: float = 0.0
             return parts
     filled = np.flatnonzero(columns)
     return [(int(filled[0]), int(filled[-1]) + 1)] if filled.size else []
+
+
+def valley_columns(labels: np.ndarray, n: int, overlap: float = 0.5,
+                   values: np.ndarray | None = None, depth: float = 0.0
+                   ) -> list[tuple[int, int]]:
+    """``(first, end)`` column ranges, left to right, of the upright people in a footprint
+    whose valley split (:func:`mk_tracker.detection.pixel_clustering.valley_split`) gave
+    ``labels`` (``(h, w)`` int, 1..n on the footprint, 0 off it).
+
+    A part's *columns* are those of its core: with ``values`` (the intensities the split
+    ran on, objects on the high side) its pixels within ``depth / 2`` of its own maximum
+    (the split's core of a peak), else all its pixels.  The watershed hands a plateau to
+    the nearest peak, so a part's full extent may reach under its neighbour; its core does
+    not.  The parts are taken in the order of their cores' mean column.  A part whose core
+    columns share at least ``overlap`` of the narrower of its range and the current
+    person's with the current person's is stacked on it (a head above a torso, legs below
+    it: one person, the ranges joined); otherwise it starts the next person.  Two
+    neighbours are cut at the emptiest column of the footprint's vertical projection
+    (column sums of ``labels > 0``) strictly between their mean core columns; among equals
+    the one with the lowest sum of ``values`` (the valley), then the one nearest the
+    midpoint.  Each person keeps every footprint pixel of its columns: whole rows, never a
+    horizontal cut.  One range (the footprint's columns) when the parts are all stacked;
+    ``[]`` for an empty footprint.
+    """
+    mask = labels > 0
+    columns = mask.sum(axis=0).astype(np.float64)
+    filled = np.flatnonzero(columns)
+    if filled.size == 0:
+        return []
+    whole = [(int(filled[0]), int(filled[-1]) + 1)]
+    cols = np.arange(labels.shape[1], dtype=np.float64)
+    heat = (np.where(mask, values, 0.0).sum(axis=0) if values is not None
+            else np.zeros(labels.shape[1]))
+    parts = []
+    for k in range(1, n + 1):
+        own = labels == k
+        if values is not None and own.any():
+            own &= values >= values[own].max() - 0.5 * depth
+        counts = own.sum(axis=0).astype(np.float64)
+        used = np.flatnonzero(counts)
+        if used.size == 0:
+            continue
+        parts.append((float((counts * cols).sum() / counts.sum()), int(used[0]),
+                      int(used[-1]) + 1, counts))
+    parts.sort(key=lambda p: p[0])
+    people: list[list] = []                 # [first, end, core column counts]
+    for _, first, end, counts in parts:
+        if people:
+            a, b, held = people[-1]
+            shared = min(b, end) - max(a, first)
+            if shared >= overlap * min(b - a, end - first):
+                people[-1] = [min(a, first), max(b, end), held + counts]
+                continue
+        people.append([first, end, counts])
+    if len(people) < 2:
+        return whole
+    centres = [float((p[2] * cols).sum() / p[2].sum()) for p in people]
+    edges = [int(filled[0])]
+    for left, right in zip(centres[:-1], centres[1:]):
+        lo, hi = max(int(math.floor(left)) + 1, edges[-1] + 1), int(math.ceil(right))
+        if hi <= lo:
+            continue
+        candidates = np.arange(lo, hi)
+        middle = 0.5 * (left + right)
+        best = np.lexsort((np.abs(candidates - middle), heat[lo:hi], columns[lo:hi]))[0]
+        edges.append(int(candidates[best]))
+    edges.append(int(filled[-1]) + 1)
+    out = [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a and columns[a:b].any()]
+    return out if len(out) > 1 else whole

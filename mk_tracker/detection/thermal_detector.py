@@ -58,7 +58,11 @@ Where the paper is silent, and what we add (each switchable):
   (:func:`mk_tracker.detection.pixel_clustering.valley_split`, compiled).  Full-frame passes split
   every footprint; in a tracking pass an object whose box grew by ``valley_grow_ratio``
   over its last box or its box at the last full-frame pass (it fused with someone it
-  touches) keeps the part nearest its prediction.
+  touches) keeps the part nearest its prediction.  With ``valley_columns`` the parts are
+  upright people's column ranges instead (stacked parts joined, neighbours cut at the
+  emptiest column, whole rows kept:
+  :func:`mk_tracker.detection.person_size.valley_columns`), so a split makes no head or
+  leg box; off by default (docs/benchmark_groups.md).
 * **Person-size split** (``split_by_person_size``).  The expected person height at each
   image row is learnt online from the person-shaped detections
   (:mod:`mk_tracker.detection.person_size`, a least-squares line in the row of the feet);

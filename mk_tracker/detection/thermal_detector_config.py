@@ -84,6 +84,17 @@ class ThermalDetectorConfig:
                                                 "head); a piece of the footprint with one "
                                                 "peak needs this fraction of the pieces' "
                                                 "area per peak", minimum=0.0, maximum=1.0)
+    valley_columns: bool = parameter(
+        False, "split_by_valleys: cut only between the columns of upright people: valley "
+        "parts stacked in one column range (valley_column_overlap) are one person, "
+        "neighbours are cut at the emptiest column of the footprint between them, and each "
+        "keeps the footprint's whole rows in its columns, so a split never makes a head or "
+        "a leg box (mk_tracker.detection.person_size.valley_columns; not in the paper; "
+        "docs/benchmark_groups.md)")
+    valley_column_overlap: float = parameter(
+        0.5, "valley_columns: two valley parts whose column ranges share at least this "
+        "fraction of the narrower range are stacked parts of one person", minimum=0.0,
+        maximum=1.0)
     valley_grow_ratio: float = parameter(1.3, "split_by_valleys in tracking passes: an "
                                          "object whose box is wider or taller than this "
                                          "times its last box, or its box at the last "

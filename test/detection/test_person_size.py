@@ -10,7 +10,8 @@ import pytest
 
 from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
                                               parts_are_people, people_in_width,
-                                              projection_cuts, split_columns)
+                                              projection_cuts, split_columns,
+                                              valley_columns)
 
 
 def test_person_shape_is_an_upright_box_near_the_aspect():
@@ -245,3 +246,54 @@ def test_a_split_with_a_part_shorter_than_a_person_keeps_the_footprint_whole(fra
         assert sorted(round(d.box[3]) for d in pair) == [20, 40]
     else:
         assert len(pair) == 1 and round(pair[0].box[2]) == 32 and round(pair[0].box[3]) == 40
+
+
+def _two_people_in_four_parts() -> np.ndarray:
+    """Labels of a footprint two people make side by side, as a valley split may give them:
+    each person cut into a head part above a body part.  Person A: head 1 (rows 0-2,
+    columns 1-3), body 2 (rows 3-9, columns 0-4, plus a two-pixel bridge at column 5 where
+    it touches B); person B: head 3 (rows 0-2, columns 7-9), body 4 (rows 3-9, columns
+    6-10).  Column sums: 7, 10, 10, 10, 7, 2, 7, 10, 10, 10, 7."""
+    labels = np.zeros((10, 11), dtype=np.int32)
+    labels[0:3, 1:4] = 1
+    labels[3:10, 0:5] = 2
+    labels[5:7, 5] = 2
+    labels[0:3, 7:10] = 3
+    labels[3:10, 6:11] = 4
+    return labels
+
+
+def test_valley_columns_joins_stacked_parts_and_cuts_between_people():
+    """Head 1 shares all of its 3 columns with body 2 (>= 0.5 x 3): one person, and so are 3
+    and 4; the two people's mean columns are 2.13 and 8 (A: 46 pixels, sum of columns 98),
+    the emptiest column strictly between them is 5 (2 pixels): A gets columns 0-4, B 5-10,
+    each with whole rows."""
+    assert valley_columns(_two_people_in_four_parts(), 4) == [(0, 5), (5, 11)]
+
+
+def test_valley_columns_keeps_a_person_cut_across_whole():
+    """A valley split across one body (a head part above a torso part above a leg part, all
+    in columns 2-6 of 9) is one upright person: one range, the footprint's columns."""
+    labels = np.zeros((12, 9), dtype=np.int32)
+    labels[0:3, 3:6] = 1
+    labels[3:7, 2:7] = 2
+    labels[7:12, 2:7] = 3
+    assert valley_columns(labels, 3) == [(2, 7)]
+
+
+@pytest.mark.parametrize("overlap, expected", [(0.5, [(0, 5), (5, 9)]), (0.3, [(0, 9)])])
+def test_valley_columns_overlap_decides_between_neighbours_and_stacked_parts(overlap,
+                                                                              expected):
+    """Part 1 in rows 0-3, columns 0-4, part 2 in rows 4-7, columns 3-8 (a slanted
+    watershed between two neighbours): they share 2 columns, 0.4 of the narrower (5).  At
+    0.5 they are two people, cut at the emptiest column strictly between their mean columns
+    2.0 and 5.5 (columns 3, 4, 5 hold 8, 8, 4 pixels: column 5); at 0.3 they are stacked,
+    one person."""
+    labels = np.zeros((8, 9), dtype=np.int32)
+    labels[0:4, 0:5] = 1
+    labels[4:8, 3:9] = 2
+    assert valley_columns(labels, 2, overlap) == expected
+
+
+def test_valley_columns_of_an_empty_footprint_is_empty():
+    assert valley_columns(np.zeros((4, 4), dtype=np.int32), 0) == []

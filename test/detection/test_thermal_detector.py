@@ -455,6 +455,48 @@ def test_touching_people_are_split_along_the_valley_between_them():
     assert x <= cxs[0] < x + 14 <= cxs[1] < x + 28
 
 
+def _startup_boxes(frames, **over):
+    """The boxes of the detector's start-up pass over ``(t, frame, x)`` and that ``x``."""
+    det = ThermalDetector(ThermalDetectorConfig(**over))
+    for t, f, x in frames:
+        out = det.process(f, float(t) / 10.0)
+        if det.last_mode == "startup":
+            return sorted(tuple(d.box) for d in out), x
+    raise AssertionError("no start-up pass")
+
+
+def test_valley_columns_keeps_a_person_cut_at_the_belt_whole():
+    """One person, warm upper body (165, rows 12-39) over a cool belt (80, rows 40-42) and
+    legs (125, rows 43-69), 14 columns wide: the valley split cuts it across the belt into an
+    upper and a lower box; with valley_columns the two parts share all their columns, so
+    they are one person: one box, columns x .. x + 13, rows 12 .. 69."""
+    def frames():
+        for t in range(8):
+            f = np.full((80, 120), 40, dtype=np.uint8)
+            x = 30 + 2 * t
+            f[12:40, x:x + 14] = 165
+            f[40:43, x:x + 14] = 80
+            f[43:70, x:x + 14] = 125
+            yield t, f, x
+
+    cut, x = _startup_boxes(frames(), split_by_valleys=True)
+    assert len(cut) == 2 and cut[0][1] + cut[0][3] <= cut[1][1]        # stacked parts
+    whole, x = _startup_boxes(frames(), split_by_valleys=True, valley_columns=True)
+    assert whole == [(float(x), 12.0, 14.0, 58.0)]
+
+
+def test_valley_columns_cuts_touching_people_into_whole_columns():
+    """The touching pair of _touching_pair_frames (bodies 110 | 125, columns x .. x + 13 and
+    x + 14 .. x + 27, rows 25-69; heads rows 15-24): cut at the emptiest column between the
+    heads' mean columns x + 6.5 and x + 20.5.  Columns x + 11 .. x + 16 hold 45 pixels each;
+    the coolest of them are x + 11 .. x + 13 (110), and x + 13 is nearest the midpoint
+    x + 13.5: the left person gets columns x .. x + 12, the right one x + 13 .. x + 27, both
+    with whole rows 15 .. 69 (the heads' rows are inside each part's columns)."""
+    frames = ((t, f, 20 + 2 * t) for t, f in enumerate(_touching_pair_frames()))
+    boxes, x = _startup_boxes(frames, split_by_valleys=True, valley_columns=True)
+    assert boxes == [(float(x), 15.0, 13.0, 55.0), (float(x + 13), 15.0, 15.0, 55.0)]
+
+
 def test_a_single_person_with_warm_hands_is_one_detection():
     """A person's hands are as warm as its head: small peaks beside a big one are parts of
     it (valley_min_peak_fraction), not people."""
