@@ -204,6 +204,13 @@ class ManualTrackConfig:
         "models: a look-alike passer-by no longer takes the track), or none",
         choices=BACKGROUND_WEIGHTINGS)
 
+    extent_scale_rate: float = parameter(
+        0.0, "Back-projection extent of a track started by hand (replaces "
+        "multi_kernel.extent_scale_rate; with background_weighting cbwh only): instead of "
+        "the scale step (9)-(11), the scale moves this fraction of the way to the height of "
+        "the samples whose colour is more frequent on the target than in the ring around it "
+        "(CAMShift-style moments, Bradski 1998); 0 = off", minimum=0.0, maximum=1.0)
+
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
         "paper): a first box of a track started by hand that touches the left or right "
@@ -251,7 +258,8 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    failure_sigmas=m.failure_sigmas,
                    learnt_measure=m.learnt_measure,
                    similarity_spread_prior=m.similarity_spread_prior,
-                   background_weighting=m.background_weighting)
+                   background_weighting=m.background_weighting,
+                   extent_scale_rate=m.extent_scale_rate)
 
 
 def columns_cover(res: Any, floor: float) -> bool:
