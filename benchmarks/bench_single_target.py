@@ -1323,9 +1323,9 @@ The tables above are the evidence.
   36.0 -> 145.4 and person 8 at 6.25 fps 76.1 -> 117.9; the clip 57.6 -> 43.6 px, AUC 0.38 ->
   0.43.  Median time per frame 0.55 -> 0.78 ms (the ring's histogram at the start, one more
   evaluation for the scale step).
-* **The back-projection extent as the scale measurement: lost held out, off**
-  (issue #16 item 3, 2026-11-27 16:16 UTC; `manual_track.extent_scale_rate`, 0 = off,
-  `mk_tracker/tracking/scale_estimation.py`).  Seven of the 14 losses to CSRT are box
+* **The back-projection extent as the scale measurement: lost held out, deleted**
+  (issue #16 item 3, 2026-11-27 16:16 UTC; `manual_track.extent_scale_rate` in
+  `mk_tracker/tracking/scale_estimation.py` at commit cd30249, where this run reproduces).  Seven of the 14 losses to CSRT are box
   accuracy without a failure (failure_analysis.md, "The 14 losses to CSRT after the
   background weighting").  With cbwh, the samples around the box whose colour is more
   frequent in the target's model than in the ring (`q_u > o_u`, and at least the uniform

@@ -18,9 +18,7 @@ switch on for tracks started by hand only).  Failure detection against a level l
 the track's history (``similarity_reference_rate``, ``failure_sigmas``,
 ``similarity_spread_prior``) and a re-detection window growing with the time lost
 (``recovery_growth``, ``recovery_margin``) are there too, off by
-default: they lost in the leave-one-clip-out protocol (docs/benchmark_single_target.md), as
-did the back-projection extent in place of the scale step (9)-(11) (``extent_scale_rate``,
-:mod:`mk_tracker.tracking.scale_estimation`).
+default: they lost in the leave-one-clip-out protocol (docs/benchmark_single_target.md).
 
 Column re-centring (``ManualTrackConfig.column_recentre``): a two-column layout (4-6 kernels,
 Fig. 14b) has a stable wrong optimum with one column on the person and the other on
@@ -206,15 +204,6 @@ class ManualTrackConfig:
         "models: a look-alike passer-by no longer takes the track), or none",
         choices=BACKGROUND_WEIGHTINGS)
 
-    extent_scale_rate: float = parameter(
-        0.0, "Back-projection extent of a track started by hand (replaces "
-        "multi_kernel.extent_scale_rate; with background_weighting cbwh only): instead of "
-        "the scale step (9)-(11), the scale moves this fraction of the way to the height of "
-        "the samples whose colour is more frequent on the target than in the ring around it "
-        "(CAMShift-style moments, Bradski 1998); 0 = off (0.05 lost in the "
-        "leave-one-clip-out protocol of bench_single_target.py: docs/"
-        "benchmark_single_target.md)", minimum=0.0, maximum=1.0)
-
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
         "paper): a first box of a track started by hand that touches the left or right "
@@ -262,8 +251,7 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    failure_sigmas=m.failure_sigmas,
                    learnt_measure=m.learnt_measure,
                    similarity_spread_prior=m.similarity_spread_prior,
-                   background_weighting=m.background_weighting,
-                   extent_scale_rate=m.extent_scale_rate)
+                   background_weighting=m.background_weighting)
 
 
 def columns_cover(res: Any, floor: float) -> bool:

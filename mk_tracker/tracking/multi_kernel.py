@@ -101,8 +101,7 @@ from mk_tracker.tracking.background_weighting import (BackgroundModel, backgroun
                                                       reweighted, ring_histogram, ring_region)
 from mk_tracker.tracking.redetection import (grid_start, redetect, relative_similarities,
                                              update_reference)
-from mk_tracker.tracking.scale_estimation import (ScaleStep, back_projection_extent,
-                                                  extent_step, gated_step, scale_step)
+from mk_tracker.tracking.scale_estimation import ScaleStep, gated_step, scale_step
 # MultiKernelConfig and its presets are re-exported from here
 from mk_tracker.tracking.multi_kernel_config import (  # noqa: F401
     MultiKernelConfig, mean_shift_baseline_config, paper_config)
@@ -534,14 +533,10 @@ class MultiKernelTracker:
             state.models = reweighted(bg, cfg.background_weight_floor, cfg.histogram_epsilon)
         if mean_sim > cfg.similarity_gate:
             scale_sim = mean_sim if cfg.scale_gate_statistic == "mean" else float(sims.min())
-            # the back-projection extent, when it measures the person, replaces (9)-(11)
-            measured = cfg.extent_scale_rate > 0 and bg is not None and \
-                self._extent_scale(search, state)
-            if not measured:
-                if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
-                    state.scale_step = self._update_scale(search, state, w, ev, scale_sim)
-                else:
-                    state.scale_step = gated_step(scale_sim, state.scale)
+            if cfg.scale_update and cfg.beta > 0 and scale_sim > cfg.scale_similarity_gate:
+                state.scale_step = self._update_scale(search, state, w, ev, scale_sim)
+            else:
+                state.scale_step = gated_step(scale_sim, state.scale)
             self._update_background(image, state)
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
@@ -662,23 +657,6 @@ class MultiKernelTracker:
                               statistic)
         finally:
             state.models = weighted
-
-    def _extent_scale(self, search: SearchRegion, state: TargetState) -> bool:
-        """The back-projection extent step (``extent_scale_rate``): the target-coloured
-        samples of ``search`` around the box (the plain models' mean against the ring's
-        histogram, :func:`~mk_tracker.tracking.scale_estimation.back_projection_extent`) give
-        the person's height, and the scale moves towards it
-        (:func:`~mk_tracker.tracking.scale_estimation.extent_step`).  True when the extent
-        was usable, so the scale step (9)-(11) is not taken in this frame."""
-        cfg = self.config
-        bg = state.background
-        q = bg.plain.mean(axis=0)
-        if not q.sum() > 0 or not bg.histogram.sum() > 0:
-            return False
-        extent = back_projection_extent(search.bins, search.origin, search.stride, state.box,
-                                        q / q.sum(), bg.histogram, cfg.extent_margin)
-        return extent_step(state, extent, cfg.extent_scale_rate, cfg.extent_min_fraction,
-                           cfg, cfg.extent_max_ratio)
 
     def _lost(self, state: TargetState, x: np.ndarray, axes: np.ndarray, reason: str,
               sims: np.ndarray | None = None, weights: np.ndarray | None = None

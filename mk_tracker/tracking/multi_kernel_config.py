@@ -194,23 +194,6 @@ class MultiKernelConfig:
         "target is seen and replaces it when its Bhattacharyya coefficient with the old one "
         "is below this (the background changed enough, Ning et al.); 0 = first frame only",
         minimum=0.0, maximum=1.0)
-    extent_scale_rate: float = parameter(
-        0.0, "With a background weighting, the scale of a seen target moves this fraction "
-        "of the way to the height of the target-coloured samples (q_u > o_u, the ring's o) "
-        "around the box, measured by their second moment (CAMShift, Bradski 1998; not in "
-        "Chu et al.; mk_tracker.tracking.scale_estimation.back_projection_extent), instead "
-        "of the scale step (9)-(11) in the frames where that height is usable; 0 = off",
-        minimum=0.0, maximum=1.0)
-    extent_margin: float = parameter(
-        0.25, "Window of the back-projection extent: the box grown by this many box sizes "
-        "on every side (within the search region)", minimum=0.0, maximum=2.0)
-    extent_min_fraction: float = parameter(
-        0.3, "The back-projection extent is used only when its target-coloured samples "
-        "number at least this fraction of the box's samples", minimum=0.0, maximum=10.0)
-    extent_max_ratio: float = parameter(
-        1.25, "The back-projection extent is an outlier, and not used, when its height is "
-        "more than this many times the kernel box's or less than its inverse",
-        minimum=1.0, maximum=100.0)
     recovery_scan_cells: int = parameter(
         8, "Sampling of the back-projection scan: about this many samples across the box "
         "width (stride ceil(w / this) px)", minimum=2, maximum=64)

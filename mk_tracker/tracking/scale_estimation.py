@@ -37,19 +37,6 @@ unless said so):
 * ``method="checked"``: the step of (10) is kept only when the three-scale test moves the
   same way (a rough check of the sign of (10) by finite differences).
 
-The back-projection extent (``MultiKernelConfig.extent_scale_rate`` > 0, with a background
-weighting only; not in the paper), instead of the step above in the frames where it is
-usable (enough target-coloured samples, a height within ``extent_max_ratio`` of the box's):
-:func:`back_projection_extent`
-measures the person's height from the colours that are more frequent in the target than in
-the ring around it (the Bayes decision ``q_u > o_u`` on the background-weighted
-back-projection), by the second moment of those samples' rows as CAMShift does (Bradski
-1998: the size from the moments of the back-projection), and :func:`extent_step` moves the
-scale a fraction of the way to it.  (9)-(11) only sees the kernels' rims; this sees the
-whole silhouette in a window around the box; run together, the two fought (a model that
-holds background asks (10) for a bigger box, the extent for a smaller one), so the extent
-replaces (9)-(11) where it measures.
-
 In every method the step is bounded by ``max_scale_change`` and ``[min_scale, max_scale]`` of
 :class:`~mk_tracker.tracking.multi_kernel.MultiKernelConfig`.  :func:`scale_step` returns a
 :class:`ScaleStep` record of what it saw and did, which the tracker keeps on the target
@@ -66,8 +53,7 @@ import numpy as np
 from mk_tracker.parameters import parameter
 
 __all__ = ["SCALE_METHODS", "SCALE_ACCEPTANCE", "ScaleEstimationConfig", "ScaleStep",
-           "scale_step", "gated_step", "rescaled_centres", "Extent", "back_projection_extent",
-           "extent_step"]
+           "scale_step", "gated_step", "rescaled_centres"]
 
 SCALE_METHODS = ("gradient", "three_scale", "checked")
 SCALE_ACCEPTANCE = ("not_higher", "lower")
@@ -243,96 +229,8 @@ def fit_height(state: Any, low: float, high: float, min_scale: float, max_scale:
     goal = low if height < low else high
     s0 = float(state.scale)
     new_scale = float(np.clip(s0 * goal / height, min_scale, max_scale))
-    if new_scale != s0:
-        state.centres = rescaled_centres(state.centres, state.center, new_scale / s0)
-        state.scale = new_scale
-    return True
-
-
-@dataclass(frozen=True)
-class Extent:
-    """The target-coloured samples of a window (:func:`back_projection_extent`): their
-    centroid ``(cx, cy)``, the width and height of the uniform rectangle with the same second
-    moments, and ``fraction``, their count over the samples of the box (how much of the box
-    the decision calls target)."""
-
-    cx: float
-    cy: float
-    width: float
-    height: float
-    fraction: float
-
-
-def back_projection_extent(bins: np.ndarray, origin: tuple[int, int], stride: int,
-                           box: tuple[float, float, float, float], target: np.ndarray,
-                           background: np.ndarray, margin: float) -> Extent | None:
-    """Where the target's colours are in a window around ``box``: CAMShift's moments (Bradski
-    1998) on a background-weighted back-projection.
-
-    ``bins[r, c]`` is the colour bin of image pixel ``(ox + c * stride, oy + r * stride)``
-    (a :class:`~mk_tracker.tracking.search_region.SearchRegion`'s samples); ``target`` the
-    target's colour histogram ``q`` and ``background`` the ring's ``o`` (each summing to 1).
-    A sample is target-coloured when ``q_u > o_u``: its colour is more likely on the target
-    than around it (the posterior ``q_u / (q_u + o_u)`` above 1/2).  Only samples whose
-    pixel centres lie in ``box`` grown by ``margin`` box sizes on every side count.  The
-    width and height are those of the uniform rectangle with the samples' second moments
-    along x and y: a run of ``n`` samples ``s`` px apart has variance ``s^2 (n^2 - 1) / 12``,
-    so ``sqrt(12 var + s^2)`` is ``n s``, its length in pixels.  None when no sample
-    qualifies or the window holds no sample.
-    """
-    b = np.asarray(bins)
-    if b.ndim != 2 or b.size == 0:
-        return None
-    q = np.asarray(target, dtype=np.float64).reshape(-1)
-    o = np.asarray(background, dtype=np.float64).reshape(-1)
-    st = int(stride)
-    rows, cols = b.shape
-    xs = origin[0] + st * np.arange(cols, dtype=np.float64) + 0.5
-    ys = origin[1] + st * np.arange(rows, dtype=np.float64) + 0.5
-    bx, by, bw, bh = (float(v) for v in box)
-    wx = (xs >= bx - margin * bw) & (xs < bx + bw + margin * bw)
-    wy = (ys >= by - margin * bh) & (ys < by + bh + margin * bh)
-    in_box = ((ys >= by) & (ys < by + bh))[:, None] & ((xs >= bx) & (xs < bx + bw))[None, :]
-    n_box = int(in_box.sum())
-    if not wx.any() or not wy.any() or n_box == 0:
-        return None
-    target_bin = (q > o) & (q * q.size >= 1.0)
-    mask = target_bin[b.astype(np.int64)] & wy[:, None] & wx[None, :]
-    n = int(mask.sum())
-    if n == 0:
-        return None
-    r, c = np.nonzero(mask)
-    px, py = xs[c], ys[r]
-    width = float(np.sqrt(12.0 * px.var() + st * st))
-    height = float(np.sqrt(12.0 * py.var() + st * st))
-    return Extent(float(px.mean()), float(py.mean()), width, height, n / n_box)
-
-
-def extent_step(state: Any, extent: Extent | None, rate: float, min_fraction: float,
-                mk_config: Any, max_ratio: float = float("inf")) -> bool:
-    """Move ``state``'s scale the fraction ``rate`` of the way to the one whose kernel box is
-    as tall as ``extent`` (``s_e = s h_e / h``; ``s_t = s + rate (s_e - s)``), bounded by
-    ``max_scale_change`` and ``[min_scale, max_scale]``, the centres rescaled about the
-    centroid (14).  Nothing happens without an extent, when its samples cover less than
-    ``min_fraction`` of the box (too little of the target is told apart from the ring to
-    measure it) or when its height is more than ``max_ratio`` times the box's or less than
-    its ``1 / max_ratio`` (a measurement the current size calls an outlier: a neighbour or
-    background of the target's colours joined the samples).  True when the extent was used
-    (the scale moved towards it, or already had its height or a bound)."""
-    if extent is None or rate <= 0 or not extent.fraction >= min_fraction:
+    if new_scale == s0:
         return False
-    height = float(state.box[3])
-    if not (height > 0 and np.isfinite(extent.height) and extent.height > 0):
-        return False
-    ratio = extent.height / height
-    if not 1.0 / max_ratio <= ratio <= max_ratio:
-        return False
-    s0 = float(state.scale)
-    goal = s0 * ratio
-    ds = float(np.clip(rate * (goal - s0) / s0, -mk_config.max_scale_change,
-                       mk_config.max_scale_change))
-    new_scale = float(np.clip(s0 * (1.0 + ds), mk_config.min_scale, mk_config.max_scale))
-    if new_scale != s0:
-        state.centres = rescaled_centres(state.centres, state.center, new_scale / s0)
-        state.scale = new_scale
+    state.centres = rescaled_centres(state.centres, state.center, new_scale / s0)
+    state.scale = new_scale
     return True
