@@ -46,8 +46,9 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    into the older one (:mod:`mk_tracker.tracking.duplicate_tracks`); until then such a pair
    is reported as one track (``duplicates.report_one``; the other is in
    ``FrameResult.suppressed_ids``).  With ``pieces.enabled`` (off) a reported track whose
-   box lies inside a larger one's is hidden, and ended after ``pieces.min_time``
-   (:mod:`mk_tracker.tracking.piece_tracks`).
+   box lies inside a larger one's is hidden, and ended after ``pieces.min_time``; with
+   ``pieces.min_hits_beside`` (off) a track born on a detection under live tracks' boxes
+   needs that many detections to be confirmed (:mod:`mk_tracker.tracking.piece_tracks`).
 
 The refiner is any object with ``start(image, box) -> target``,
 ``refine(image, target, predicted_center=None) -> result`` (with ``box``, ``similarity``
@@ -87,7 +88,8 @@ from mk_tracker.tracking.group_measurement import (constrain_inside, explained_f
 from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectTrackerConfig
 from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
                                                reacquisition_matches, reference_similarity)
-from mk_tracker.tracking.piece_tracks import due_pieces, nested_in, update_nested_since
+from mk_tracker.tracking.piece_tracks import (born_beside, due_pieces, hits_to_confirm,
+                                              nested_in, update_nested_since)
 from mk_tracker.tracking.recovery import recover_into, restart_filter
 from mk_tracker.tracking.image_border import clip_to_image, overlaps_image, whole_person_box
 from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
@@ -423,6 +425,7 @@ class MultiObjectTracker:
                      > self.config.new_track_max_iou):
                 continue
             t = self._new_track(d.box, stamp, d.score, TrackState.TENTATIVE)
+            t.born_beside = born_beside(d.box, live_boxes, self.config.pieces)
             live.append(t)
             started.append(t.box)
             if self.config.lifecycle.min_hits <= 1:
@@ -773,6 +776,9 @@ class MultiObjectTracker:
                          still=t.is_still())
         if hold and new is TrackState.CONFIRMED and was is TrackState.TENTATIVE:
             new = TrackState.TENTATIVE
+        if new is TrackState.CONFIRMED and was is TrackState.TENTATIVE and \
+                t.hits < hits_to_confirm(cfg.min_hits, t.born_beside, self.config.pieces):
+            new = TrackState.TENTATIVE           # born beside live tracks (piece_tracks.py)
         if new is TrackState.LOST and was is not TrackState.LOST:
             t.lost_since = stamp
         if new is not TrackState.LOST:

@@ -44,8 +44,9 @@ class MultiObjectTrackerConfig:
         BodyPartConfig(), "A detection of a tracked person's other half (torso / legs) "
         "starts no track (tracking/body_parts.py)")
     pieces: PieceConfig = parameter(
-        PieceConfig(), "A track inside a larger track's box is a piece of that person: not "
-        "reported, and deleted after pieces.min_time (tracking/piece_tracks.py)")
+        PieceConfig(), "Tracks on pieces of one person under a splitting detector: a track "
+        "inside a larger track's box is hidden and ended; a track born beside live tracks "
+        "needs more detections to be confirmed (tracking/piece_tracks.py)")
     multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
                                                 "Multiple-kernel refinement (Chu et al. 2013)")
     manual_track: ManualTrackConfig = parameter(

@@ -14,7 +14,8 @@ from mk_tracker.parameters import updated
 from mk_tracker.tracking.group_measurement import coverage_matrix
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
                                                       MultiObjectTrackerConfig)
-from mk_tracker.tracking.piece_tracks import (PieceConfig, due_pieces, nested_in,
+from mk_tracker.tracking.piece_tracks import (PieceConfig, born_beside, due_pieces,
+                                              hits_to_confirm, nested_in,
                                               update_nested_since)
 
 # coverage 0.8, area ratio 1.5, 0.3 s
@@ -111,3 +112,55 @@ def test_the_tracker_hides_and_ends_a_track_that_moves_inside_another(enabled):
         assert sorted(t.id for t in result.reported()) == [1, 2]
         assert trk.totals["retired_pieces"] == 0
         assert iou(result.reported()[1].box, (110.0, 120.0, 30.0, 60.0)) > 0.5
+
+
+BESIDE = dataclasses.replace(PieceConfig(), min_hits_beside=15)     # coverage 0.2
+
+
+def test_born_beside_needs_the_reported_boxes_to_cover_enough_of_it():
+    # a box x 140-200 beside BODY x 100-160: the 12 x 12 sample grid has columns at
+    # 142.5, 147.5, ..., 197.5; 4 of them (up to 157.5) are under BODY: 4 / 12 = 0.33 >= 0.2
+    assert born_beside((140.0, 100.0, 60.0, 160.0), [BODY], BESIDE)
+    # x 155-215: one column (157.5) of 12 = 0.083 < 0.2
+    assert not born_beside((155.0, 100.0, 60.0, 160.0), [BODY], BESIDE)
+    assert not born_beside((140.0, 100.0, 60.0, 160.0), [], BESIDE)
+    assert not born_beside((math.nan, 100.0, 60.0, 160.0), [BODY], BESIDE)
+    # off by default (min_hits_beside 0): never beside
+    assert not born_beside((140.0, 100.0, 60.0, 160.0), [BODY], PieceConfig())
+
+
+def test_hits_to_confirm():
+    assert hits_to_confirm(3, True, BESIDE) == 15
+    assert hits_to_confirm(3, False, BESIDE) == 3
+    assert hits_to_confirm(3, True, dataclasses.replace(BESIDE, min_hits_beside=2)) == 3
+    assert hits_to_confirm(3, True, PieceConfig()) == 3
+
+
+def _first_reported(beside: int, detected) -> int | None:
+    """A person detected at BODY in every frame; a second box beside it (x 140-200, a
+    third of it under BODY) from frame 10 in the frames ``detected(i)`` says.  The frame in
+    which a track other than the person's (id 1) is first reported, or None."""
+    cfg = updated(MultiObjectTrackerConfig(), {"use_multi_kernel": False,
+                                               "pieces.min_hits_beside": beside})
+    trk = MultiObjectTracker(cfg)
+    for i in range(40):
+        dets = [FrameDetection(BODY, 0.9)]
+        if i >= 10 and detected(i):
+            dets.append(FrameDetection((140.0, 100.0, 60.0, 160.0), 0.9))
+        if {t.id for t in trk.step(IMG, i * DT, dets).reported()} - {1}:
+            return i
+    return None
+
+
+def test_a_track_born_beside_a_reported_one_needs_min_hits_beside_detections():
+    # steady: hit 1 at frame 10, so min_hits 3 is reached at frame 12 and 15 at frame 24
+    assert _first_reported(0, lambda i: True) == 12
+    assert _first_reported(15, lambda i: True) == 24
+
+
+def test_a_piece_detected_unsteadily_is_never_confirmed_beside_a_reported_track():
+    # detected five frames out of six: three in a row confirm it at min_hits 3 (frame 12);
+    # at 15 every miss ends the tentative track (max_tentative_misses 0) before its 15th hit
+    steady_five = lambda i: (i - 10) % 6 != 5        # noqa: E731
+    assert _first_reported(0, steady_five) == 12
+    assert _first_reported(15, steady_five) is None
