@@ -74,9 +74,11 @@ class PieceConfig:
         minimum=0.0, maximum=1e4)
     min_hits_beside: int = parameter(
         0, "A track born on a detection whose box is covered by live tracks' boxes "
-        "(tentative, confirmed or occluded) by at least beside_coverage needs this many detections, in consecutive frames "
-        "(lifecycle.max_tentative_misses), to be confirmed: a piece the split cuts anew at "
-        "each pass is not detected that steadily; 0 = lifecycle.min_hits for every track",
+        "(tentative, confirmed or occluded) by at least beside_coverage needs this many "
+        "detections, in consecutive frames (lifecycle.max_tentative_misses), to be "
+        "confirmed: a piece the split cuts anew at each pass is not detected that "
+        "steadily; 0 = lifecycle.min_hits for every track (off: with the default detector "
+        "15 costs thermal-only still people; docs/benchmark_real_thermal.md)",
         minimum=0, maximum=1000)
     beside_coverage: float = parameter(
         0.2, "Fraction of a new track's birth box covered by live tracks' boxes for it to "
@@ -89,8 +91,8 @@ def nested_in(ids: Sequence[int], boxes, config: PieceConfig) -> dict[int, int]:
     A track is nested in the track that covers most of its box, when that coverage is at
     least ``min_coverage`` and that track's box area is at least ``min_area_ratio`` times
     its own.  A container that is itself nested passes its nested tracks on to its own
-    container (head in legs in body: both inner tracks are the body's).  Boxes with a non-positive or
-    non-finite size are neither nested nor containers.
+    container (head in legs in body: both inner tracks are the body's).  Boxes with a
+    non-positive or non-finite size are neither nested nor containers.
     """
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     if len(b) < 2 or not config.enabled:
