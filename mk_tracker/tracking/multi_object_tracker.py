@@ -45,10 +45,7 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    (and, with ``duplicates.min_similarity``, alike by their appearance models) are merged
    into the older one (:mod:`mk_tracker.tracking.duplicate_tracks`); until then such a pair
    is reported as one track (``duplicates.report_one``; the other is in
-   ``FrameResult.suppressed_ids``).  With ``pieces.enabled`` (off) a reported track whose
-   box lies inside a larger one's is hidden, and ended after ``pieces.min_time``; with
-   ``pieces.min_hits_beside`` (off) a track born on a detection under live tracks' boxes
-   needs that many detections to be confirmed (:mod:`mk_tracker.tracking.piece_tracks`).
+   ``FrameResult.suppressed_ids``).
 
 The refiner is any object with ``start(image, box) -> target``,
 ``refine(image, target, predicted_center=None) -> result`` (with ``box``, ``similarity``
@@ -88,8 +85,6 @@ from mk_tracker.tracking.group_measurement import (constrain_inside, explained_f
 from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectTrackerConfig
 from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
                                                reacquisition_matches, reference_similarity)
-from mk_tracker.tracking.piece_tracks import (born_beside, due_pieces, hits_to_confirm,
-                                              nested_in, update_nested_since)
 from mk_tracker.tracking.recovery import recover_into, restart_filter
 from mk_tracker.tracking.image_border import clip_to_image, overlaps_image, whole_person_box
 from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
@@ -177,8 +172,6 @@ class MultiObjectTracker:
         self.last_stamp: float | None = None
         #: pairs of track ids stacked on one another since (stamp), duplicates.*
         self._stacked_since: dict[tuple[int, int], float] = {}
-        #: track ids nested in a larger track's box since (stamp), pieces.*
-        self._nested_since: dict[int, float] = {}
         #: this frame's published box of a track whose stacked twin was detected last
         self._published_box: dict[int, np.ndarray] = {}
         self._frame_interval = 0.0       # seconds between the last two frames
@@ -187,8 +180,7 @@ class MultiObjectTracker:
             if self.config.camera_motion.enabled else None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
                        "resets": 0, "size_resets": 0, "group_measurements": 0,
-                       "merged_duplicates": 0, "camera_motion_fallbacks": 0,
-                       "retired_pieces": 0}
+                       "merged_duplicates": 0, "camera_motion_fallbacks": 0}
 
     # -- public API -----------------------------------------------------------------------
     def reset(self) -> None:
@@ -197,7 +189,6 @@ class MultiObjectTracker:
         self.last_stamp = None
         self.frame_size = None
         self._stacked_since = {}
-        self._nested_since = {}
         if self.camera_motion is not None:
             self.camera_motion.reset()
 
@@ -399,8 +390,6 @@ class MultiObjectTracker:
                                blockers, hold=t.id in held, restart=t.id in recovered)
         # 6b. two tracks stacked on one person become one (tracking/duplicate_tracks.py)
         self._merge_duplicates(live, set(matched_track.values()), image_bgr, stamp, result)
-        # 6c. a track inside a larger track's box is a piece of it (tracking/piece_tracks.py)
-        self._retire_pieces(live, stamp, result)
         live = [t for t in live if t.state is not TrackState.DELETED]
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
@@ -425,7 +414,6 @@ class MultiObjectTracker:
                      > self.config.new_track_max_iou):
                 continue
             t = self._new_track(d.box, stamp, d.score, TrackState.TENTATIVE)
-            t.born_beside = born_beside(d.box, live_boxes, self.config.pieces)
             live.append(t)
             started.append(t.box)
             if self.config.lifecycle.min_hits <= 1:
@@ -490,23 +478,6 @@ class MultiObjectTracker:
             cfg.report_one)
         result.suppressed_ids |= hidden
         self._published_box = boxes
-
-    def _retire_pieces(self, live: list[Track], stamp: float, result: FrameResult) -> None:
-        """Piece tracks (:mod:`~mk_tracker.tracking.piece_tracks`): a reported track nested
-        in a larger reported one is not reported, and is deleted after ``pieces.min_time``
-        seconds nested."""
-        cfg = self.config.pieces
-        pool = [t for t in live if t.state in OUTPUT_STATES and not t.manual
-                and t.id not in result.suppressed_ids]
-        nested = nested_in([t.id for t in pool], [t.box for t in pool], cfg)
-        self._nested_since = update_nested_since(self._nested_since, nested, stamp)
-        by_id = {t.id: t for t in pool}
-        for tid in due_pieces(self._nested_since, stamp, cfg.min_time):
-            by_id[tid].state = TrackState.DELETED
-            self._nested_since.pop(tid)
-            self.totals["retired_pieces"] += 1
-            result.events.append(f"track {tid} ended: a piece of track {nested[tid]}")
-        result.suppressed_ids |= set(nested)
 
     def _look_alike(self, a: Track, b: Track, image: np.ndarray, floor: float) -> bool:
         """Each track's appearance model matches the other's box with at least ``floor``
@@ -776,9 +747,6 @@ class MultiObjectTracker:
                          still=t.is_still())
         if hold and new is TrackState.CONFIRMED and was is TrackState.TENTATIVE:
             new = TrackState.TENTATIVE
-        if new is TrackState.CONFIRMED and was is TrackState.TENTATIVE and \
-                t.hits < hits_to_confirm(cfg.min_hits, t.born_beside, self.config.pieces):
-            new = TrackState.TENTATIVE           # born beside live tracks (piece_tracks.py)
         if new is TrackState.LOST and was is not TrackState.LOST:
             t.lost_since = stamp
         if new is not TrackState.LOST:

@@ -240,8 +240,6 @@ class Track:
         self.target_stamp: float | None = None
         self.refined_box: np.ndarray | None = None
         self.manual = False                # started by hand: no detector needed
-        #: born on a detection already under live tracks' boxes (pieces.min_hits_beside)
-        self.born_beside = False
         self.held = False                  # coasting at a held position (no prediction)
         # filter and centre at the last frame the track was seen (detected or visible), for
         # the observation-centric re-update

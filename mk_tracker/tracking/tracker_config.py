@@ -16,7 +16,6 @@ from mk_tracker.tracking.duplicate_tracks import DuplicateConfig
 from mk_tracker.tracking.group_measurement import GroupConfig
 from mk_tracker.tracking.manual_track import ManualTrackConfig
 from mk_tracker.tracking.multi_kernel_config import MultiKernelConfig
-from mk_tracker.tracking.piece_tracks import PieceConfig
 from mk_tracker.tracking.recovery import RecoveryConfig
 from mk_tracker.tracking.track import LifecycleConfig
 
@@ -43,10 +42,6 @@ class MultiObjectTrackerConfig:
     parts: BodyPartConfig = parameter(
         BodyPartConfig(), "A detection of a tracked person's other half (torso / legs) "
         "starts no track (tracking/body_parts.py)")
-    pieces: PieceConfig = parameter(
-        PieceConfig(), "Tracks on pieces of one person under a splitting detector: a track "
-        "inside a larger track's box is hidden and ended; a track born beside live tracks "
-        "needs more detections to be confirmed (tracking/piece_tracks.py)")
     multi_kernel: MultiKernelConfig = parameter(MultiKernelConfig(),
                                                 "Multiple-kernel refinement (Chu et al. 2013)")
     manual_track: ManualTrackConfig = parameter(
