@@ -39,7 +39,6 @@ import argparse
 import math
 import pickle
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -48,50 +47,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-import mk_tracker.tools.pipeline as pipeline_module  # noqa: E402
-from diagnose_reacquire import COUNTER_REGION, DEFAULT_CLIP, _grey  # noqa: E402
-from mk_tracker.bags.recording_import import import_recording, open_recording  # noqa: E402
+from diagnose_reacquire import DEFAULT_CLIP, capture  # noqa: E402
 from mk_tracker.boxes import iou, iou_matrix  # noqa: E402
 from mk_tracker.evaluation.identity_figures import identity_figures  # noqa: E402
 from mk_tracker.parameters import updated  # noqa: E402
-from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker  # noqa: E402
 from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig  # noqa: E402
 from setting_values import setting_changes  # noqa: E402
-
-
-def capture(clip: Path, masked: bool, params: list[Path]) -> tuple[list, dict]:
-    """The tracker's inputs of the pipeline run on ``clip`` and its figures."""
-    inputs: list = []
-
-    class Recording(MultiObjectTracker):
-        def step(self, image_bgr, stamp, detections=()):
-            dets = list(detections)
-            inputs.append((image_bgr[..., 0].copy() if _grey(image_bgr) else image_bgr.copy(),
-                           stamp, dets))
-            return super().step(image_bgr, stamp, dets)
-
-    original = pipeline_module.MultiObjectTracker
-    pipeline_module.MultiObjectTracker = Recording
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            tmp = Path(tmp)
-            import_recording(open_recording(clip, None), tmp / "bag", thermal=True)
-            files = []
-            if masked:
-                mask = tmp / "mask.yaml"
-                mask.write_text("detector_node:\n  ros__parameters:\n    ignore_regions: ["
-                                + ", ".join(map(str, COUNTER_REGION)) + "]\n")
-                files.append(mask)
-            config = load_pipeline_config(files + list(params))
-            result = process_bag(tmp / "bag", tmp / "out", config=config,
-                                 options=PipelineOptions(progress=False, write_video=False,
-                                                         write_plots=False, write_bag=False))
-    finally:
-        pipeline_module.MultiObjectTracker = original
-    stamps = sorted(result.frame_stamps)
-    return inputs, identity_figures([list(result.tracks.get(ns, [])) for ns in stamps])
 
 
 def contrast(grey: np.ndarray, box, ring: float = 0.3, bins: int = 16) -> float:

@@ -36,6 +36,7 @@ import tempfile
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -58,8 +59,10 @@ COUNTER_REGION = (0.0, 0.0, 110.0, 50.0)
 ORDER = ("gate", "size", "appearance", "assigned-elsewhere")
 
 
-def capture(clip: Path) -> tuple[list, dict]:
-    """The tracker's inputs of the pipeline run on ``clip`` (counter masked) and its figures."""
+def capture(clip: Path, masked: bool = True, params: Sequence[Path] = ()
+            ) -> tuple[list, dict]:
+    """The tracker's inputs of the pipeline run on ``clip`` (the counter masked unless
+    ``masked`` is false; ``params`` are more parameter files) and its figures."""
     inputs: list = []
 
     class Recording(MultiObjectTracker):
@@ -75,11 +78,14 @@ def capture(clip: Path) -> tuple[list, dict]:
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)
             import_recording(open_recording(clip, None), tmp / "bag", thermal=True)
-            params = tmp / "mask.yaml"
-            params.write_text("detector_node:\n  ros__parameters:\n    ignore_regions: ["
-                              + ", ".join(map(str, COUNTER_REGION)) + "]\n")
+            files = []
+            if masked:
+                mask = tmp / "mask.yaml"
+                mask.write_text("detector_node:\n  ros__parameters:\n    ignore_regions: ["
+                                + ", ".join(map(str, COUNTER_REGION)) + "]\n")
+                files.append(mask)
             result = process_bag(tmp / "bag", tmp / "out",
-                                 config=load_pipeline_config([params]),
+                                 config=load_pipeline_config(files + list(params)),
                                  options=PipelineOptions(progress=False, write_video=False,
                                                          write_plots=False, write_bag=False))
     finally:
