@@ -31,22 +31,6 @@ Such a detection starts no track, as a detection mostly covered by live tracks d
 tracked.  It does not touch association: a detection of a part can still be assigned to a
 track in step 4 of the tracker (its own person's, when that track is the part's).
 
-**Short parts** (``short_fraction`` > 0, off by default): the rule above needs two halves of
-about one height and width, so it misses a legs box under a wider torso-and-arms box, or a
-legs box born before a track stood above it (docs/benchmark_real_thermal.md, "Short parts").
-The tracker therefore also learns the height of a whole person per image row from its own
-isolated, person-shaped reported boxes (:class:`~mk_tracker.detection.person_size.
-PersonHeightModel`, ``h = a + b * y_bottom``, the ground-plane prior of the detector's
-``split_by_person_size``; the detector of Schizas et al. 2018 has no size prior).  A
-detection is then also a part (:func:`short_stacked_part`) when it shares a column with a
-reported box (``min_column_overlap`` of the detection's width), the two are stacked
-(``max_row_overlap``; a gap of at most ``max_gap`` person heights), both boxes are shorter
-than ``short_fraction`` of a person at their own bottom rows (two parts, not a part under a
-whole tracked person), and their union is at most ``max_union_height`` persons tall at the
-union's bottom row: together they are one person.  A short person part-hidden under a whole
-tracked person starts a track (without the test on the track's box the generator's seed 202
-lost such a person, docs/benchmark_real_thermal.md).
-
 Pure functions on ``(x, y, w, h)`` boxes; the tracker calls :func:`is_other_part` for each
 detection that would start a track.
 """
@@ -55,15 +39,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from typing import Callable, Optional
-
 import numpy as np
 
-from mk_tracker.detection.person_size import PersonHeightModel, is_person_shaped
 from mk_tracker.parameters import parameter
 
-__all__ = ["BodyPartConfig", "stacked_part", "short_stacked_part", "is_other_part",
-           "height_sample", "RowHeights"]
+__all__ = ["BodyPartConfig", "stacked_part", "is_other_part"]
 
 
 @dataclass(frozen=True)
@@ -103,23 +83,6 @@ class BodyPartConfig:
         "whole people, one above the other in the image, make a taller union: about 5 for "
         "two boxes of aspect 2.5); keep it above min_person_aspect",
         minimum=0.0, maximum=100.0)
-    short_fraction: float = parameter(
-        0.0, "Short parts: a detection and a reported box, each shorter than this fraction "
-        "of the learnt height of a person at its bottom row, stacked in one column with a "
-        "union at most max_union_height persons tall: the detection starts no track (0: off)", minimum=0.0, maximum=1.0)
-    max_union_height: float = parameter(
-        1.25, "Short parts: largest height of the detection and the reported box together, "
-        "in learnt person heights at the union's bottom row", minimum=0.0, maximum=10.0)
-    person_aspect: float = parameter(
-        0.45, "Short parts: width / height of one upright person; a reported box within 0.6 "
-        "to 1.5 times it, overlapping no other reported box, is a height sample",
-        minimum=0.01, maximum=10.0)
-    height_memory: float = parameter(
-        300.0, "Short parts: forgetting of the row-height fit, in samples (one per isolated "
-        "reported track and frame)", minimum=1.0, maximum=1e6)
-    min_height_samples: float = parameter(
-        30.0, "Short parts: samples' total weight before the learnt height is used",
-        minimum=2.5, maximum=1e6)
 
 
 def stacked_part(track_box, detection_box, config: BodyPartConfig) -> bool:
@@ -147,79 +110,10 @@ def stacked_part(track_box, detection_box, config: BodyPartConfig) -> bool:
     return config.min_person_aspect * union_w <= union_h <= config.max_person_aspect * union_w
 
 
-HeightAt = Callable[[float], Optional[float]]
-
-
-def short_stacked_part(track_box, detection_box, height_at: HeightAt,
-                       config: BodyPartConfig) -> bool:
-    """Whether ``detection_box`` is a short part of the person in ``track_box`` (module
-    docstring, "Short parts"); ``height_at(y_bottom)`` is the learnt person height at a row
-    (None: not learnt, no part).  False with ``short_fraction`` 0 or invalid boxes."""
-    if not config.short_fraction > 0.0:
-        return False
-    tx, ty, tw, th = (float(v) for v in track_box)
-    dx, dy, dw, dh = (float(v) for v in detection_box)
-    if not all(np.isfinite((tx, ty, tw, th, dx, dy, dw, dh))) or min(tw, th, dw, dh) <= 0:
-        return False
-    if min(tx + tw, dx + dw) - max(tx, dx) < config.min_column_overlap * dw:
-        return False
-    person = height_at(dy + dh)
-    if person is None or not person > 0 or dh >= config.short_fraction * person:
-        return False
-    rows = min(ty + th, dy + dh) - max(ty, dy)        # negative: a gap between them
-    if rows > config.max_row_overlap * min(th, dh) or -rows > config.max_gap * person:
-        return False
-    track_person = height_at(ty + th)
-    if track_person is None or th >= config.short_fraction * track_person:
-        return False
-    union_bottom = max(ty + th, dy + dh)
-    union_person = height_at(union_bottom)
-    return union_person is not None and union_person > 0 and \
-        union_bottom - min(ty, dy) <= config.max_union_height * union_person
-
-
-def height_sample(index: int, boxes, aspect: float) -> bool:
-    """Whether ``boxes[index]`` (``(N, 4)``) is a whole-person height sample: person-shaped
-    (:func:`~mk_tracker.detection.person_size.is_person_shaped`) and overlapping no other box."""
-    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    x, y, w, h = boxes[index]
-    if not (w > 0 and h > 0 and is_person_shaped(w, h, aspect)):
-        return False
-    others = np.delete(boxes, index, axis=0)
-    apart = (others[:, 0] >= x + w) | (others[:, 0] + others[:, 2] <= x) | \
-        (others[:, 1] >= y + h) | (others[:, 1] + others[:, 3] <= y)
-    return bool(np.all(apart))
-
-
-class RowHeights:
-    """The tracker's learnt person height per image row (``parts.short_fraction``): a
-    :class:`~mk_tracker.detection.person_size.PersonHeightModel` fed each frame with the
-    reported boxes that are :func:`height_sample` s."""
-
-    def __init__(self, config: BodyPartConfig) -> None:
-        self.config = config
-        self.model = PersonHeightModel(config.height_memory,
-                                       min_samples=config.min_height_samples)
-
-    def add(self, reported_boxes) -> None:
-        boxes = np.asarray(reported_boxes, dtype=np.float64).reshape(-1, 4)
-        for i in range(len(boxes)):
-            if height_sample(i, boxes, self.config.person_aspect):
-                self.model.add(boxes[i, 1] + boxes[i, 3], boxes[i, 3])
-
-    def height_at(self, y_bottom: float) -> float | None:
-        return self.model.height_at(y_bottom)
-
-
-def is_other_part(detection_box, track_boxes, config: BodyPartConfig,
-                  height_at: HeightAt | None = None) -> bool:
+def is_other_part(detection_box, track_boxes, config: BodyPartConfig) -> bool:
     """Whether ``detection_box`` is the other part of the person of any of ``track_boxes``
-    (``(N, 4)``), a half (:func:`stacked_part`) or, given ``height_at``, a short part
-    (:func:`short_stacked_part`); False when ``enabled`` is off."""
+    (``(N, 4)``); False when ``enabled`` is off."""
     if not config.enabled:
         return False
-    boxes = np.asarray(track_boxes, dtype=np.float64).reshape(-1, 4)
-    if any(stacked_part(t, detection_box, config) for t in boxes):
-        return True
-    return height_at is not None and any(
-        short_stacked_part(t, detection_box, height_at, config) for t in boxes)
+    return any(stacked_part(t, detection_box, config)
+               for t in np.asarray(track_boxes, dtype=np.float64).reshape(-1, 4))

@@ -65,7 +65,7 @@ from typing import Any, Iterable, Protocol, Sequence
 import numpy as np
 
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
-from mk_tracker.tracking.body_parts import RowHeights, is_other_part
+from mk_tracker.tracking.body_parts import is_other_part
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
 from mk_tracker.tracking.detection_input import (PLANES, FrameDetection,  # noqa: F401
@@ -174,8 +174,6 @@ class MultiObjectTracker:
         self._stacked_since: dict[tuple[int, int], float] = {}
         #: this frame's published box of a track whose stacked twin was detected last
         self._published_box: dict[int, np.ndarray] = {}
-        #: learnt person height per image row, parts.short_fraction (body_parts.py)
-        self._row_heights = RowHeights(self.config.parts)
         self._frame_interval = 0.0       # seconds between the last two frames
         self.frame_size: tuple[int, int] | None = None
         self.camera_motion = CameraMotionEstimator(self.config.camera_motion) \
@@ -191,7 +189,6 @@ class MultiObjectTracker:
         self.last_stamp = None
         self.frame_size = None
         self._stacked_since = {}
-        self._row_heights = RowHeights(self.config.parts)
         if self.camera_motion is not None:
             self.camera_motion.reset()
 
@@ -399,16 +396,11 @@ class MultiObjectTracker:
                                and t.state is not TrackState.LOST]).reshape(-1, 4)
         # (a detection of a tracked person's other half is explained too: body_parts.py)
         reported_boxes = [t.box for t in live if t.state in OUTPUT_STATES]
-        height_at = None
-        if self.config.parts.enabled and self.config.parts.short_fraction > 0.0:
-            self._row_heights.add(reported_boxes)
-            height_at = self._row_heights.height_at
         candidates = [k for k in single if k not in matched_track
                       and dets[k].score >= self.config.new_track_score
                       and explained_fraction(dets[k].box, live_boxes)
                       < self.config.group.explained_coverage
-                      and not is_other_part(dets[k].box, reported_boxes, self.config.parts,
-                                            height_at)]
+                      and not is_other_part(dets[k].box, reported_boxes, self.config.parts)]
         overlap = iou_matrix(np.array([dets[k].box for k in candidates]).reshape(-1, 4),
                              live_boxes)
         started: list[np.ndarray] = []
