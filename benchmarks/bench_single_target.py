@@ -1090,6 +1090,7 @@ GRID = {
     "multi_start_radius": (0.0, 0.5, 1.0),
     "recovery_similarity": (0.0, 0.25, 0.4),
     "max_coast_position_std": (0.0, 1.0),
+    "column_centring": (0.0, 0.25),
 }
 
 #: the background weighting of the kernel models (issue #16 item 3; Ning et al. 2012's
