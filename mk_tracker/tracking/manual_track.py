@@ -49,8 +49,7 @@ if TYPE_CHECKING:
     from mk_tracker.tracking.multi_object_tracker import MultiObjectTrackerConfig
 
 __all__ = ["ManualTrackConfig", "manual_track_kalman", "manual_track_lifecycle",
-           "manual_track_multi_kernel", "columns_cover", "recentre_shift",
-           "column_centring_multi_kernel", "centre_by_columns"]
+           "manual_track_multi_kernel", "columns_cover", "recentre_shift"]
 
 
 @dataclass(frozen=True)
@@ -205,16 +204,6 @@ class ManualTrackConfig:
         "models: a look-alike passer-by no longer takes the track), or none",
         choices=BACKGROUND_WEIGHTINGS)
 
-    column_centring: float = parameter(
-        0.0, "Left/right centring of a track started by hand by a 2 x 2 kernel layout "
-        "(Fig. 4b) beside its search: the 2 stacked full-width kernels have no left/right "
-        "structure, and on real walkers their colour optimum sits up to 0.14 box widths "
-        "behind the person (benchmarks/diagnose_box_bias.py).  From the search's result "
-        "Algorithm 1 also runs with a 2 x 2 layout (models from the first frame, the "
-        "search's scale, no scale step) and its x centre replaces the result's when both of "
-        "its columns see the target (min_column_similarity) and it moved at most this many "
-        "box widths; the 2 stacked kernels still decide visibility, y and size.  0 = off",
-        minimum=0.0, maximum=1.0)
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
         "paper): a first box of a track started by hand that touches the left or right "
@@ -288,43 +277,3 @@ def recentre_shift(res: Any, box: np.ndarray) -> float:
     left, right = column_best(res.kernel_similarities, n)
     step = COLUMN_SPACING * float(box[2])
     return -step if right < left else step
-
-
-#: the kernel layout of ``column_centring``: 2 x 2 (Fig. 4b), the smallest with two columns
-CENTRING_KERNELS = 4
-
-
-def column_centring_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernelConfig:
-    """The multiple-kernel settings of the 2 x 2 layout of ``manual_track.column_centring``:
-    those of tracks started by hand with 4 kernels, a plain search from the given centre (no
-    grid start, no failure re-search, no learnt level) and no scale step (its scale is the
-    main search's)."""
-    return replace(manual_track_multi_kernel(config), num_kernels=CENTRING_KERNELS,
-                   scale_update=False, multi_start_radius=0.0, recovery_similarity=0.0,
-                   similarity_reference_rate=0.0)
-
-
-def centre_by_columns(refiner: Any, image: np.ndarray, target: Any, scale: float,
-                      box: np.ndarray, max_shift: float, floor: float) -> np.ndarray:
-    """``box`` with its x centre moved to where a 2 x 2 layout's search from ``box``'s
-    centre converges (``manual_track.column_centring``).
-
-    ``refiner`` is a 4-kernel :class:`~mk_tracker.tracking.multi_kernel.MultiKernelTracker`
-    (:func:`column_centring_multi_kernel`), ``target`` its state started on the first box
-    (mutated: it follows the result); ``scale`` the main search's scale, given to it so both
-    layouts span the same box.  The move is kept when the result is not lost, both of its
-    columns see the target (:func:`columns_cover` with ``floor``) and ``|dx| <= max_shift``
-    box widths; otherwise ``box`` comes back unchanged.  Only x changes: the stacked kernels
-    already place the person vertically, and what they lack is the left/right structure."""
-    b = np.asarray(box, dtype=np.float64)
-    centre = b[:2] + b[2:] / 2.0
-    target.scale = float(scale)
-    res = refiner.refine(image, target, predicted_center=tuple(centre))
-    if getattr(res, "lost", True) or not columns_cover(res, floor):
-        return b
-    dx = float(res.center[0]) - float(centre[0])
-    if not np.isfinite(dx) or abs(dx) > max_shift * float(b[2]):
-        return b
-    out = b.copy()
-    out[0] += dx
-    return out

@@ -87,8 +87,7 @@ from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
                                                reacquisition_matches, reference_similarity)
 from mk_tracker.tracking.recovery import recover_into, restart_filter
 from mk_tracker.tracking.image_border import clip_to_image, overlaps_image, whole_person_box
-from mk_tracker.tracking.manual_track import (centre_by_columns, column_centring_multi_kernel,
-                                              columns_cover, manual_track_kalman,
+from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
                                               manual_track_lifecycle,
                                               manual_track_multi_kernel, recentre_shift)
 from mk_tracker.tracking.multi_kernel import MultiKernelTracker, visibility_similarity
@@ -166,10 +165,6 @@ class MultiObjectTracker:
             refiner = MultiKernelTracker(self.config.multi_kernel)
         self.refiner = refiner
         self.manual_refiner = manual_refiner if manual_refiner is not None else refiner
-        #: the 2 x 2 layout of manual_track.column_centring (None when off)
-        self.column_refiner = MultiKernelTracker(column_centring_multi_kernel(self.config)) \
-            if self.config.manual_track.column_centring > 0 and \
-            isinstance(self.manual_refiner, MultiKernelTracker) else None
         self._manual_kalman = manual_track_kalman(self.config)
         self._manual_lifecycle = manual_track_lifecycle(self.config)
         self._next_id = 1
@@ -230,12 +225,6 @@ class MultiObjectTracker:
         track.hits = self.config.lifecycle.min_hits
         track.manual = True
         track.target, track.target_stamp = target, stamp
-        if self.column_refiner is not None and target is not None and whole is None:
-            try:
-                track.column_target = self.column_refiner.start(
-                    image_bgr, tuple(float(v) for v in b))
-            except ValueError:          # no left/right structure to read: centring off
-                track.column_target = None
         if target is not None:
             track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b),
                                                   **({"outside": True} if whole else {})))
@@ -374,12 +363,6 @@ class MultiObjectTracker:
             if found is not None and k > 0 and t.detected_box is not None and \
                     self._fit_refiner(t, t.detected_box[3] / k, t.detected_box[3] * k):
                 found = (np.asarray(t.target.box, dtype=np.float64), found[1], found[2])
-            if found is not None and found[2] and t.column_target is not None:
-                m = self.config.manual_track
-                found = (centre_by_columns(self.column_refiner, image_bgr, t.column_target,
-                                           float(t.target.scale), found[0],
-                                           m.column_centring, m.min_column_similarity),
-                         found[1], found[2])
             if found is not None:
                 refined[t.id] = found
                 t.refined_box = found[0]
