@@ -25,7 +25,8 @@ If ``reported`` is behind ``kernels`` the filter lags its own measurement; if ``
 is behind the truth the colour optimum is (or the search stops short of it)::
 
     nice -n 10 .venv/bin/python benchmarks/diagnose_box_bias.py \\
-        --sequences 'Crossing,TUD-Campus person 3,TUD-Campus person 5,TUD-Campus person 8,TUD-Stadtmitte person 1,TUD-Stadtmitte person 4'
+        --sequences 'Crossing,TUD-Campus person 3,TUD-Campus person 5,TUD-Campus person 8,\
+TUD-Stadtmitte person 1,TUD-Stadtmitte person 4,TUD-Stadtmitte person 5' --surface
 
 ``--set NAME=VALUE`` changes a setting of the whole tracker (``--set`` of
 bench_single_target.py, e.g. ``manual_track.background_weighting=none``).
@@ -147,7 +148,8 @@ def main(argv=None) -> int:
     parser.add_argument("--surface", action="store_true",
                         help="also the peak of the similarity along the walking direction")
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
-                        help="a setting of the tracker, e.g. manual_track.background_weighting=none")
+                        help="a setting of the tracker, e.g. "
+                        "manual_track.background_weighting=none")
     args = parser.parse_args(argv)
     config = updated(MultiObjectTrackerConfig(), setting_changes(args.set))
     print("| sequence | frames used | prior | kernels | reported | similarity peak | K_x | "
