@@ -1351,6 +1351,41 @@ The tables above are the evidence.
   10.9 -> 14.2, OTB Woman 36.1 -> 39.1; mean of clip means 15.3 -> 17.9 px, AUC 0.59 both.
   Rate 0.2: 18.8 px / AUC 0.56.  Most of the accuracy gap is not the size: on TUD-Stadtmitte
   the box sits 0.12-0.19 box widths behind the walker, which a scale cannot fix.
+* **Left/right centring by a 2 x 2 layout: lost held out, deleted** (issue #16 item 3,
+  2026-11-27 16:54 UTC; `manual_track.column_centring` at commit b6db266, where this run
+  reproduces).  The measurement first (`benchmarks/diagnose_box_bias.py`, kept; median
+  offset along the walking direction in truth widths, shipped defaults): the 2-kernel
+  optimum itself sits behind (TUD-Stadtmitte 4: kernels -0.125, reported -0.146; 4 at 6.25
+  fps -0.135 / -0.158; TUD-Campus 3 and 5 -0.06 / -0.05), and the peak of the mean kernel
+  similarity along that direction lies where the kernels stopped (-0.124 on TUD-Stadtmitte
+  4), so it is the colour optimum, not a search that stops short.  The Kalman update
+  (Sec. IV-D) takes the measurement with a gain of 0.19-0.46 on x (`sigma_w` 2-9.5 px) and
+  lags it only on the 22-frame TUD-Stadtmitte 1 (kernels -0.04, reported -0.21: the
+  velocity is still being learnt); with a 4x smaller measurement noise the kernels stay
+  behind (-0.144), so a measurement noise from the fit's precision would not move them.
+  With a 2 x 2 layout (`num_kernels` 4) the optimum is on the person (TUD-Stadtmitte 4,
+  5, 1: +0.002, +0.007, -0.003): the two stacked full-width kernels have no left/right
+  structure.  But 4 kernels alone lose the track more often (26 real sequences, shipped
+  setting, in-sample: 51.5 px against 33.3).  So the fix kept the 2 kernels for
+  visibility, y and size and let a 2 x 2 layout, started on the first box, re-centre x from
+  their result (bounded to 0.25 widths, both columns must see the target, no scale step).
+  It does what it was built for: the reported offsets fall to -0.057 (TUD-Stadtmitte 4),
+  -0.002 (5), -0.044 / -0.027 (TUD-Campus 3, 5), and held out TUD-Campus 3 10.9 -> 9.1 px
+  (now below CSRT's 9.7), 8 7.0 -> 4.6, TUD-Stadtmitte 4 11.2 -> 8.6, 4 at 6.25 fps 11.3
+  -> 7.7.  Run once: this protocol with `column_centring` 0 / 0.25 crossed with the grid (108
+  settings, the .venv without opencv-contrib, so no peers: the CSRT figures are this
+  document's; load 1.8 -> 3.0).  Every fold chose 0.25 (with `multi_start_radius` 1).
+  **Held out, the 26 real sequences: 54.9 px / P@20 0.61 / AUC 0.47 against 42.5 / 0.60 /
+  0.46; lower error than CSRT on 14 of 26 against 12**; all 39: 37.6 / 0.74 / 0.58 against
+  29.5 / 0.73 / 0.57.  The error is worse, so it stays off and the code is deleted: OTB
+  Woman 36.1 -> 323.0 px (its fold now chose `recovery_similarity` 0 and
+  `max_coast_position_std` 0: the track runs away), TUD-Stadtmitte 8 at 6.25 fps 76.1 ->
+  163.4, 9 at 6.25 fps 36.0 -> 61.4, person 2 7.8 -> 15.8, person 1 13.4 -> 17.0 (the
+  Kalman lag above, untouched).  At the shipped grid point, in-sample, 0.25 against 0:
+  26 real sequences 44.7 / 0.62 / 0.48 against 33.3 / 0.64 / 0.49, all of it TUD-Stadtmitte
+  person 3 15.3 -> 310.8 px (the passer-by takes the track again: a re-centred x pulls the
+  box onto her side; a bound of 0.1 widths does the same, 312.1); median CPU time 0.67 ->
+  1.00 ms per frame.
 * **Not for tracks born from detections.**  `benchmarks/bench_multi_object.py --grid
   multi_kernel.background_weighting=none,cbwh` (its leave-one-sequence-out protocol, 64
   settings, floor 0.25; run once, 2026-11-27 15:48 UTC, report not committed): only the
