@@ -40,15 +40,23 @@ from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.synthetic.scene_bag import build_preset, write_scene_bag  # noqa: E402
 
 
+def copied_without_thermal(reader, writer):
+    """Copy every message of ``reader`` that is not on a ``/thermal`` topic into ``writer``
+    (raw, same stamps), yielding each one after it is written, so a caller can add its own
+    topics in the same pass."""
+    for m in reader.messages():
+        if m.topic.startswith("/thermal"):
+            continue
+        writer.add_topic(m.topic, m.msgtype)
+        writer.write_raw(m.topic, m.timestamp_ns, m.data)
+        yield m
+
+
 def with_truth_as_detections(src: Path, dst: Path) -> None:
     """A copy of ``src`` without thermal images, with ``/detections`` = ground truth."""
     with open_bag(src) as reader, BagWriter(dst, typestore=reader.typestore) as writer:
         types = bag_message_types(reader.typestore)
-        for m in reader.messages():
-            if m.topic.startswith("/thermal"):
-                continue
-            writer.add_topic(m.topic, m.msgtype)
-            writer.write_raw(m.topic, m.timestamp_ns, m.data)
+        for m in copied_without_thermal(reader, writer):
             if m.topic == "/ground_truth":
                 msg = reader.deserialize(m)
                 dets = [Detection(d.box, 1.0) for d in read_detection_array(msg)]

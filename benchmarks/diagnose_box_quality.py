@@ -72,6 +72,7 @@ from mk_tracker.synthetic.scene_bag import (THERMAL_FRAME_ID, build_preset,  # n
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
 from mk_tracker.tools.pipeline_config import load_pipeline_config  # noqa: E402
 from mk_tracker.tracking.association import assign  # noqa: E402
+from bench_pipeline import copied_without_thermal  # noqa: E402
 from bench_thermal_detector import centroid_cost  # noqa: E402
 from setting_values import setting_changes  # noqa: E402
 
@@ -150,11 +151,8 @@ def detection_bag(src: Path, dst: Path, frames, variant: str) -> None:
     thermal frame holding ``variant``'s boxes."""
     with open_bag(src) as reader, BagWriter(dst, typestore=reader.typestore) as writer:
         types = bag_message_types(reader.typestore)
-        for m in reader.messages():
-            if m.topic.startswith("/thermal"):
-                continue
-            writer.add_topic(m.topic, m.msgtype)
-            writer.write_raw(m.topic, m.timestamp_ns, m.data)
+        for _ in copied_without_thermal(reader, writer):
+            pass
         writer.add_topic(DETECTIONS_TOPIC, "vision_msgs/msg/Detection2DArray")
         for stamp, dets in frames:
             ns = round(stamp * 1e9)
