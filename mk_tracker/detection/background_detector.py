@@ -40,10 +40,6 @@ This module turns the foreground mask into one box per person:
 7. **Trimming.**  Columns at a box's sides holding less than ``column_trim`` of its fullest
    column's foreground (a stride's leg, a swinging arm) are cut off the box.
 
-8. **Ghosts** (``ghost_time`` > 0, off by default: it lost on both TUD clips):
-   foreground regions that have not moved for ``ghost_time`` are put into the background
-   at once (:mod:`mk_tracker.detection.ghosts`, Cucchiara et al. 2003).
-
 People who stand still become background and are no longer detected: with OpenCV's
 background ratio (0.9) a still colour joins the background after about ``0.1 * history``
 frames at the automatic learning rate; the tracker keeps their tracks by coasting (its lifecycle), as for any missed
@@ -60,7 +56,6 @@ from typing import Any
 import cv2
 import numpy as np
 
-from mk_tracker.detection.ghosts import GhostMemory, StillPixels, absorb, ghost_blobs
 from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
                                               people_in_width, split_columns)
 from mk_tracker.detection.shadows import shadow_or_highlight
@@ -156,27 +151,6 @@ class BackgroundDetectorConfig:
     size_memory: float = parameter(
         500.0, "Person-size samples remembered by the per-row height model (exponential "
         "forgetting)", minimum=1.0, maximum=1e6)
-    ghost_time: float = parameter(
-        0.0, "A foreground region whose pixels (ghost_share of them) have not changed "
-        "(ghost_tolerance) for this long is a ghost (ground uncovered by a person the model "
-        "learnt, Cucchiara et al. 2003) and becomes background at once, s; 0 = off",
-        minimum=0.0,
-        maximum=3600.0)
-    ghost_tolerance: float = parameter(
-        12.0, "Largest change of a still pixel from its value when it became still (grey "
-        "levels, any channel, at the working scale)", minimum=0.0, maximum=255.0)
-    ghost_share: float = parameter(
-        0.8, "A foreground region is a ghost when at least this share of its pixels has "
-        "been still for ghost_time (a walking person's region has moving edges and limbs)",
-        minimum=0.0, maximum=1.0)
-    ghost_reset: str = parameter(
-        "model", "How a ghost becomes background: one model update at ghost_rate (model), "
-        "or its values held as background beside the model until the model agrees or the "
-        "pixel changes (memory)", choices=("model", "memory"))
-    ghost_rate: float = parameter(
-        0.2, "Learning rate of the one model update that puts ghost pixels into the "
-        "background (above 0.1: background at once with OpenCV's background ratio 0.9)",
-        minimum=0.01, maximum=1.0)
 
 
 @dataclass(frozen=True)
@@ -208,11 +182,6 @@ class BackgroundDetector:
         self._mono16_map: tuple[float, float] | None = None
         self._buffer: list[np.ndarray] = []
         self._seeded = False
-        self._still: StillPixels | None = None
-        self._still_origin: float | None = None
-        self.ghost_pixels = 0
-        self._scale = 1.0
-        self._ghost_memory: GhostMemory | None = None
 
     # -- model ---------------------------------------------------------------------------
     def _new_model(self) -> Any:
@@ -236,10 +205,6 @@ class BackgroundDetector:
         self._mono16_map = None
         self._buffer = []
         self._seeded = self.config.bootstrap_frames == 0
-        self._still = StillPixels(self.config.ghost_tolerance) if \
-            self.config.ghost_time > 0.0 else None
-        self._still_origin = None
-        self._ghost_memory = None
         self.restarts += 1
 
     def _seed(self) -> None:
@@ -281,39 +246,6 @@ class BackgroundDetector:
                                        c.highlight_ratio, c.shadow_max_chroma)
             mask[drop] = 0
         return mask
-
-    def _still_seconds(self, small: np.ndarray, t: float) -> np.ndarray | None:
-        """Seconds each working-scale pixel has been still (:mod:`ghosts`); None when the
-        ghost test is off."""
-        if self._still is None:
-            return None
-        if self._still_origin is None:
-            self._still_origin = t
-        return self._still.update(small, t - self._still_origin)
-
-    def _remove_ghosts(self, small: np.ndarray, raw: np.ndarray, still: np.ndarray
-                       ) -> np.ndarray:
-        """The model's mask without its ghosts (foreground still for ``ghost_time``),
-        which are put into the background at once (:func:`ghosts.absorb`)."""
-        c = self.config
-        min_w = max(1.0, c.person_aspect * c.min_person_height * self._scale)
-        ghost = ghost_blobs(raw != 0, still, c.ghost_time, c.ghost_share,
-                            max(1, int(0.15 * min_w * c.min_person_height * self._scale)))
-        count = int(np.count_nonzero(ghost))
-        if count == 0 and self._ghost_memory is None:
-            return raw
-        if c.ghost_reset == "memory":
-            if self._ghost_memory is None:
-                self._ghost_memory = GhostMemory(c.ghost_tolerance)
-            held = self._ghost_memory.background(small, raw != 0)
-            self._ghost_memory.add(small, ghost)
-            ghost = ghost | held
-        else:
-            absorb(self._model, small, raw, ghost, self.config.ghost_rate)
-        self.ghost_pixels += count
-        raw = raw.copy()
-        raw[ghost] = 0
-        return raw
 
     # -- input ---------------------------------------------------------------------------
     def _as_uint8(self, frame: np.ndarray, encoding: str | None) -> np.ndarray:
@@ -363,8 +295,6 @@ class BackgroundDetector:
         small = image if scale >= 1.0 else cv2.resize(
             image, (max(1, round(width * scale)), max(1, round(height * scale))),
             interpolation=cv2.INTER_AREA)
-        self._scale = scale
-        still = self._still_seconds(small, t)
         raw = self._update(small)
         if raw is None:
             self.last_mode = "startup"
@@ -383,8 +313,6 @@ class BackgroundDetector:
                 self._since_restart = 1
             self.last_mode = "global_change"
             return []
-        if still is not None:
-            raw = self._remove_ghosts(small, raw, still)
         if self._since_restart <= self.config.startup_frames:
             self.last_mode = "startup"
             return []
