@@ -60,16 +60,13 @@ SHADOWS = ({"shadow_method": "model", "shadow_threshold": 0.5},
            {"shadow_method": "ratio"})
 #: Every combination is scored on every sequence.
 #: (``bootstrap_frames`` 20 and ``join_gap`` 0.3 lost on every sequence in the runs of
-#: commit 1809775's report and left the grid; ``min_height_ratio`` 0.0 and 0.5 lost on every
-#: sequence in the run of commit b735129's report (mean F1 0.697 / 0.755 against 0.771) and
-#: left it when ``depth_step`` came in.)
+#: commit 1809775's report and left the grid.)
 GRID: dict[str, tuple] = {
     "bootstrap_frames": (0, 10),
     "join_gap": (0.1,),
-    "min_height_ratio": (0.8,),
+    "min_height_ratio": (0.0, 0.5, 0.8),
     "split_ratio": (1.3, 1.6),
     "column_trim": (0.0, 0.2),
-    "depth_step": (0.0, 0.2),
 }
 #: The detector as first built for issue #13 (no bootstrap, no size filter): a reference.
 BEFORE = {"bootstrap_frames": 0, "min_height_ratio": 0.0, "split_ratio": 1.6,

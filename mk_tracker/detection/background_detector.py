@@ -36,9 +36,7 @@ This module turns the foreground mask into one box per person:
 6. **Splitting groups.**  A component wider than ``split_ratio`` expected person widths is
    cut into ``round(width / expected width)`` people at the minima of the mask's vertical
    projection (column sums) near the evenly spaced cut positions; each part's box is then
-   tightened to its own foreground rows.  Before that, with ``depth_step`` > 0, a region is
-   cut where its feet profile steps (people side by side at different depths,
-   :mod:`mk_tracker.detection.depth_split`), and each part is split by its own width.
+   tightened to its own foreground rows.
 7. **Trimming.**  Columns at a box's sides holding less than ``column_trim`` of its fullest
    column's foreground (a stride's leg, a swinging arm) are cut off the box.
 
@@ -58,7 +56,6 @@ from typing import Any
 import cv2
 import numpy as np
 
-from mk_tracker.detection.depth_split import depth_columns
 from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
                                               people_in_width, split_columns)
 from mk_tracker.detection.shadows import shadow_or_highlight
@@ -154,10 +151,6 @@ class BackgroundDetectorConfig:
     size_memory: float = parameter(
         500.0, "Person-size samples remembered by the per-row height model (exponential "
         "forgetting)", minimum=1.0, maximum=1e6)
-    depth_step: float = parameter(
-        0.0, "A region is cut between two columns whose lowest foreground rows (feet, gaps "
-        "between legs filled) differ by more than this share of the expected person height: "
-        "people side by side at different depths; 0 = off", minimum=0.0, maximum=1.0)
 
 
 @dataclass(frozen=True)
@@ -433,50 +426,6 @@ class BackgroundDetector:
         return boxes
 
     def _split(self, mask: np.ndarray, box: tuple, scale: float) -> list:
-        """People in a region: first cut by depth (``depth_step``,
-        :mod:`mk_tracker.detection.depth_split`), then each part by width."""
-        if self.config.depth_step > 0.0:
-            parts = self._depth_parts(mask, box, scale)
-            if len(parts) > 1:
-                return [p for part in parts for p in self._width_split(mask, part, scale)]
-        return self._width_split(mask, box, scale)
-
-    def _depth_parts(self, mask: np.ndarray, box: tuple, scale: float) -> list:
-        """The region cut at the steps of its feet profile, each part's box tightened to
-        its own foreground rows; ``[box]`` without a cut or a learnt size."""
-        x, y, w, h = box
-        expected = self._expected_height(y + h, scale)
-        if expected is None:
-            return [box]
-        x0, y0, x1, y1 = int(x), int(y), int(x + w), int(y + h)
-        aspect = self.config.person_aspect
-
-        # the learnt line h = a + b * row (full image), for every row of the box at once
-        ref = (y + h) / scale
-        a, b = self.heights.height_at(ref), self.heights.height_at(ref + 100.0)
-        slope = (b - a) / 100.0
-        lowest = self.config.min_person_height
-
-        def height_at(rows):
-            full = (y0 + np.asarray(rows, dtype=np.float64)) / scale
-            return np.maximum(a + slope * (full - ref), lowest) * scale
-
-        def min_width(row: float) -> float:
-            return 0.5 * aspect * float(height_at(row + 1.0))
-
-        ranges = depth_columns(mask[y0:y1, x0:x1], height_at, self.config.depth_step,
-                               max(1, int(round(0.5 * aspect * expected))), min_width)
-        if len(ranges) < 2:
-            return [box]
-        parts = []
-        for left, right in ranges:
-            rows = np.flatnonzero(mask[y0:y1, x0 + left:x0 + right].any(axis=1))
-            if rows.size:
-                parts.append((float(x0 + left), float(y0 + rows[0]), float(right - left),
-                              float(rows[-1] + 1 - rows[0])))
-        return parts or [box]
-
-    def _width_split(self, mask: np.ndarray, box: tuple, scale: float) -> list:
         """Cut a blob wider than ``split_ratio`` expected widths at projection minima
         (:mod:`mk_tracker.detection.person_size`); each part's box is tightened to its own
         foreground rows."""
