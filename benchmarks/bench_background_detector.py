@@ -88,6 +88,15 @@ def detection_scores(frames, truth, fps: float, config: BackgroundDetectorConfig
                    frames, truth)
 
 
+def matches(gt, boxes, threshold: float = 0.5) -> list[tuple[int, int]]:
+    """One-to-one (Hungarian) pairs ``(truth index, box index)`` at IoU >= ``threshold``."""
+    if not gt or not boxes:
+        return []
+    m = iou_matrix(np.array(gt, float), np.array(boxes, float))
+    r, c = linear_sum_assignment(-m)
+    return [(int(i), int(j)) for i, j in zip(r, c) if m[i, j] >= threshold]
+
+
 def _scored(detect, frames, truth) -> dict:
     """Detection recall / precision / F1 (one-to-one at IoU >= 0.5, every frame) and the
     median CPU ms per frame of ``detect``, a ``(frame index, bgr) -> boxes`` callable."""
@@ -98,11 +107,7 @@ def _scored(detect, frames, truth) -> dict:
         out = detect(k, img)
         times.append(time.thread_time() - t0)
         gt, boxes = truth[k], [tuple(b[:4]) for b in out]
-        good = 0
-        if gt and boxes:
-            m = iou_matrix(np.array(gt, float), np.array(boxes, float))
-            r, c = linear_sum_assignment(-m)
-            good = int((m[r, c] >= 0.5).sum())
+        good = len(matches(gt, boxes))
         tp, fp, fn = tp + good, fp + len(boxes) - good, fn + len(gt) - good
     recall, precision = tp / max(tp + fn, 1), tp / max(tp + fp, 1)
     return {"recall": recall, "precision": precision,
