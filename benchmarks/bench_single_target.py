@@ -1104,19 +1104,32 @@ WEIGHTINGS = (
 )
 
 
+#: the template (spatial-structure) cue after the multiple-kernel search (issue #16 item 3,
+#: mk_tracker.tracking.template_cue), each choice crossed with :data:`GRID` and
+#: :data:`WEIGHTINGS`: off, and on with the shipped template_* settings.
+TEMPLATES = (
+    {"template_cue": False},
+    {"template_cue": True},
+)
+
+
 def _label_value(v) -> str:
+    if isinstance(v, bool):
+        return "on" if v else "off"
     return v if isinstance(v, str) else f"{v:g}"
 
 
 def grid_configs() -> list[tuple[str, dict]]:
     keys = list(GRID)
     out = []
-    for weighting in WEIGHTINGS:
-        for values in product(*(GRID[k] for k in keys)):
-            setting = dict(zip(keys, values))
-            setting.update(weighting)
-            label = ", ".join(f"{k}={_label_value(v)}" for k, v in setting.items())
-            out.append((label, setting))
+    for template in TEMPLATES:
+        for weighting in WEIGHTINGS:
+            for values in product(*(GRID[k] for k in keys)):
+                setting = dict(zip(keys, values))
+                setting.update(weighting)
+                setting.update(template)
+                label = ", ".join(f"{k}={_label_value(v)}" for k, v in setting.items())
+                out.append((label, setting))
     return out
 
 
@@ -1227,6 +1240,9 @@ def loso_report(dev, clips, grid, peers, results, folds, shipped, argv, loads) -
              + "; each with the kernel models' background weighting "
              + " / ".join("`" + ", ".join(f"{k}={_label_value(v)}" for k, v in w.items()) + "`"
                           for w in WEIGHTINGS)
+             + "; each with the template cue "
+             + " / ".join("`" + ", ".join(f"{k}={_label_value(v)}" for k, v in w.items()) + "`"
+                          for w in TEMPLATES)
              + f" ({len(grid)} settings).",
              "* **Leave one clip out**: for every clip (source video) the setting with the "
              "highest success AUC on all *other* clips (mean over clips of the clip's mean over "
