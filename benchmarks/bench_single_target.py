@@ -1106,10 +1106,12 @@ WEIGHTINGS = (
 
 #: the template (spatial-structure) cue after the multiple-kernel search (issue #16 item 3,
 #: mk_tracker.tracking.template_cue), each choice crossed with :data:`GRID` and
-#: :data:`WEIGHTINGS`: off, and on with the shipped template_* settings.
+#: :data:`WEIGHTINGS`: off; on, moving x only (the shipped template_* settings: the window
+#: reaches 0.3 box widths in x, 0.1 in y); on, moving x and y (0.3 box widths in both).
 TEMPLATES = (
     {"template_cue": False},
     {"template_cue": True},
+    {"template_cue": True, "template_vertical": True, "template_radius_y": 0.3},
 )
 
 

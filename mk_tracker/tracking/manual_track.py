@@ -219,6 +219,12 @@ class ManualTrackConfig:
         0.3, "Template cue: the window spans the search's box shifted by up to this many box "
         "widths in x and y (the 2-kernel optimum sits up to 0.19 widths behind the walker)",
         minimum=0.01, maximum=2.0)
+    template_radius_y: float = parameter(
+        0.1, "Template cue: the window's reach in y, box widths (the 2 stacked kernels place "
+        "the person vertically: only the peak's x moves the box, y is searched so that a "
+        "small vertical misplacement does not hide the x peak)", minimum=0.0, maximum=2.0)
+    template_vertical: bool = parameter(
+        False, "Template cue: also move the box's y to the peak (false: x only)")
     template_width_px: int = parameter(
         24, "Template cue: the template and its window are resampled so that the template is "
         "this many pixels wide (cost: the central template_fraction 0.7 of a 40 x 100 px "
@@ -339,12 +345,13 @@ def centre_by_template(m: ManualTrackConfig, model: TemplateModel, image: np.nda
     template is then updated at the moved box when the peak is at least
     ``template_update_peak`` (``template_update_rate``; 0 = never)."""
     b = np.asarray(box, dtype=np.float64)
-    match = match_template(model, image, b, m.template_radius)
+    match = match_template(model, image, b, m.template_radius, m.template_radius_y)
     dx, dy = template_shift(match, b, m.template_min_peak, m.template_min_gain,
                             m.template_weight)
     out = b.copy()
     out[0] += dx
-    out[1] += dy
+    if m.template_vertical:
+        out[1] += dy
     if match is not None and match.peak >= m.template_update_peak:
         update_template(model, image, out, m.template_update_rate)
     return out

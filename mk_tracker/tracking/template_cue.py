@@ -60,12 +60,15 @@ class TemplateModel:
 class TemplateMatch:
     """One :func:`match_template`: the peak's centre offset ``(dx, dy)`` from the box's
     centre in image pixels, the correlation ``peak`` there and ``at_box`` at the box itself
-    (NaN when the window cut by the image border does not contain the box)."""
+    (NaN when the window cut by the image border does not contain the box); ``inside``: the
+    maximum is a peak inside the window, not on its rim (where the correlation still rises
+    outwards: the best place lies beyond the window, if anywhere)."""
 
     dx: float
     dy: float
     peak: float
     at_box: float
+    inside: bool = True
 
 
 def _grey(image: np.ndarray) -> np.ndarray:
@@ -146,10 +149,11 @@ def _bilinear(r: np.ndarray, u: float, v: float) -> float:
     return float(top * (1 - fv) + bottom * fv)
 
 
-def match_template(model: TemplateModel, image: np.ndarray, box, radius: float
-                   ) -> TemplateMatch | None:
+def match_template(model: TemplateModel, image: np.ndarray, box, radius: float,
+                   radius_y: float | None = None) -> TemplateMatch | None:
     """Normalised cross-correlation of the template over ``box`` (the kernels' result)
-    shifted by up to ``radius`` box widths in x and y, at the box's current width.
+    shifted by up to ``radius`` box widths in x and ``radius_y`` (default ``radius``) box
+    widths in y, at the box's current width.
 
     The window is cut by the image border where it crosses it.  None when it holds no full
     template, or the box or the pixels are not finite; correlations OpenCV cannot normalise
@@ -160,7 +164,8 @@ def match_template(model: TemplateModel, image: np.ndarray, box, radius: float
     x, y, w, h = _inner(b, model.fraction)
     s = model.width / w                      # image px -> template px
     reach = radius * float(b[2])
-    cut = _crop(image, x - reach, y - reach, x + w + reach, y + h + reach)
+    reach_y = (radius if radius_y is None else radius_y) * float(b[2])
+    cut = _crop(image, x - reach, y - reach_y, x + w + reach, y + h + reach_y)
     if cut is None:
         return None
     window, c0, r0 = cut
@@ -172,22 +177,27 @@ def match_template(model: TemplateModel, image: np.ndarray, box, radius: float
     r = cv2.matchTemplate(small, model.template, cv2.TM_CCOEFF_NORMED)
     r = np.nan_to_num(r, nan=-1.0, posinf=-1.0, neginf=-1.0)
     _, peak, _, (col, row) = cv2.minMaxLoc(r)
+    # a maximum on the map's rim is no peak: the correlation still rises outwards, so the
+    # best place lies beyond the window (or the image), if anywhere
+    inside = 0 < col < r.shape[1] - 1 and 0 < row < r.shape[0] - 1
     u, v = _subpixel(r, row, col)
     # the template's top-left corner when it sits on the box itself (the resize maps
     # window px to small px by size / window.shape, within a rounding of s)
     sx, sy = size[0] / window.shape[1], size[1] / window.shape[0]
     u0, v0 = (x - c0) * sx, (y - r0) * sy
     return TemplateMatch(dx=(u - u0) / sx, dy=(v - v0) / sy, peak=float(peak),
-                         at_box=_bilinear(r, u0, v0))
+                         at_box=_bilinear(r, u0, v0), inside=inside)
 
 
 def template_shift(match: TemplateMatch | None, box, min_peak: float, min_gain: float,
                    weight: float) -> tuple[float, float]:
     """How far to move the kernels' box: ``weight`` times the peak's offset when the peak is
-    at least ``min_peak`` and at least ``min_gain`` above the correlation at the box itself;
-    (0, 0) otherwise (no match, a low peak: occlusion or a different view, or a box
-    whose own correlation is unknown because the image border cuts it)."""
-    if match is None or not np.isfinite(match.at_box) or not np.isfinite(match.peak):
+    inside the window, at least ``min_peak`` and at least ``min_gain`` above the correlation
+    at the box itself; (0, 0) otherwise (no match, a low peak: occlusion or a different
+    view, a maximum on the window's rim, or a box whose own correlation is unknown because
+    the image border cuts it)."""
+    if match is None or not match.inside or not np.isfinite(match.at_box) or \
+            not np.isfinite(match.peak):
         return 0.0, 0.0
     if match.peak < min_peak or match.peak - match.at_box < min_gain:
         return 0.0, 0.0

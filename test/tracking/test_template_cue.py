@@ -73,6 +73,13 @@ def test_a_shift_beyond_the_window_is_not_found():
     assert abs(m.dx) <= RADIUS * BOX[2] + 0.5
     assert m.peak < 0.5
     assert template_shift(m, BOX, 0.5, 0.05, 1.0) == (0.0, 0.0)
+    # a 13 px move: the correlation still rises at the window's rim (12 px), no peak inside
+    m = match_template(model, shifted(img, 13, 0), BOX, RADIUS)
+    assert not m.inside and m.dx > 10
+    assert template_shift(m, BOX, -1.0, 0.0, 1.0) == (0.0, 0.0)
+    # 9 px: inside
+    m = match_template(model, shifted(img, 9, 0), BOX, RADIUS)
+    assert m.inside and template_shift(m, BOX, 0.5, 0.05, 1.0)[0] == pytest.approx(9, abs=1.0)
 
 
 def test_ignored_when_the_peak_is_low():
@@ -103,7 +110,7 @@ def test_a_window_cut_by_the_image_border():
     moved = img.copy()
     moved[:, 5:] = img[:, :-5]         # the content moves 5 px right
     m = match_template(model, moved, box, RADIUS)
-    assert m is not None and m.dx == pytest.approx(5, abs=1.0) and m.peak > 0.9
+    assert m is not None and m.dx == pytest.approx(5, abs=1.0) and m.peak > 0.9 and m.inside
     # at the top-left corner the window holds no full template: no match, no error
     corner = (-30.0, -80.0, 40.0, 100.0)
     assert match_template(model, img, corner, RADIUS) is None
@@ -166,10 +173,16 @@ def test_centre_by_template_moves_only_the_position():
     m = replace(ManualTrackConfig(), template_cue=True)
     img = texture(11)
     model = manual_track_template(m, img, BOX)
+    # x only (the default): the window reaches 0.1 box widths = 4 px in y, enough for 3 px
     out = centre_by_template(m, model, shifted(img, -6, 3), np.array(BOX))
     assert out[0] == pytest.approx(BOX[0] - 6, abs=1.0)
-    assert out[1] == pytest.approx(BOX[1] + 3, abs=1.0)
+    assert out[1] == BOX[1]
     assert tuple(out[2:]) == BOX[2:]                  # the scale stays the kernels'
+    # with template_vertical the peak's y moves the box too
+    mv = replace(m, template_vertical=True, template_radius_y=0.3)
+    out = centre_by_template(mv, model, shifted(img, -6, 9), np.array(BOX))
+    assert out[0] == pytest.approx(BOX[0] - 6, abs=1.0)
+    assert out[1] == pytest.approx(BOX[1] + 9, abs=1.0)
     assert manual_track_template(ManualTrackConfig(), img, BOX) is None     # off
 
 
