@@ -43,16 +43,13 @@ from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
 from mk_tracker.tracking.multi_kernel import VISIBILITY_STATISTICS
 from mk_tracker.tracking.multi_kernel_config import MultiKernelConfig
 from mk_tracker.tracking.redetection import LEARNT_MEASURES
-from mk_tracker.tracking.template_cue import (TemplateModel, match_template, start_template,
-                                              template_shift, update_template)
 from mk_tracker.tracking.track import LifecycleConfig
 
 if TYPE_CHECKING:
     from mk_tracker.tracking.multi_object_tracker import MultiObjectTrackerConfig
 
 __all__ = ["ManualTrackConfig", "manual_track_kalman", "manual_track_lifecycle",
-           "manual_track_multi_kernel", "columns_cover", "recentre_shift",
-           "manual_track_template", "centre_by_template"]
+           "manual_track_multi_kernel", "columns_cover", "recentre_shift"]
 
 
 @dataclass(frozen=True)
@@ -207,50 +204,6 @@ class ManualTrackConfig:
         "models: a look-alike passer-by no longer takes the track), or none",
         choices=BACKGROUND_WEIGHTINGS)
 
-    template_cue: bool = parameter(
-        False, "Template (spatial-structure) cue of a track started by hand "
-        "(mk_tracker.tracking.template_cue; not in the paper): after the multiple-kernel "
-        "search, a grey template of the first box is matched by normalised "
-        "cross-correlation (cv2.matchTemplate) around the search's box, and a high peak "
-        "clearly above the correlation at that box moves the measured centre towards it "
-        "(the colour kernels have no left/right structure and sit behind walkers); the "
-        "scale stays the kernels'")
-    template_radius: float = parameter(
-        0.3, "Template cue: the window spans the search's box shifted by up to this many box "
-        "widths in x and y (the 2-kernel optimum sits up to 0.19 widths behind the walker)",
-        minimum=0.01, maximum=2.0)
-    template_radius_y: float = parameter(
-        0.1, "Template cue: the window's reach in y, box widths (the 2 stacked kernels place "
-        "the person vertically: only the peak's x moves the box, y is searched so that a "
-        "small vertical misplacement does not hide the x peak)", minimum=0.0, maximum=2.0)
-    template_vertical: bool = parameter(
-        False, "Template cue: also move the box's y to the peak (false: x only)")
-    template_width_px: int = parameter(
-        24, "Template cue: the template and its window are resampled so that the template is "
-        "this many pixels wide (cost: the central template_fraction 0.7 of a 40 x 100 px "
-        "person, 28 x 100 px, is matched at 24 x 86 px)", minimum=4, maximum=256)
-    template_fraction: float = parameter(
-        0.7, "Template cue: the central share of the box width the template covers (less "
-        "background beside the person)", minimum=0.1, maximum=1.0)
-    template_min_peak: float = parameter(
-        0.5, "Template cue: a correlation peak below this is ignored (the person hidden, "
-        "turned, or not in the window)", minimum=-1.0, maximum=1.0)
-    template_min_gain: float = parameter(
-        0.05, "Template cue: the peak must exceed the correlation at the search's own box by "
-        "at least this, or the box is left where the kernels put it", minimum=0.0,
-        maximum=2.0)
-    template_weight: float = parameter(
-        1.0, "Template cue: share of the peak's offset by which the measured centre moves "
-        "(1 = to the peak; the Kalman update (4.4)-(4.5) still blends it with the "
-        "prediction)", minimum=0.0, maximum=1.0)
-    template_update_rate: float = parameter(
-        0.0, "Template cue: rate at which the template follows the person's look, from "
-        "frames where the track is seen and the peak is at least template_update_peak, "
-        "pulled back to the first template at the same rate (against drift); 0 = the first "
-        "frame's template only", minimum=0.0, maximum=1.0)
-    template_update_peak: float = parameter(
-        0.7, "Template cue: the lowest peak at which the template is updated",
-        minimum=-1.0, maximum=1.0)
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
         "paper): a first box of a track started by hand that touches the left or right "
@@ -324,34 +277,3 @@ def recentre_shift(res: Any, box: np.ndarray) -> float:
     left, right = column_best(res.kernel_similarities, n)
     step = COLUMN_SPACING * float(box[2])
     return -step if right < left else step
-
-
-def manual_track_template(m: ManualTrackConfig, image: np.ndarray, box: Any
-                          ) -> TemplateModel | None:
-    """The template of ``manual_track.template_cue`` for a track started on ``box``; None
-    when the cue is off or the box has nothing to match (partly outside the image, flat or
-    not finite: :func:`~mk_tracker.tracking.template_cue.start_template`)."""
-    if not m.template_cue:
-        return None
-    return start_template(image, box, m.template_width_px, m.template_fraction)
-
-
-def centre_by_template(m: ManualTrackConfig, model: TemplateModel, image: np.ndarray,
-                       box: np.ndarray) -> np.ndarray:
-    """``box`` (the multiple-kernel search's result, seen) moved towards the template's
-    correlation peak within ``template_radius`` box widths, when the peak is at least
-    ``template_min_peak`` and ``template_min_gain`` above the correlation at ``box``
-    (:func:`~mk_tracker.tracking.template_cue.template_shift`); its size is unchanged.  The
-    template is then updated at the moved box when the peak is at least
-    ``template_update_peak`` (``template_update_rate``; 0 = never)."""
-    b = np.asarray(box, dtype=np.float64)
-    match = match_template(model, image, b, m.template_radius, m.template_radius_y)
-    dx, dy = template_shift(match, b, m.template_min_peak, m.template_min_gain,
-                            m.template_weight)
-    out = b.copy()
-    out[0] += dx
-    if m.template_vertical:
-        out[1] += dy
-    if match is not None and match.peak >= m.template_update_peak:
-        update_template(model, image, out, m.template_update_rate)
-    return out

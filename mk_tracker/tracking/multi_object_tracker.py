@@ -87,10 +87,9 @@ from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
                                                reacquisition_matches, reference_similarity)
 from mk_tracker.tracking.recovery import recover_into, restart_filter
 from mk_tracker.tracking.image_border import clip_to_image, overlaps_image, whole_person_box
-from mk_tracker.tracking.manual_track import (centre_by_template, columns_cover,
-                                              manual_track_kalman, manual_track_lifecycle,
-                                              manual_track_multi_kernel,
-                                              manual_track_template, recentre_shift)
+from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
+                                              manual_track_lifecycle,
+                                              manual_track_multi_kernel, recentre_shift)
 from mk_tracker.tracking.multi_kernel import MultiKernelTracker, visibility_similarity
 from mk_tracker.tracking.scale_estimation import fit_height
 from mk_tracker.parameters import ParameterError, validate_config
@@ -226,8 +225,6 @@ class MultiObjectTracker:
         track.hits = self.config.lifecycle.min_hits
         track.manual = True
         track.target, track.target_stamp = target, stamp
-        if target is not None and whole is None:    # template_cue.py (None when off)
-            track.template = manual_track_template(m, image_bgr, b)
         if target is not None:
             track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b),
                                                   **({"outside": True} if whole else {})))
@@ -366,9 +363,6 @@ class MultiObjectTracker:
             if found is not None and k > 0 and t.detected_box is not None and \
                     self._fit_refiner(t, t.detected_box[3] / k, t.detected_box[3] * k):
                 found = (np.asarray(t.target.box, dtype=np.float64), found[1], found[2])
-            if found is not None and found[2] and t.template is not None:
-                found = (centre_by_template(self.config.manual_track, t.template,
-                                            image_bgr, found[0]), found[1], found[2])
             if found is not None:
                 refined[t.id] = found
                 t.refined_box = found[0]

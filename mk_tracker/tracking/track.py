@@ -236,7 +236,6 @@ class Track:
         self.score = float(score)
         self.smoothed_velocity = np.zeros(2)
         self.target: Any = None            # the refiner's working target (TargetState)
-        self.template: Any = None          # manual_track.template_cue's TemplateModel
         self.references: list[Any] = []    # frozen appearance models for re-acquisition
         self.target_stamp: float | None = None
         self.refined_box: np.ndarray | None = None
