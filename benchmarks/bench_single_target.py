@@ -1386,6 +1386,48 @@ The tables above are the evidence.
   person 3 15.3 -> 310.8 px (the passer-by takes the track again: a re-centred x pulls the
   box onto her side; a bound of 0.1 widths does the same, 312.1); median CPU time 0.67 ->
   1.00 ms per frame.
+* **A template (spatial-structure) cue after the search: lost held out, deleted** (issue
+  #16 item 3, 2026-11-27 19:13 UTC; `manual_track.template_cue` in
+  `mk_tracker/tracking/template_cue.py` at commit 958f28e, where the second run below
+  reproduces; the first variant at bf8c950).  CSRT wins on box accuracy and look-alikes by
+  matching spatial structure, which the colour histograms lack.  After Algorithm 1 a grey
+  template of the first box (its central 0.7 of the width, resampled to 24 px wide) was
+  matched by OpenCV's normalised cross-correlation (`cv2.matchTemplate`,
+  `TM_CCOEFF_NORMED`) over the search's box shifted by up to 0.3 box widths, and a peak of
+  at least 0.5 that was 0.05 above the correlation at the box itself moved the measured
+  centre to it (the Kalman update (4.4)-(4.5) then blends it as before); the scale stayed
+  the kernels'.  Cost: 0.09 ms per call for a 40 x 100 px person (median of 3000 calls),
+  +0.12-0.15 ms in the median ms per frame of the grid.  Run twice with the cue as a
+  choice crossed with the whole grid (`/tmp/bench_venv_tmpl`, built from
+  benchmarks/requirements.txt; `--output` elsewhere).  In both runs the cue-off settings
+  reproduce this report's held-out figures exactly (42.5 px / 0.60 / 0.46, 12 of 26; a
+  separate run of this report's grid at 18:43 UTC too).
+  (1) Off / on, moving x and y (108 settings; load 5.8 -> 3.7): every fold chose the cue.
+  **Held out, the 26 real sequences: 48.9 px / P@20 0.60 / AUC 0.47 against 42.5 / 0.60 /
+  0.46; lower error than CSRT on 13 of 26 against 12.**  On TUD-Campus 2 the cue followed
+  maxima on the window's corners (0.3 widths off in x and y, peak 0.55-0.6) frame after
+  frame, so (2) rejects a maximum on the correlation map's rim, and offers x only (the
+  window reaching 0.1 widths in y; the stacked kernels place the person vertically) and x
+  and y (162 settings; load 3.9 -> 3.9): every fold chose x and y; **held out 67.0 px / 0.53
+  / 0.43, 13 of 26**; with the folds choosing among the x-only settings, 55.5 / 0.57 / 0.44,
+  12 of 26.  The error is worse in both, so it stays out and the code is deleted.
+  It does what it was built for on some walkers (held out, run 2): TUD-Campus 3 10.9 -> 8.9
+  px (below CSRT's 9.7), 4 15.1 -> 10.2, 8 7.0 -> 5.1, TUD-Stadtmitte 1 13.4 -> 9.6, 4 11.2
+  -> 8.4, 4 at 6.25 fps 11.3 -> 8.2.  But with the cue the folds choose
+  `recovery_similarity` 0 and other weightings: OTB Woman 36.1 -> 267.7 px, TUD-Campus 5
+  17.7 -> 135.9, TUD-Stadtmitte 3 at 6.25 fps 57.8 -> 325.3, person 9 22.4 -> 60.6.  At the
+  shipped grid point, in-sample, cue off / x / x and y: 33.3 / 44.5 / 45.0 px over the 26
+  real sequences (P@20 0.64 / 0.62 / 0.61, AUC 0.49 / 0.48 / 0.48, below CSRT on 13 / 14 /
+  14), the whole rise being TUD-Stadtmitte person 3, the look-alike (15.3 -> 308.1 /
+  309.8 px): a 3.6 px move of the standing woman's third measurement gives the filter a
+  small velocity, the passer-by hides her from frame 4, the coasting box drifts 14 px in
+  15 frames and the re-search finds him at frame 19.  A grey template of a person in dark
+  clothes on a light background correlates with any person in dark clothes, so it does not
+  tell the look-alike apart either.  Without that sequence 34.0 / 34.0 / 34.4 px: gains on
+  single walkers, losses in groups (x and y: TUD-Stadtmitte 7 17.0 -> 26.8, 7 at 6.25 fps
+  20.4 -> 28.5, TUD-Campus 2 10.2 -> 16.5), where a neighbour's or occluder's structure in
+  the window correlates at 0.5-0.6.  Paired over all 54 grid points the cue changes the
+  mean real error by -0.3 px (x only) and +0.7 px (x and y).
 * **Not for tracks born from detections.**  `benchmarks/bench_multi_object.py --grid
   multi_kernel.background_weighting=none,cbwh` (its leave-one-sequence-out protocol, 64
   settings, floor 0.25; run once, 2026-11-27 15:48 UTC, report not committed): only the
