@@ -43,6 +43,25 @@ def test_a_group_needs_two_members_inside_a_clearly_larger_box():
         == {}
 
 
+def test_member_min_height_refuses_tracks_much_shorter_than_the_box():
+    # two tracks stacked on one person (torso box over legs box) inside that person's
+    # detection: each is less than 0.8 of the box's height, so with the bound on it is no
+    # group and the detection is associated as usual
+    tracks = [(100, 100, 30, 70), (102, 150, 30, 70)]
+    det = [(95, 95, 45, 130)]
+    assert find_groups(tracks, det, GroupConfig()) == {0: [0, 1]}
+    on = GroupConfig(member_min_height=0.8)
+    assert find_groups(tracks, det, on) == {}
+    # two people side by side, as tall as the box (0.94 of it): still a group
+    assert find_groups([(100, 100, 30, 60), (135, 100, 30, 60)], [(98, 98, 70, 64)], on) \
+        == {0: [0, 1]}
+    # the bound is inclusive: members exactly 0.8 of the box's height
+    assert find_groups([(100, 100, 30, 80), (135, 100, 30, 80)], [(98, 98, 70, 100)], on) \
+        == {0: [0, 1]}
+    assert find_groups([(100, 100, 30, 79), (135, 100, 30, 79)], [(98, 98, 70, 100)], on) \
+        == {}
+
+
 def test_each_track_belongs_to_the_detection_that_covers_it_most():
     tracks = [(0, 0, 10, 10), (12, 0, 10, 10), (20, 0, 10, 10), (32, 0, 10, 10)]
     dets = [(-1, -1, 25, 12), (18, -1, 26, 12)]
