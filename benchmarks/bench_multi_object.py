@@ -60,7 +60,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from mk_tracker.synthetic.presets import crowd_scene, far_view_scene  # noqa: E402
-from mk_tracker.bags.datasets import read_mot_sequence  # noqa: E402
+from mk_tracker.bags.datasets import read_mot_sequence, subsampled  # noqa: E402
 from mk_tracker.evaluation.metrics import MotRow, mot_metrics, write_mot_file  # noqa: E402
 from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,  # noqa: E402
                                              MultiObjectTrackerConfig)
@@ -84,14 +84,25 @@ DEVELOPMENT = ("TUD-Campus", "TUD-Stadtmitte", "crowd-15", "far-7fps")
 #: ``association.gate`` (13.8), ``lifecycle.observation_centric_reupdate`` (off),
 #: ``duplicates.enabled`` and ``lifecycle.still_speed`` stay at their defaults: every fold of
 #: the 128-setting grid that had them chose those values or was indifferent (a tie), and each
-#: dimension doubles the run time.
+#: dimension doubles the run time.  ``group.member_min_height`` came with the real
+#: low-frame-rate checks (``--low-fps-checks``).
 GRID: dict[str, tuple] = {
     "min_detection_score": (-1e9, 0.2),
     "max_reported_coast_time": (0.2, 0.6),
     "lifecycle.min_hits": (2, 3),
     "max_reported_coast_std": (0.0, 0.12),
     "reacquire_hold_time": (0.6, 0.0),
+    "group.member_min_height": (0.0, 0.8),
 }
+
+#: Real low-frame-rate CHECKS (``--low-fps-checks``), not folds: every ``LOW_FPS_STEP``-th
+#: frame of the TUD clips (25 fps -> 6.25 fps, 4x the motion per frame), each offset a run.
+#: They show the people of the 25-fps folds, so ours is reported with the setting chosen by
+#: the fold that held out the source clip.
+LOW_FPS_STEP = 4
+LOW_FPS_SOURCES = ("TUD-Campus", "TUD-Stadtmitte")
+#: the tracker_node overlay for detections scored in [0, 1] (also reported on the checks)
+PUBLIC_OVERLAY = ROOT / "config" / "tracker_public_detections.yaml"
 
 
 class OursAdapter:
@@ -155,22 +166,51 @@ def _fmt(v):
     return "-" if v is None else f"{v:.3f}"
 
 
-def run_sequence(name, frames, fps, out_dir, config=None):
-    """``frames``: list of (image, stamp, detections, gt rows of that frame)."""
-    trackers = {OURS: OursAdapter(config or updated(MultiObjectTrackerConfig(), OUR_CHANGES))}
-    trackers.update(make_peers(fps))
-    gt_rows = [r for _, _, _, g in frames for r in g]
+def run_trackers(name, frames, trackers: dict, out_dir):
+    """Every tracker of ``{name: tracker}`` over ``frames``; a scored row each (result files
+    in ``out_dir``)."""
     rows = []
     for tname, trk in trackers.items():
         hyp, times, walls = run_tracker(trk, frames)
-        slug = tname.split()[0].strip("()").lower().replace("-style", "")
-        write_mot_file(out_dir / f"{name}_{slug}.txt", hyp)
+        slug = tname.split()[0].strip("(),").lower().replace("-style", "")
+        if tname.startswith("ours, "):
+            slug = "ours_" + tname.split(", ")[1].split()[0]
+        write_mot_file(out_dir / f"{name.replace(' ', '_')}_{slug}.txt", hyp)
         rows.append(score(name, tname, frames, hyp, times, walls))
         r = rows[-1]
         print(f"{name:16s} {tname:34s} MOTA {r['MOTA']:6.3f} IDF1 {r['IDF1']:6.3f} "
               f"HOTA {_fmt(r['HOTA'])} IDs {r['IDs']:4d} MT {r['MT']:3d} ML {r['ML']:3d} "
               f"median CPU {r['ms']:7.2f} ms/frame (wall {r['wall']:.2f})", flush=True)
-    write_mot_file(out_dir / f"{name}_gt.txt", gt_rows)
+    write_mot_file(out_dir / f"{name.replace(' ', '_')}_gt.txt",
+                   [r for _, _, _, g in frames for r in g])
+    return rows
+
+
+def run_sequence(name, frames, fps, out_dir, config=None):
+    """``frames``: list of (image, stamp, detections, gt rows of that frame)."""
+    trackers = {OURS: OursAdapter(config or updated(MultiObjectTrackerConfig(), OUR_CHANGES))}
+    trackers.update(make_peers(fps))
+    return run_trackers(name, frames, trackers, out_dir)
+
+
+def run_low_fps_checks(checks: dict, out_dir, held: dict | None = None) -> list[dict]:
+    """Ours at the shipped defaults, with the public-detections overlay
+    (:data:`PUBLIC_OVERLAY`, as ``--params-file`` gives it to tracker_node) and, where
+    ``held`` (``{source clip: setting}``) has the source, with the setting chosen by the fold
+    that held that clip out; then every peer at the check's frame rate."""
+    from mk_tracker.tools.pipeline_config import load_pipeline_config
+    overlay = load_pipeline_config([PUBLIC_OVERLAY]).tracker
+    rows = []
+    for name, (frames, fps, source) in checks.items():
+        trackers = {
+            "ours, shipped defaults": OursAdapter(updated(MultiObjectTrackerConfig(),
+                                                          OUR_CHANGES)),
+            "ours, public-detections overlay": OursAdapter(updated(overlay, OUR_CHANGES))}
+        if held and source in held:
+            trackers[f"ours, held out (fold without {source})"] = OursAdapter(updated(
+                MultiObjectTrackerConfig(), {**OUR_CHANGES, **held[source]}))
+        trackers.update(make_peers(fps))
+        rows += run_trackers(name, frames, trackers, out_dir)
     return rows
 
 
@@ -205,11 +245,16 @@ def leave_one_out(sequences: dict, grid: dict, base: dict):
     return settings, scores, choices
 
 
-def tud_frames(folder: Path):
-    seq = read_mot_sequence(folder)
-    top = max(d.score for frame in seq.detections for d in frame)
-    # scores already in [0, 1] stay as they are; others are divided by the largest
+def tud_frames(folder: Path, step: int = 1, offset: int = 0):
+    """A MOTChallenge clip with its public detections; ``step`` > 1 keeps frames ``offset``,
+    ``offset + step``, ... at ``frame_rate / step`` (:func:`mk_tracker.bags.datasets.subsampled`,
+    the same copy as bench_single_target's low-frame-rate persons)."""
+    full = read_mot_sequence(folder)
+    top = max(d.score for frame in full.detections for d in frame)
+    # scores already in [0, 1] stay as they are; others are divided by the largest (of the
+    # whole clip, so a subsampled copy sees the same scores)
     scale = top if top > 1.0 else 1.0
+    seq = subsampled(full, step, offset)
     frames = []
     for k, path in enumerate(seq.image_paths):
         image = cv2.imread(str(path), cv2.IMREAD_COLOR)
@@ -218,6 +263,25 @@ def tud_frames(folder: Path):
         gt = [MotRow(k + 1, i, tuple(b)) for i, b in seq.ground_truth[k].items()]
         frames.append((image, stamp, dets, gt))
     return frames, seq.frame_rate
+
+
+def low_fps_name(source: str, offset: int) -> str:
+    return f"{source} 6.25 fps +{offset}"
+
+
+def low_fps_sequences(data: Path, offsets=tuple(range(LOW_FPS_STEP))) -> dict:
+    """The real low-frame-rate checks: ``{name: (frames, fps, source clip)}``, every
+    :data:`LOW_FPS_STEP`-th frame of each TUD clip from each offset."""
+    out = {}
+    for source in LOW_FPS_SOURCES:
+        folder = data / "mot" / source
+        if not folder.is_dir():
+            print(f"{folder} is absent: its low-frame-rate checks skipped", file=sys.stderr)
+            continue
+        for offset in offsets:
+            frames, fps = tud_frames(folder, LOW_FPS_STEP, offset)
+            out[low_fps_name(source, offset)] = (frames, fps, source)
+    return out
 
 
 def scene_frames(scene, seed, min_visible, miss, false_positives, noise):
@@ -283,7 +347,9 @@ DEFAULTS_NOTE = [
     "sequence the figures of the earlier 128-setting grid, which also had "
     "`association.gate`, `observation_centric_reupdate`, `duplicates.enabled` and "
     "`still_speed`), with the uncertainty bound only 0.698 / 0.792 / 0.630, with the hold "
-    "at 0 only 0.696 / 0.777 / 0.630, with both (the table above) 0.721 / 0.784 / 0.632:",
+    "at 0 only 0.696 / 0.777 / 0.630, with both (the table above, whose "
+    "`group.member_min_height` dimension changes none of its held-out figures) 0.721 / "
+    "0.784 / 0.632:",
     "",
     "* `max_reported_coast_std` (new): a coasting box is reported only while the std of its "
     "predicted centre is at most this fraction of the box (max of sqrt(P_xx) / w and "
@@ -359,7 +425,7 @@ DEFAULTS_NOTE = [
     "'max_reported_coast_std=0.0;min_reported_coast_match_iou=0'` (384 settings, 3 "
     "minutes).  Held out, MOTA / IDF1 / HOTA:",
     "",
-    "| held-out sequence | 32-setting grid (table above) | + match IoU (96) | new rule "
+    "| held-out sequence | 32-setting grid (= table above) | + match IoU (96) | new rule "
     "instead of both (64) | all three (384) | best peer MOTA / IDF1 |",
     "|---|---|---|---|---|---|",
     "| TUD-Campus | 0.515 / 0.680 / 0.525 | 0.315 / 0.622 / 0.491 | 0.368 / 0.636 / 0.500"
@@ -416,6 +482,67 @@ DEFAULTS_NOTE = [
     "TUD-Campus fold's setting 0.782 -> 0.814) and TUD-Campus's MOTA by up to 0.16.  "
     "Deleted.",
     "",
+    "Mechanisms for the real 6.25-fps checks (section \"Real video at 6.25 fps\" below; "
+    "causes counted by `benchmarks/diagnose_mot_loss.py --sequences TUD-Stadtmitte/4+0 ... "
+    "TUD-Stadtmitte/4+3 --set min_detection_score=0.2 lifecycle.min_hits=2`).  On "
+    "TUD-Stadtmitte at 6.25 fps the largest cause of our false positives beyond SORT's is "
+    "`detected (group member), box off`: 15 group measurements in the 45 frames of offset 2 "
+    "(5 in all 179 frames at 25 fps), in 7 of them both members on one person, a track fed "
+    "the detector's torso or legs boxes (e.g. 46x129 and 43x137 px stacked on a person "
+    "64x208 px) inside that person's 79x209 px detection; as group members they count as "
+    "detected, so neither ends:",
+    "",
+    "* `group.member_min_height` (new): a track is a member of a group only if its box is at "
+    "least this fraction of the group box's height (people side by side at one distance are "
+    "about equally tall in the image).  The value 0.8 was fixed before the grid (the only "
+    "value tried).  As a grid dimension (0, 0.8) it changes only TUD-Campus at 25 fps, so "
+    "the three folds that train on TUD-Campus choose 0.8 and the fold that holds it out is "
+    "a tie: no held-out figure of the four sequences changes (mean 0.721 / 0.784 / 0.632 "
+    "with or without it).  On the checks, the TUD-Stadtmitte fold's setting (now with 0.8) "
+    "goes from 0.609 / 0.737 to 0.650 / 0.770 (mean over the four offsets; `--grid "
+    "group.member_min_height=0.0` for the figure without), TUD-Campus's is unchanged "
+    "(0.326 / 0.525).  In the overlay's setting (score floor 0.2, `min_hits` 2): checks "
+    "TUD-Campus 0.351 / 0.512 -> 0.365 / 0.515, TUD-Stadtmitte 0.652 / 0.753 -> 0.681 / "
+    "0.786; TUD-Campus at 25 fps 0.674 / 0.743 -> 0.691 / 0.771, the others unchanged.  At "
+    "the shipped defaults (no score floor) it costs TUD-Campus 0.593 / 0.696 -> 0.499 / "
+    "0.672 (its low-score detections include boxes around two people at different "
+    "distances, real groups whose farther member is shorter than 0.8 of the box) and the "
+    "checks (TUD-Campus 0.278 / 0.488 -> 0.240 / 0.460).  So it goes to the public-"
+    "detections overlay, off in the shipped defaults (see below).",
+    "* `association.velocity_std` (measured, then deleted): the association's innovation "
+    "covariance plus (v h dt)^2 on its diagonal, an unmodelled velocity error of v box "
+    "heights/s over the frame interval dt, so that the gate widens with box size and frame "
+    "interval (the process noise (2.3) grows the covariance as dt^3: at 25 and at 6.25 fps "
+    "the gate is about the same number of pixels).  v = 0.3 (the value of "
+    "`reacquire_last_detection_speed`, fixed before the grid).  As a grid dimension with the "
+    "one above (128 settings, `--people 15 --low-fps-checks --grid "
+    "association.velocity_std=0,0.3 group.member_min_height=0,0.8`) only the TUD-Campus fold "
+    "chose it (a near tie), held out the same four figures, but that fold's check "
+    "TUD-Campus at 6.25 fps fell from 0.326 / 0.525 to 0.197 / 0.443; over all sequences 0 "
+    "is preferred (+0.011).  In the overlay's setting it raises the checks' MOTA "
+    "(TUD-Campus 0.351 -> 0.374, TUD-Stadtmitte 0.652 -> 0.692) but lowers TUD-Stadtmitte's "
+    "IDF1 (0.753 -> 0.742) and costs TUD-Campus at 25 fps (0.674 / 0.743 -> 0.657 / 0.715); "
+    "with dt = the time since the last detection instead of one frame it costs more "
+    "(crowd-15 IDF1 0.739 -> 0.711).",
+    "* `association.overlap_weight` 0.6 (shipped 0.8; the only other value tried, after "
+    "an in-sample screen at the overlay's setting in which it lifted the TUD-Campus "
+    "check 0.365 / 0.515 -> 0.404 / 0.564 and TUD-Stadtmitte at 25 fps 0.708 / 0.782 -> "
+    "0.720 / 0.816): as a grid dimension (128 settings, `--people 15 --low-fps-checks "
+    "--grid association.overlap_weight=0.8,0.6`) three folds choose 0.6, the "
+    "TUD-Stadtmitte fold is a tie; held out 0.725 / 0.785 / 0.632 (TUD-Campus 0.515 / "
+    "0.680 -> 0.529 / 0.685, the others unchanged), but the TUD-Campus fold's check at "
+    "6.25 fps falls from 0.326 / 0.525 to 0.274 / 0.470 (TUD-Stadtmitte's unchanged).  "
+    "Not kept: the checks do not improve.",
+    "* Screened in-sample at the overlay's setting and not pursued (checks TUD-Campus / "
+    "TUD-Stadtmitte at 6.25 fps, then TUD-Campus at 25 fps, MOTA / IDF1): "
+    "`association.gate` 40 (was 13.8) 0.401 / 0.558, 0.689 / 0.773, but 0.521 / 0.526 at "
+    "25 fps; `kalman.sigma_u` 90 (was 30) 0.437 / 0.563, 0.682 / 0.692, but 0.635 / 0.673 "
+    "and TUD-Stadtmitte 0.651 / 0.624 at 25 fps; `lifecycle.measurement_noise` 0.04 (the "
+    "public detections' centres are off the annotated ones by 3-5% of the height, std) "
+    "0.133 / 0.331 on TUD-Campus at 6.25 fps; `group.enabled` false 0.356 / 0.506, 0.683 / "
+    "0.794 and 0.691 / 0.771, but at the shipped defaults TUD-Campus 0.499 / 0.672 (as "
+    "the height bound, which keeps real groups on the thermal detector).",
+    "",
     "Mechanisms tried in earlier sessions and their held-out means (MOTA / IDF1), measured "
     "before `duplicates.*` and `lifecycle.still_speed` existed, with the grid of that time "
     "(without any: 0.578 / 0.746):", "",
@@ -458,12 +585,13 @@ SHIPPED_NOTE = [
     "groups of the held-out seed 201 (`benchmarks/bench_groups.py --sizes 640x480 "
     "--people 8 15 --configs kernel truth --set ...`: MOTA / IDF1 at 8 and 15 people "
     "0.154 / 0.424 and 0.017 / 0.241 before, 0.157 / 0.425 and 0.013 / 0.246 with both, "
-    "ground-truth detections unchanged).  They differ on two, checked on those data and "
+    "ground-truth detections unchanged).  They differ on three: two (`min_detection_score`, "
+    "`lifecycle.min_hits`) checked on those data and "
     "on the RGB-only system, background subtraction -> tracker "
     "(`benchmarks/background_tracker_ablation.py --variant ...`, TUD-Campus / "
     "TUD-Stadtmitte MOTA / IDF1, shipped defaults of the previous run 0.131 / 0.451 and "
     "0.283 / 0.483; the figures of these two bullets were measured before this run's two "
-    "new defaults):", "",
+    "new defaults), and `group.member_min_height`:", "",
     "* `duplicates.enabled` (on) is no longer a grid dimension: a tie on every fold of the "
     "128-setting grid; chosen on BU-TIV-lab, where off gives 10 / 0.98 / 5.79.",
     "* `min_detection_score` 0.2 (shipped: off, -1e9): preferred by the three folds that "
@@ -477,6 +605,13 @@ SHIPPED_NOTE = [
     "0.1 (chosen leave-one-sequence-out, issue #13), 4% of its boxes on TUD-Campus and 28% "
     "on TUD-Stadtmitte score below 0.2, and the RGB-only system goes to 0.198 / 0.415 and "
     "0.262 / 0.448.  Kept off.",
+    "* `group.member_min_height` 0.8 (shipped: 0, off): preferred by the three folds that "
+    "train on TUD-Campus, a tie on the fold that holds it out; it acts only on TUD-Campus "
+    "among the four sequences, and at the shipped defaults (no score floor) it costs "
+    "TUD-Campus 0.593 / 0.696 -> 0.499 / 0.672: it refuses real groups of people at "
+    "different distances, which the thermal detector reports (issue #15; not measured on "
+    "BU-TIV-lab or the groups, as the shipped value does not change).  Set by the public-"
+    "detections overlay only.",
     "* `lifecycle.min_hits` 2 (shipped: 3): preferred by every fold (table above).  Kept at "
     "3: a track confirmed on its second detection hurts both of the project's detectors.  "
     "BU-TIV-lab: 17 / 0.20 / 5.85 (4-6 people in view; the CI gate "
@@ -488,9 +623,9 @@ SHIPPED_NOTE = [
     "-0.088, with true detections +0.006 to +0.007.", "",
     "There is no per-source tracker default to resolve this (config/tracker.yaml serves "
     "thermal, background and topic detections alike), so the conflict stays:", "",
-    "* The held-out figures above are those of the protocol's choices (0.2 score floor on "
-    "three folds, `min_hits` 2 on all), i.e. of a user who sets "
-    "`tracker.min_detection_score: 0.2` and `tracker.lifecycle.min_hits: 2` for a detector "
+    "* The held-out figures above are those of the protocol's choices (0.2 score floor and "
+    "`group.member_min_height` 0.8 on three folds, `min_hits` 2 on all), i.e. of a user who "
+    "gives `config/tracker_public_detections.yaml` (those three values) for a detector "
     "scoring in [0, 1] like the public ones; that is the setting to use for such "
     "detections.  The shipped defaults on the same sequences are the in-sample rows of the "
     "table below.",
@@ -594,7 +729,74 @@ def _choice_margins(settings, scores, choices) -> list[str]:
     return lines + [""]
 
 
-def markdown(rows, command, args, loso=None) -> str:
+#: What the real low-frame-rate checks show (static text: figures of the commands it names).
+LOW_FPS_NOTE = [
+    "What these checks show (issue #16: the unseen 7-fps clips are where we lose):",
+    "",
+    "* Held out, ours is below SORT's MOTA on both clips at 6.25 fps (TUD-Campus 0.326 vs "
+    "0.356, TUD-Stadtmitte 0.650 vs 0.676, ByteTrack 0.672) and above SORT's IDF1 (0.525 vs "
+    "0.494, 0.770 vs 0.761), below ByteTrack's on TUD-Stadtmitte (0.783).  With the "
+    "public-detections overlay (its values chosen on the 25-fps copies of these clips, so "
+    "not a held-out figure) 0.365 / 0.515 and 0.681 / 0.786: above every peer on "
+    "TUD-Stadtmitte, MOTA still below SORT on TUD-Campus.  The shipped defaults (no score "
+    "floor, `min_hits` 3) are lower on both.",
+    "* Before `group.member_min_height` (mechanisms above) the TUD-Stadtmitte fold's setting "
+    "held out 0.609 / 0.737 here and the overlay 0.652 / 0.753 / 31 switches: group "
+    "measurements on two tracks stacked on one person were the largest cause of false "
+    "positives beyond SORT's.",
+    "* Left at the overlay (`diagnose_mot_loss.py` over the four offsets, `--set "
+    "min_detection_score=0.2 lifecycle.min_hits=2 group.member_min_height=0.8`): "
+    "TUD-Stadtmitte FP / FN / ID switches 34 / 313 / 22 (SORT 15 / 337 / 22, ByteTrack "
+    "30 / 317 / 32), 22 of our FPs coasting boxes; TUD-Campus 29 / 189 / 10 (SORT 31 / 172 "
+    "/ 28): we miss more, 57 misses with a detection of the person whose nearest box of "
+    "ours is a neighbour's, 38 on tracks not yet confirmed (`min_hits` 2 is 0.16 s here), "
+    "and 15 FPs where the track's detection is on the person but its Kalman-filtered box "
+    "(4x the motion per frame of 25 fps) is not.",
+    "* ByteTrack and OC-SORT start few tracks on TUD-Campus (its scores are below their "
+    "thresholds), as at 25 fps.",
+    ""]
+
+
+def low_fps_lines(rows: list[dict]) -> list[str]:
+    """The section of the real low-frame-rate checks: per check every row, then the mean of
+    each tracker per source clip (over its offsets)."""
+    if not rows:
+        return []
+    lines = ["## Real video at 6.25 fps", "",
+             f"Checks, not folds: every {LOW_FPS_STEP}th frame of "
+             + " and ".join(LOW_FPS_SOURCES) + " (25 fps -> 6.25 fps, 4x the motion per "
+             "frame; each offset 0-3 a separate run, stamps k / 6.25 s), with the public "
+             "detections and ground truth of the kept frames only "
+             "(`mk_tracker.bags.datasets.subsampled`).  They show the people of the 25-fps "
+             "folds, so ours is reported with the setting chosen by the fold that held out "
+             "the source clip (`held out`), besides the shipped defaults and the overlay "
+             f"`{PUBLIC_OVERLAY.relative_to(ROOT)}`.  Peers at their library defaults with "
+             "frame rate 6.25.  Run with `--low-fps-checks` (the command at the top); "
+             "`benchmarks/diagnose_mot_loss.py --sequences TUD-Stadtmitte/4+2 ...` splits "
+             "the errors of one check by cause.", ""]
+    lines += _table(rows, timing=False)
+    lines += ["", "Mean over the offsets (MOTA / IDF1 / HOTA, ID switches summed):", "",
+              "| tracker | " + " | ".join(LOW_FPS_SOURCES) + " |",
+              "|---|" + "---|" * len(LOW_FPS_SOURCES)]
+    by = {}
+    for r in rows:
+        source = next(s for s in LOW_FPS_SOURCES if r["sequence"].startswith(s))
+        tname = r["tracker"].split(" (fold without")[0]
+        by.setdefault(tname, {}).setdefault(source, []).append(r)
+    for tname, per in by.items():
+        cells = []
+        for source in LOW_FPS_SOURCES:
+            rs = per.get(source, [])
+            cells.append("-" if not rs else
+                         f"{np.mean([r['MOTA'] for r in rs]):.3f} / "
+                         f"{np.mean([r['IDF1'] for r in rs]):.3f} / "
+                         f"{np.mean([r['HOTA'] for r in rs]):.3f}, "
+                         f"{sum(r['IDs'] for r in rs)} sw")
+        lines.append(f"| {tname} | " + " | ".join(cells) + " |")
+    return lines + [""] + LOW_FPS_NOTE
+
+
+def markdown(rows, command, args, loso=None, checks=None) -> str:
     lines = ["# Multi-object tracking benchmark", "",
              "Produced by:", "", "```", command, "```", "",
              f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "
@@ -649,6 +851,7 @@ def markdown(rows, command, args, loso=None) -> str:
         lines += ["## Shipped defaults vs the protocol's choice", ""]
         lines += _choice_margins(settings, scores, choices)
         lines += SHIPPED_NOTE
+    lines += low_fps_lines(checks or [])
     lines += ["## Every tracker at its defaults (ours: NOT held out)", "",
               "Our tracker runs with its default parameters"
               f"{' except ' + str(OUR_CHANGES) if OUR_CHANGES else ''}, which were chosen on "
@@ -707,6 +910,9 @@ def main(argv=None) -> int:
     parser.add_argument("--grid", nargs="*", default=[], metavar="NAME=V1,V2",
                         help="replace or add a dimension of the leave-one-sequence-out grid "
                              "(YAML values), e.g. high_detection_score=-1e12,0.5")
+    parser.add_argument("--low-fps-checks", action="store_true",
+                        help="also run the real low-frame-rate checks: TUD-Campus and "
+                             "TUD-Stadtmitte at 6.25 fps (every 4th frame, offsets 0-3)")
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                         help="override a parameter of our tracker (YAML value), e.g. "
                              "lifecycle.min_hits=4 (also fixed during the grid)")
@@ -748,11 +954,15 @@ def main(argv=None) -> int:
         (args.results / "grid_scores.json").write_text(json.dumps(
             [{"setting": st, "scores": sc} for st, sc in zip(settings, scores)]))
         loso = (settings, scores, choices, held_rows, peer_rows)
+    checks = None
+    if args.low_fps_checks:
+        held = None if loso is None else {n: loso[0][i] for n, i in loso[2].items()}
+        checks = run_low_fps_checks(low_fps_sequences(args.data), args.results, held)
     if args.out is not None:
         command = ".venv/bin/python " + " ".join(
             shlex.quote(a) for a in [str(Path(sys.argv[0]))] + list(sys.argv[1:]))
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(markdown(rows, command, args, loso), encoding="utf-8")
+        args.out.write_text(markdown(rows, command, args, loso, checks), encoding="utf-8")
         print(f"wrote {args.out}")
     return 0
 

@@ -67,7 +67,8 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
 from mk_tracker.boxes import clip_box  # noqa: E402
-from mk_tracker.bags.datasets import DEFAULT_FRAME_RATE  # noqa: E402
+from mk_tracker.bags.datasets import (DEFAULT_FRAME_RATE, read_mot_sequence,  # noqa: E402
+                                      subsampled)
 from mk_tracker.evaluation.metrics import read_box_list, read_mot_file, single_target_metrics  # noqa: E402
 from mk_tracker.tracking.multi_kernel import (MultiKernelConfig, MultiKernelTracker,  # noqa: E402
                                      TrackingInputError, mean_shift_baseline_config,
@@ -1003,42 +1004,32 @@ def fast_edge_scene(seed: int, frames: int = 40) -> "SyntheticScene":  # noqa: F
     return make_scene(cfg)
 
 
-def _seqinfo_fps(root: Path) -> float:
-    ini = root / "seqinfo.ini"
-    if ini.is_file():
-        for line in ini.read_text().splitlines():
-            if line.strip().lower().startswith("framerate="):
-                return float(line.split("=", 1)[1])
-    return DEFAULT_FRAME_RATE
-
-
 def mot_person_sequences(name: str, step: int = 1, min_frames: int = 10) -> list[Sequence]:
     """Every person of ``mot/<name>`` as a single target from its first gt box (clipped to the
-    image), scored on its frames with a box; ``step`` > 1 keeps every ``step``-th frame (a
-    lower frame rate with ``step`` times the motion per frame)."""
+    image), scored on its frames with a box; ``step`` > 1 keeps every ``step``-th frame from
+    the person's first (:func:`mk_tracker.bags.datasets.subsampled`: a lower frame rate with
+    ``step`` times the motion per frame)."""
     root = DATA / "mot" / name
     if not root.is_dir():
         return []
-    paths = sorted((root / "img1").glob("*.jpg"))
-    fps = _seqinfo_fps(root) / step
-    rows = read_mot_file(root / "gt" / "gt.txt", ground_truth=True)
-    first_img = cv2.imread(str(paths[0]))
-    height, width = first_img.shape[:2]
+    seq = read_mot_sequence(root)
+    height, width = seq.image(0).shape[:2]
     out = []
-    for pid in sorted({r.id for r in rows}):
-        mine = {r.frame: tuple(r.box) for r in rows if r.id == pid}
+    for pid in seq.identities:
+        mine = seq.track(pid)
         first, last = min(mine), max(mine)
-        numbers = list(range(first, last + 1, step))
-        if len(numbers) < min_frames:
+        low = subsampled(seq, step, first % step)
+        kept = range(first // step, (last - first % step) // step + 1)
+        if len(kept) < min_frames:
             continue
-        truth = [None if mine.get(f) is None else clip_box(mine[f], width, height)
-                 for f in numbers]
+        truth = [None if low.ground_truth[k].get(pid) is None
+                 else clip_box(low.ground_truth[k][pid], width, height) for k in kept]
         if truth[0] is None:
             continue
-        suffix = "" if step == 1 else f" at {fps:g} fps"
+        suffix = "" if step == 1 else f" at {low.frame_rate:g} fps"
         out.append(Sequence(f"{name} person {pid}{suffix}",
-                            _image_reader([paths[f - 1] for f in numbers]), truth, truth[0],
-                            fps=fps))
+                            _image_reader([low.image_paths[k] for k in kept]), truth, truth[0],
+                            fps=low.frame_rate))
     return out
 
 

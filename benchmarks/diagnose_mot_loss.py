@@ -41,6 +41,10 @@ between neighbours) or came back after a gap.  The peers' FP / FN / IDSW are spl
 
     nice -n 10 .venv/bin/python benchmarks/diagnose_mot_loss.py [--sequences TUD-Campus ...] \
         [--set lifecycle.min_hits=2 ...]
+
+A real clip at a lower frame rate is named ``CLIP/STEP+OFFSET``: ``TUD-Stadtmitte/4+2`` keeps
+every 4th frame from frame 2 (0-based) at 25 / 4 = 6.25 fps, the copy of
+``bench_multi_object.py --low-fps-checks`` (``tud_frames(folder, step, offset)``).
 """
 
 from __future__ import annotations
@@ -270,7 +274,13 @@ def main(argv=None) -> int:
           f"{' + ' + str(changes) if changes else ''}\n")
     for name in args.sequences:
         if name.startswith("TUD"):
-            frames, fps = bmo.tud_frames(args.data / "mot" / name)
+            clip, _, rate = name.partition("/")
+            step, _, offset = rate.partition("+")
+            try:
+                frames, fps = bmo.tud_frames(args.data / "mot" / clip, int(step or 1),
+                                             int(offset or 0))
+            except ValueError as exc:
+                raise SystemExit(f"{name}: expected CLIP or CLIP/STEP+OFFSET ({exc})") from None
         elif name.startswith("crowd-"):
             frames, fps = bmo.crowd_frames(int(name.split("-")[1]), 1, 300, 0.5, 0.1, 0.3,
                                            2.0)

@@ -258,6 +258,35 @@ def read_otb_sequence(folder: str | Path, frame_rate: float | None = None) -> Se
                     tuple(ground_truth))
 
 
+def subsampled(sequence: Sequence, step: int, offset: int = 0) -> Sequence:
+    """A lower-frame-rate copy of ``sequence``: frames ``offset``, ``offset + step``, ...
+    (0-based) with their ground truth and detections, at ``frame_rate / step``.
+
+    The kept frames are renumbered 0, 1, ... (stamps ``k / (frame_rate / step)``): each one
+    shows ``step`` times the motion per frame of the original, as a camera recording at the
+    lower rate would.  ``step`` 1 and ``offset`` 0 return the sequence itself.  Raises
+    :class:`DatasetError` for ``step`` < 1 or an ``offset`` outside ``0..step - 1``."""
+    if isinstance(step, bool) or not isinstance(step, int) or step < 1:
+        raise DatasetError(f"{sequence.name}: frame step must be an integer >= 1, got {step!r}")
+    if isinstance(offset, bool) or not isinstance(offset, int) or not 0 <= offset < step:
+        raise DatasetError(f"{sequence.name}: offset must be an integer in 0..{step - 1}, "
+                           f"got {offset!r}")
+    if step == 1:
+        return sequence
+    keep = range(offset, len(sequence), step)
+    if not len(keep):
+        raise DatasetError(f"{sequence.name}: no frame left at step {step}, offset {offset}")
+    info = dict(sequence.info)
+    info.update(framerate=f"{sequence.frame_rate / step:g}", seqlength=str(len(keep)))
+    return Sequence(f"{sequence.name} step {step} offset {offset}", sequence.layout,
+                    sequence.folder, tuple(sequence.image_paths[k] for k in keep),
+                    sequence.frame_rate / step,
+                    tuple(sequence.ground_truth[k] for k in keep),
+                    None if sequence.detections is None
+                    else tuple(sequence.detections[k] for k in keep),
+                    sequence.image_size, info)
+
+
 def detect_layout(folder: str | Path) -> str:
     """``"mot"`` or ``"otb"`` from the folder's contents."""
     root = _folder(folder)

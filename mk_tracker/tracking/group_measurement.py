@@ -56,6 +56,11 @@ class GroupConfig:
         0.5, "Tracks that overlap one another by more than this IoU are not a group of "
         "people (two tracks on one person): the detection is associated as usual",
         minimum=0.0, maximum=1.0)
+    member_min_height: float = parameter(
+        0.0, "A member's box is at least this fraction of the group box's height (people "
+        "side by side at one distance are about equally tall in the image; a much shorter "
+        "track inside the box follows a part of a person, e.g. torso or legs); 0 = off",
+        minimum=0.0, maximum=1.0)
     quality_factor: float = parameter(
         0.5, "Factor on the detection's quality for a member's constrained position "
         "(lower: the member follows its own prediction and refinement more)",
@@ -100,7 +105,8 @@ def find_groups(track_boxes, det_boxes, config: GroupConfig) -> dict[int, list[i
     groups: dict[int, list[int]] = {}
     for i in np.flatnonzero(inside):
         k = int(best[i])
-        if det_area[k] >= config.min_area_ratio * track_area[i]:
+        if det_area[k] >= config.min_area_ratio * track_area[i] and \
+                tracks[i, 3] >= config.member_min_height * dets[k, 3]:
             groups.setdefault(k, []).append(int(i))
     out = {}
     for k, members in groups.items():

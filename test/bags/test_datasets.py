@@ -11,7 +11,7 @@ import pytest
 from mk_tracker.tools import cli
 from mk_tracker.bags.bag_io import open_bag
 from mk_tracker.bags.datasets import (DatasetError, read_mot_sequence, read_otb_sequence,
-                                 read_sequence)
+                                 read_sequence, subsampled)
 from mk_tracker.messages.detection_messages import read_detection_array
 from mk_tracker.messages.image_conversion import image_to_numpy
 from mk_tracker.messages.message_types import stamp_to_nanoseconds
@@ -62,6 +62,35 @@ def test_mot_reader(tmp_path):
     assert first.box == (3.5, 4.5, 6.0, 8.0) and first.score == 51.818 and first.id == ""
     np.testing.assert_array_equal(seq.image(2), picture(2))
     assert seq.timestamp_ns(2) == 80_000_000
+
+
+def test_subsampled_keeps_every_step_th_frame_with_its_annotations(tmp_path):
+    gt = "".join(f"{f},1,{10 + f},20,5,10,-1\n" for f in range(1, 8)) + "4,2,1,1,4,4,-1\n"
+    det = "".join(f"{f},-1,{10 + f},20,5,10,0.{f}\n" for f in (2, 6, 7))
+    seq = read_mot_sequence(make_mot(tmp_path / "seq", n=7, gt=gt, det=det,
+                                     seqinfo="[Sequence]\nframeRate=20\nseqLength=7\n"))
+    low = subsampled(seq, 3, 1)                  # 0-based frames 1, 4 (file frames 2, 5)
+    assert len(low) == 2 and low.frame_rate == pytest.approx(20.0 / 3)
+    assert [p.name for p in low.image_paths] == ["000002.png", "000005.png"]
+    assert low.ground_truth == ({1: (12.0, 20.0, 5.0, 10.0)}, {1: (15.0, 20.0, 5.0, 10.0)})
+    assert [[d.score for d in frame] for frame in low.detections] == [[0.2], []]
+    np.testing.assert_array_equal(low.image(1), picture(4))
+    assert low.timestamp_ns(1) == 150_000_000   # stamps at the lower rate
+    assert low.info["framerate"] == "6.66667" and low.info["seqlength"] == "2"
+    # offset 0 keeps file frames 1, 4, 7; identity 2 lives on file frame 4 only
+    assert subsampled(seq, 3).identities == [1, 2]
+    assert len(subsampled(seq, 3)) == 3 and len(subsampled(seq, 3, 2)) == 2
+    assert subsampled(seq, 1) is seq
+    assert subsampled(read_otb_sequence(make_otb(tmp_path / "otb", "1,1,2,2\n" * 3)),
+                      2).detections is None
+
+
+@pytest.mark.parametrize("step, offset", [(0, 0), (-2, 0), (2.0, 0), (True, 0), (3, 3),
+                                          (3, -1), (2, 0.5), (9, 8)])
+def test_subsampled_refuses_bad_steps(tmp_path, step, offset):
+    seq = read_mot_sequence(make_mot(tmp_path / "seq"))
+    with pytest.raises(DatasetError, match="step|offset|no frame"):
+        subsampled(seq, step, offset)
 
 
 def test_mot_seqinfo_and_ignore_rows(tmp_path):

@@ -420,7 +420,7 @@ def test_detection_wait_pairs_late_detections_with_their_own_frame(scene_bag, tm
 
 
 def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
-    """config/tracker_public_detections.yaml (issue #16) changes exactly the two settings
+    """config/tracker_public_detections.yaml (issue #16) changes exactly the three settings
     the leave-one-sequence-out protocol prefers for [0, 1]-scored detections, to valid
     values, and leaves every other shipped value as it is."""
     import yaml
@@ -433,16 +433,21 @@ def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
     both = load_pipeline_config(files, include_defaults=False)
     assert both.tracker.min_detection_score == 0.2
     assert both.tracker.lifecycle.min_hits == 2
+    assert both.tracker.group.member_min_height == 0.8
     assert base.tracker.min_detection_score != 0.2 and base.tracker.lifecycle.min_hits != 2
+    assert base.tracker.group.member_min_height == 0.0
     restored = dataclasses.replace(
         both.tracker, min_detection_score=base.tracker.min_detection_score,
         lifecycle=dataclasses.replace(both.tracker.lifecycle,
-                                      min_hits=base.tracker.lifecycle.min_hits))
+                                      min_hits=base.tracker.lifecycle.min_hits),
+        group=dataclasses.replace(both.tracker.group,
+                                  member_min_height=base.tracker.group.member_min_height))
     assert restored == base.tracker and both.detection_wait == base.detection_wait
     overlay = yaml.safe_load(files[1].read_text())["/**/tracker_node"]["ros__parameters"]
     specs = {s.name: s for s in parameter_specs(MultiObjectTrackerConfig())}
     assert set(overlay) == {"tracker"}
     values = {"min_detection_score": overlay["tracker"]["min_detection_score"],
-              "lifecycle.min_hits": overlay["tracker"]["lifecycle"]["min_hits"]}
+              "lifecycle.min_hits": overlay["tracker"]["lifecycle"]["min_hits"],
+              "group.member_min_height": overlay["tracker"]["group"]["member_min_height"]}
     for name, value in values.items():
         validate_value(specs[name], value)

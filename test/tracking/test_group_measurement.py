@@ -43,6 +43,25 @@ def test_a_group_needs_two_members_inside_a_clearly_larger_box():
         == {}
 
 
+def test_member_min_height_refuses_tracks_much_shorter_than_the_box():
+    # two tracks stacked on one person (torso box over legs box) inside that person's
+    # detection: each is less than 0.8 of the box's height, so with the bound on it is no
+    # group and the detection is associated as usual
+    tracks = [(100, 100, 30, 70), (102, 150, 30, 70)]
+    det = [(95, 95, 45, 130)]
+    assert find_groups(tracks, det, GroupConfig()) == {0: [0, 1]}
+    on = GroupConfig(member_min_height=0.8)
+    assert find_groups(tracks, det, on) == {}
+    # two people side by side, as tall as the box (0.94 of it): still a group
+    assert find_groups([(100, 100, 30, 60), (135, 100, 30, 60)], [(98, 98, 70, 64)], on) \
+        == {0: [0, 1]}
+    # the bound is inclusive: members exactly 0.8 of the box's height
+    assert find_groups([(100, 100, 30, 80), (135, 100, 30, 80)], [(98, 98, 70, 100)], on) \
+        == {0: [0, 1]}
+    assert find_groups([(100, 100, 30, 79), (135, 100, 30, 79)], [(98, 98, 70, 100)], on) \
+        == {}
+
+
 def test_each_track_belongs_to_the_detection_that_covers_it_most():
     tracks = [(0, 0, 10, 10), (12, 0, 10, 10), (20, 0, 10, 10), (32, 0, 10, 10)]
     dets = [(-1, -1, 25, 12), (18, -1, 26, 12)]
@@ -109,3 +128,28 @@ def test_tracks_of_a_merged_detection_keep_their_ids_and_places(enabled):
         # at first (both drop out of the report), then one track takes the group's box
         assert min(len(r.reported()) for r in merged) == 0
         assert max(t.box[2] for r in merged for t in r.reported()) > 50
+
+
+@pytest.mark.parametrize("bound", [0.0, 0.8])
+def test_a_person_detection_over_two_stacked_part_tracks_is_no_group_with_the_bound(bound):
+    """Two confirmed tracks on the torso and the legs of one person (the detector gave part
+    boxes), then the detector sees the whole person: without ``member_min_height`` that box
+    is a group measurement over both part tracks, which then count as detected (neither
+    coasts, so neither ends); with 0.8 (each is 0.48 of the box's height) it is no group and
+    the part tracks go undetected."""
+    cfg = updated(MultiObjectTrackerConfig(), {"use_multi_kernel": False,
+                                               "group.member_min_height": bound})
+    trk = MultiObjectTracker(cfg)
+    parts = [FrameDetection((300, 100, 30, 60), 0.9), FrameDetection((300, 160, 30, 60), 0.9)]
+    for i in range(4):
+        trk.step(IMG, i * DT, parts)
+    assert len(trk.step(IMG, 4 * DT, parts).reported()) == 2
+    before = trk.totals["group_measurements"]
+    result = trk.step(IMG, 5 * DT, [FrameDetection((297, 98, 36, 124), 0.9)])
+    grouped = trk.totals["group_measurements"] - before
+    detected = [t for t in result.tracks if t.time_since_detection == 0.0]
+    assert len(result.tracks) == 2                # the person's box starts no third track
+    if bound == 0.0:
+        assert grouped == 1 and len(detected) == 2
+    else:
+        assert grouped == 0 and not detected
