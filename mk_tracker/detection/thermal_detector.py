@@ -132,6 +132,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from mk_tracker.tracking.association import assign
@@ -362,11 +363,15 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
             self.gain_resets += 1
             self.last_reset = True
             return frame
-        out = fit.relaxed(g.relaxation)(frame)
-        if integer:
-            np.rint(out, out=out)
-            out[frame == 0] = 0          # clipped or masked (ignore regions): kept constant
-        return out
+        mapped = fit.relaxed(g.relaxation)
+        if not integer:
+            return mapped(frame)
+        # integer levels: one look-up table of rounded levels, 0 kept at 0 (clipped or
+        # masked by an ignore region: kept constant)
+        table = mapped(np.arange(int(limits[1]) + 1, dtype=np.float32))
+        np.rint(table, out=table)
+        table[0] = 0.0
+        return cv2.LUT(frame, table) if frame.dtype == np.uint8 else np.take(table, frame)
 
     def _raw_radius(self) -> float:
         """The similarity radius of (3.6) in raw units of the current encoding: by the

@@ -216,3 +216,19 @@ def test_the_gain_parameters_are_declared():
     fields = {f.name for f in dataclasses.fields(GainConfig)}
     assert {"model", "sample_step", "iterations", "min_similar_fraction",
             "max_gain_ratio"} <= fields
+
+
+def test_mono16_frames_with_a_gain_step():
+    def run16(model):
+        det = ThermalDetector(ThermalDetectorConfig(gain=GainConfig(model=model)))
+        found = []
+        for k in range(40):
+            frame = (scene_frame(k, *step(k)).astype(np.uint16) * 40 + 3000).astype(np.uint16)
+            found.append(det.process(frame, k / 30.0))
+        return det, found
+    _, flooded = run16("off")
+    det, found = run16("affine")
+    assert largest_area(flooded) > 0.5 * H * W
+    assert det.gain_resets == 0
+    assert largest_area(found) < 8 * MOVER * MOVER
+    assert all(found[k] for k in range(det.config.startup_frames, 40))
