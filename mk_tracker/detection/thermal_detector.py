@@ -100,7 +100,12 @@ Where the paper is silent, and what we add (each switchable):
   size or encoding resets the detector (``resets``, ``last_reset``), and so does a stamp
   earlier than the previous one (a bag played in a loop: ``time_resets``, ``last_event``
   says by how much), after which the new frames fill a new window and detection resumes
-  after ``F_s`` of them, as at start-up.  Memory is bounded: a
+  after ``F_s`` of them, as at start-up.
+* **AGC compensation** (``gain.model``, off by default): each frame is mapped onto the
+  previous frame of the window by an affine or quadratic intensity map fitted over the
+  static pixels, so that a change of the camera's automatic gain control is not temporal
+  change to (3.5); a change too large to compensate starts a new window (``gain_resets``)
+  (:mod:`mk_tracker.detection.gain_compensation`).  Memory is bounded: a
   ring buffer of ``max(F, F_s)`` frames and at most ``M_up`` objects.
 
 Defaults: only ``sigma^2 = 0.01`` (Sec. 6) and ``sigma_w < 3 px`` (Sec. 4) come from the
@@ -127,6 +132,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from mk_tracker.tracking.association import assign
@@ -140,6 +146,8 @@ from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell, _
                                             footprint_stats, overlapping_footprints)
 from mk_tracker.kalman import ConstantVelocityKalman
 from mk_tracker.parameters import validate_config
+from mk_tracker.detection.gain_compensation import (GAIN_MODELS, IntensityMap,
+                                                    fit_intensity_map)
 from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate,
                                                  _footprint_levels)
 from mk_tracker.detection.person_size import PersonHeightModel
@@ -197,8 +205,10 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
-    backwards), ``time_resets`` (the latter only), ``skipped_frames`` (too few valid pixels,
-    or the same stamp as the previous frame), ``full_passes``; ``last_mode`` is one of
+    backwards, or, with ``gain.model``, the intensities changed too much to compensate),
+    ``time_resets`` (time only), ``gain_resets`` (intensities only), ``skipped_frames``
+    (too few valid pixels, or the same stamp as the previous frame), ``full_passes``;
+    ``gain_map`` is the last intensity map fitted (``gain.model``); ``last_mode`` is one of
     ``warming_up``, ``startup``, ``reconfiguration``, ``tracking``, ``invalid_frame``,
     ``out_of_order``; ``last_reset`` says whether the last frame reset the detector and
     ``last_event`` why (e.g. ``"time went backwards by 4.000 s: reset"``), else None.
@@ -218,6 +228,8 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
         self.time_resets = 0
         self.last_event: str | None = None
         self.skipped_frames = 0
+        self.gain_resets = 0
+        self.gain_map: IntensityMap | None = None
         self.full_passes = 0
         self.last_mode = "warming_up"
         self.last_reset = False
@@ -291,12 +303,15 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
             self.skipped_frames += 1
             self.last_mode = "out_of_order"
             return []
+        c = self.config
         filled = raw
         if enc == "32FC1":
             filled, _ = fill_missing(raw, self._last_filled)
             self._last_filled = filled
         else:
             self._last_filled = None      # only float frames are filled from the previous one
+        if c.gain.model != "off":
+            filled = self._gain_compensated(filled, enc, t)
         self._shape, self._encoding, self._last_stamp = raw.shape, enc, t
         n_slots = self._buffer.maxlen
         if self._ring is None or self._ring.shape[1:] != filled.shape:
@@ -305,7 +320,6 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
         self._frames_seen += 1
         self._ring[slot] = filled
         self._buffer.append((slot, t))
-        c = self.config
         if self._since_full is None:
             if len(self._buffer) < c.startup_frames:
                 self.last_mode = "warming_up"
@@ -321,6 +335,57 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
         return self._whole_bodies(self._learn_sizes(self._tracking_pass()))
 
     # -- normalisation ---------------------------------------------------------------------
+    def _gain_compensated(self, frame: np.ndarray, enc: str, stamp: float) -> np.ndarray:
+        """``gain.model``: ``frame`` mapped onto the newest frame of the window
+        (:mod:`mk_tracker.detection.gain_compensation`); a change too large to compensate
+        starts a new window from ``frame`` as it is (``gain_resets``, ``last_event``)."""
+        g = self.config.gain
+        if not self._buffer:
+            self.gain_map = None
+            return frame                 # the first frame of a window sets its photometry
+        integer = enc != "32FC1"
+        limits = (0.0, float(np.iinfo(frame.dtype).max)) if integer else None
+        fit = fit_intensity_map(frame, self._newest(), GAIN_MODELS[g.model],
+                                self._raw_radius(), step=g.sample_step,
+                                iterations=g.iterations, limits=limits,
+                                resolution=1.0 if integer else 0.0)
+        self.gain_map = fit
+        if fit.similar_fraction < g.min_similar_fraction or not (
+                1.0 / g.max_gain_ratio <= fit.gain <= g.max_gain_ratio):
+            self.last_event = (f"intensity change too large to compensate (gain "
+                               f"{fit.gain:.2f}, {100 * fit.similar_fraction:.0f} % of the "
+                               "pixels similar after the fit): new window")
+            last_filled = self._last_filled
+            self._clear()
+            self._last_filled = last_filled
+            self._shape, self._encoding, self._last_stamp = frame.shape, enc, stamp
+            self.resets += 1
+            self.gain_resets += 1
+            self.last_reset = True
+            return frame
+        mapped = fit.relaxed(g.relaxation)
+        if not integer:
+            return mapped(frame)
+        # integer levels: one look-up table of rounded levels, 0 kept at 0 (clipped or
+        # masked by an ignore region: kept constant)
+        table = mapped(np.arange(int(limits[1]) + 1, dtype=np.float32))
+        np.rint(table, out=table)
+        table[0] = 0.0
+        return cv2.LUT(frame, table) if frame.dtype == np.uint8 else np.take(table, frame)
+
+    def _raw_radius(self) -> float:
+        """The similarity radius of (3.6) in raw units of the current encoding: by the
+        window's map, or before the first full pass by the paper's mono8 scale or the
+        robust range of the newest frame."""
+        if self._map is not None:
+            scale = self._map[1]
+        elif self._encoding == "mono8":
+            scale = normalization_map("mono8", None)[1]
+        else:
+            rng = robust_range(self._newest())
+            scale = normalization_map(self._encoding, rng if rng else (0.0, 1.0))[1]
+        return float(_similarity_radius(self.config.sigma2)) / scale
+
     def _update_map(self, frames: list[np.ndarray]) -> None:
         """Choose ``(offset, scale)`` for the next windows; integer offsets for integer
         encodings so that their windows hold integer levels (table path)."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mk_tracker.detection.body_extent import BodyExtentConfig
+from mk_tracker.detection.gain_compensation import GainConfig
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
 
@@ -181,3 +182,6 @@ class ThermalDetectorConfig:
     kalman: KalmanConfig = parameter(KalmanConfig(), "per-object Kalman filter (Sec. 4)")
     body_extent: BodyExtentConfig = parameter(
         BodyExtentConfig(), "whole-body boxes (mk_tracker.detection.body_extent)")
+    gain: GainConfig = parameter(
+        GainConfig(), "compensation of the camera's automatic gain control "
+        "(mk_tracker.detection.gain_compensation)")
