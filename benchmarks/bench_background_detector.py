@@ -120,8 +120,10 @@ def tracking_scores(bag: Path, out: Path, source: str, background: dict | None =
     """MOTA / IDF1 / recall / precision of ``mk_tracker process`` on ``bag`` with detections
     from ``source``, the detector's ``background.*`` and the tracker's ``tracker.*``
     parameters changed as given (nested dicts)."""
+    # the same tracker parameters for every source (public detections would get the
+    # external profile by default)
     args = ["process", str(bag), "--out", str(out), "--detections", source, "--quiet",
-            "--no-video"]
+            "--no-video", "--tracker-profile", "own"]
     nodes = {}
     if background:
         nodes["/**/detector_node"] = {"ros__parameters": {"background": background}}

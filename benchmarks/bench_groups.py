@@ -203,6 +203,9 @@ def main(argv: list[str] | None = None) -> int:
                         result = process_bag(truth if source.startswith("topic:") else bag,
                                              tmp / f"run_{size}_{people}_{seed}_{name}", config,
                                              PipelineOptions(detections=source, progress=False,
+                                                             # the same tracker as the
+                                                             # thermal rows (no overlay)
+                                                             tracker_profile="own",
                                                              write_video=False,
                                                              write_plots=False,
                                                              write_bag=False))

@@ -621,8 +621,10 @@ SHIPPED_NOTE = [
     "which changes nothing there): MOTA of the default system at 1 / 3 / 8 / 15 / 30 "
     "people 0.327 / 0.953 / 0.154 / 0.017 / -0.089 -> 0.327 / 0.960 / 0.162 / -0.011 / "
     "-0.088, with true detections +0.006 to +0.007.", "",
-    "There is no per-source tracker default to resolve this (config/tracker.yaml serves "
-    "thermal, background and topic detections alike), so the conflict stays:", "",
+    "The tracker node has no per-source default (config/tracker.yaml serves thermal, "
+    "background and topic detections alike); `mk_tracker process` applies the overlay by "
+    "itself to detections of another detector scored in [0, 1] (`--tracker-profile`, "
+    "docs/offline_pipeline.md), so for the node the conflict stays:", "",
     "* The held-out figures above are those of the protocol's choices (0.2 score floor and "
     "`group.member_min_height` 0.8 on three folds, `min_hits` 2 on all), i.e. of a user who "
     "gives `config/tracker_public_detections.yaml` (those three values) for a detector "

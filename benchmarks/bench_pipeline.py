@@ -96,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
         for i, (name, config, source) in enumerate(configs):
             bag = tmp / ("truth" if source.startswith("topic:") else "scene")
             result = process_bag(bag, tmp / f"run{i}", config, PipelineOptions(
-                detections=source, progress=False, write_video=False, write_plots=False))
+                detections=source, progress=False, write_video=False, write_plots=False,
+                tracker_profile="own"))     # the same tracker in every row
             m = result.metrics
             fps = result.frames / result.seconds
             rows.append((name, fps, m["mota"], m["idf1"], m["num_switches"],

@@ -265,6 +265,7 @@ def main(argv: list[str] | None = None) -> int:
                             result = process_bag(
                                 dbag, tmp / f"run_{size}_{people}_{seed}_{v.replace(' ', '_')}",
                                 base, PipelineOptions(detections=f"topic:{DETECTIONS_TOPIC}",
+                                                      tracker_profile="own",
                                                       progress=False, write_video=False,
                                                       write_plots=False, write_bag=False))
                             m = result.metrics

@@ -18,6 +18,10 @@ Detection source (``--detections``): ``thermal`` runs the detector node's detect
 messages already in the bag (e.g. ``/detections`` of a MOTChallenge import); ``none`` tracks
 without detections (single-target runs); ``auto`` picks thermal if the bag has thermal
 images, else a detection topic (``/thermal/detections``, ``/detections``), else none.
+Detections of another detector (a topic other than ``/thermal/detections``) scored in
+[0, 1] are tracked with ``config/tracker_public_detections.yaml`` on top of
+``config/tracker.yaml`` (``--tracker-profile``,
+:func:`~mk_tracker.tools.pipeline_config.tracker_profile`).
 
 Single target (the protocol of Chu et al. 2013, Table I): ``--init x,y,w,h`` starts a track
 on the first frame, ``--init-from-gt [ID]`` on the first ground-truth box of ID (default:
@@ -79,8 +83,9 @@ from mk_tracker.parameters import ParameterError
 # DETECTOR_NODE_DEFAULTS, TRACKER_NODE_DEFAULTS, PipelineConfig and format_metrics are
 # imported here too so that ``from mk_tracker.tools.pipeline import ...`` keeps working
 from mk_tracker.tools.pipeline_config import (CONFIG_DIR, DETECTOR_NODE_DEFAULTS,  # noqa: F401
-                                              TRACKER_NODE_DEFAULTS, PipelineConfig,
-                                              PipelineError, load_pipeline_config)
+                                              TRACKER_NODE_DEFAULTS, TRACKER_PROFILES,
+                                              PipelineConfig, PipelineError,
+                                              load_pipeline_config, tracker_profile)
 from mk_tracker.tools.pipeline_outputs import format_metrics, write_outputs
 
 IMAGE_TOPIC = "/image_raw"
@@ -112,6 +117,7 @@ class PipelineOptions:
     storage: str = "mcap"
     progress: bool = True
     use_scene_homography: bool = True
+    tracker_profile: str = "auto"             # auto | own | external (tracker_profile())
 
     @property
     def single_target(self) -> bool:
@@ -128,6 +134,8 @@ class PipelineResult:
     bad_messages: int = 0
     problems: list[str] = field(default_factory=list)
     detection_source: str = "none"
+    #: "own" (config/tracker.yaml) or "external" (+ the public-detections overlay)
+    tracker_profile: str = "own"
     #: True when the bag had no RGB topic and the thermal image itself was tracked
     thermal_only: bool = False
     detections: int = 0
@@ -454,6 +462,19 @@ def _grouped(messages: Iterable[Any]) -> Iterable[list[Any]]:
         yield group
 
 
+def _scores_in_unit_range(reader: Any, topic: str) -> bool:
+    """Whether every readable detection score on ``topic`` lies in [0, 1] (a first pass
+    over the topic's messages; unreadable ones are left to the run to report)."""
+    for m in reader.messages([topic]):
+        try:
+            dets, _ = read_detection_array(reader.deserialize(m), on_error="skip")
+        except Exception:                # reported when the run reads it
+            continue
+        if any(not 0.0 <= d.score <= 1.0 for d in dets):
+            return False
+    return True
+
+
 def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None = None,
                 options: PipelineOptions | None = None) -> PipelineResult:
     """Run detection and tracking over ``bag``, writing the outputs into ``out``."""
@@ -492,6 +513,14 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
         source = choose_detection_source(options.detections, topics, options.single_target,
                                          options.thermal_topic)
         r.detection_source = source
+        unit_scores = (options.tracker_profile != "auto" or not source.startswith("topic:")
+                       or _scores_in_unit_range(reader, source[len("topic:"):]))
+        r.tracker_profile = tracker_profile(options.tracker_profile, source, unit_scores)
+        if r.tracker_profile == "external":
+            if config.tracker_external is None:
+                raise PipelineError("--tracker-profile external needs the package's "
+                                    "config/tracker_public_detections.yaml")
+            run.tracker_config = config.tracker_external
         if source == "thermal":
             run.detector = build_detector(config.method, config.detector, config.threshold,
                                           config.ignore_regions, config.background)
@@ -633,6 +662,12 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                        "box (of ID, default the first one in the bag)")
     parser.add_argument("--params-file", action="append", default=[], type=Path,
                         help="ROS 2 parameters YAML (repeatable; after config/*.yaml)")
+    parser.add_argument("--tracker-profile", choices=TRACKER_PROFILES, default="auto",
+                        help="tracker parameters: own = config/tracker.yaml (the project's "
+                             "detectors); external = plus config/tracker_public_detections"
+                             ".yaml (another detector's boxes scored in [0, 1]); auto "
+                             "(default): external for --detections topic:NAME other than "
+                             "/thermal/detections whose scores lie in [0, 1]")
     parser.add_argument("--image-topic", default=IMAGE_TOPIC)
     parser.add_argument("--thermal-topic", default=THERMAL_TOPIC)
     parser.add_argument("--ground-truth-topic", default=GROUND_TRUTH_TOPIC)
@@ -657,7 +692,8 @@ def options_from_args(args: argparse.Namespace) -> PipelineOptions:
                            ground_truth_topic=args.ground_truth_topic,
                            write_video=not args.no_video, storage=args.storage,
                            progress=not args.quiet,
-                           use_scene_homography=not args.no_scene_homography)
+                           use_scene_homography=not args.no_scene_homography,
+                           tracker_profile=args.tracker_profile)
 
 
 def is_recording(path: Path) -> bool:
@@ -706,6 +742,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"processed {result.frames} frames ({result.bad_frames} bad, "
           f"{result.bad_messages} bad messages) in {result.seconds:.1f} s ({fps:.1f} fps); "
           f"detections: {result.detection_source} ({result.detections}); "
+          f"tracker parameters: {result.tracker_profile}; "
           f"{len(result.track_ids)} track ids")
     if result.metrics:
         print("scores: " + format_metrics(result.metrics))

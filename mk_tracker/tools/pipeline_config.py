@@ -2,7 +2,9 @@
 
 * :func:`load_pipeline_config` -- the package's ``config/detector.yaml`` and
   ``config/tracker.yaml``, then each ``--params-file`` (later files win), validated by
-  building the detector and the tracker once.
+  building the detector and the tracker once.  Beside it, the tracker's parameters for
+  detections from another detector (:data:`EXTERNAL_DETECTIONS_PARAMS_FILE` between the
+  defaults and the ``--params-file`` files): the tracker profile ``external``.
 * :func:`read_node_parameters` -- a node's dotted parameters from parameter files (sections
   ``node``, ``/node`` and ``/**``), without rclpy.
 * :func:`split_parameters` -- prefixed parameters (``tracker.*``, ``detector.*``,
@@ -33,6 +35,11 @@ from mk_tracker.tracking.multi_object_tracker import MultiObjectTracker, MultiOb
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
 DEFAULT_PARAMS_FILES = ("detector.yaml", "tracker.yaml")
+#: the tracker overlay for detections of another detector scored in [0, 1] (issue #16:
+#: the leave-one-sequence-out protocol's values where they differ from the defaults, which
+#: are kept for the project's own detectors; docs/benchmark_multi_object.md)
+EXTERNAL_DETECTIONS_PARAMS_FILE = "tracker_public_detections.yaml"
+TRACKER_PROFILES = ("auto", "own", "external")
 #: node-level parameters the pipeline uses, with the nodes' defaults (a test keeps these
 #: equal to TrackerNodeConfig / DetectorNodeConfig, which live in rclpy modules)
 TRACKER_NODE_DEFAULTS = {"thermal_frame_id": "thermal_camera", "detection_buffer": 5,
@@ -126,6 +133,28 @@ class PipelineConfig:
     detection_buffer: int = TRACKER_NODE_DEFAULTS["detection_buffer"]
     detection_wait: float = TRACKER_NODE_DEFAULTS["detection_wait"]
     class_id: str = TRACKER_NODE_DEFAULTS["class_id"]
+    #: the tracker with :data:`EXTERNAL_DETECTIONS_PARAMS_FILE` after the defaults and
+    #: before the given files (None when the package's config/ is not there)
+    tracker_external: MultiObjectTrackerConfig | None = None
+
+
+def tracker_profile(option: str, source: str, unit_scores: bool = True) -> str:
+    """``"own"`` or ``"external"``: which tracker parameters a run uses.
+
+    ``auto`` gives ``external`` for detections read from a bag topic other than the
+    project's own detector output (``/thermal/detections``), e.g. the public detections
+    of a MOTChallenge import, when their scores lie in [0, 1] (``unit_scores``: the
+    overlay's score floor and the leave-one-sequence-out choice of its values assume that
+    scale; on TUD-Campus's raw 0-133 scores it makes MOTA 0.45 -> 0.26), and ``own`` for
+    the project's detectors (thermal, background), for no detections and for other scales.
+    """
+    if option not in TRACKER_PROFILES:
+        raise PipelineError(f"--tracker-profile must be one of {', '.join(TRACKER_PROFILES)}, "
+                            f"got {option!r}")
+    if option != "auto":
+        return option
+    external = source.startswith("topic:") and source != "topic:/thermal/detections"
+    return "external" if external and unit_scores else "own"
 
 
 def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
@@ -134,6 +163,7 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
     files: list[Path] = []
     if include_defaults:
         files += [CONFIG_DIR / n for n in DEFAULT_PARAMS_FILES if (CONFIG_DIR / n).is_file()]
+    given = len(files)
     for p in params_files:
         if not Path(p).is_file():
             raise PipelineError(f"parameters file {p} does not exist")
@@ -144,6 +174,19 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
          "background": BackgroundDetectorConfig()})
     trk_cfgs, trk_rest = split_parameters(read_node_parameters(files, "tracker_node"),
                                           {"tracker": MultiObjectTrackerConfig()})
+    tracker_external = None
+    overlay = CONFIG_DIR / EXTERNAL_DETECTIONS_PARAMS_FILE
+    if include_defaults and overlay.is_file():
+        # the overlay sits between the defaults and the given files: a value of a given
+        # file wins over it
+        mine = set(read_node_parameters(files[given:], "tracker_node"))
+        extra = {k.partition(".")[2]: v
+                 for k, v in read_node_parameters([overlay], "tracker_node").items()
+                 if k.startswith("tracker.") and k not in mine}
+        try:
+            tracker_external = updated(trk_cfgs["tracker"], extra)
+        except ParameterError as exc:
+            raise PipelineError(f"{overlay}: {exc}") from exc
     try:
         buffer = int(trk_rest.get("detection_buffer", TRACKER_NODE_DEFAULTS["detection_buffer"]))
     except (TypeError, ValueError) as exc:
@@ -167,7 +210,8 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
                                           TRACKER_NODE_DEFAULTS["thermal_frame_id"])),
         detection_buffer=buffer,
         detection_wait=wait,
-        class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])))
+        class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])),
+        tracker_external=tracker_external)
     try:
         build_detector(config.method, config.detector, config.threshold,
                        config.ignore_regions, config.background)

@@ -79,7 +79,8 @@ def write_outputs(result: PipelineResult, bag: Path, out: Path, options: Pipelin
                 except ErrorPlotError as exc:
                     r.problem(f"no error plot: {exc}")
     summary = {
-        "bag": str(bag), "detection_source": r.detection_source, "thermal_only": r.thermal_only,
+        "bag": str(bag), "detection_source": r.detection_source,
+        "tracker_profile": r.tracker_profile, "thermal_only": r.thermal_only,
         "frames": r.frames, "tracked_frames": r.tracked_frames, "bad_frames": r.bad_frames,
         "bad_messages": r.bad_messages, "problems": r.problems,
         "detections": r.detections, "detection_frames": r.detection_frames,

@@ -77,9 +77,10 @@ def test_detection_wait_makes_the_node_pair_like_the_offline_pipeline(late_bag, 
                                                                       peer, tmp_path):
     params = tmp_path / "wait.yaml"
     params.write_text(PARAMS.format(wait=DETECTION_WAIT_S))
+    # the node gets config/tracker.yaml's values (no overlay): the same tracker profile
     offline = process_bag(late_bag, tmp_path / "offline", config=load_pipeline_config([params]),
                           options=PipelineOptions(progress=False, write_video=False,
-                                                  write_plots=False))
+                                                  write_plots=False, tracker_profile="own"))
 
     tracker = node_group.start("mk_tracker.ros.tracker_node", "--params-file", str(params),
                                "-r", "thermal/detections:=/detections")

@@ -126,29 +126,101 @@ def test_thermal_mode_scores(thermal_run):
     assert m["mostly_tracked"] >= PEOPLE - 1, m
 
 
-def test_topic_mode_with_ground_truth_as_detections(scene_bag, tmp_path):
-    """A bag without thermal images but with a /detections topic (like a MOTChallenge
-    import): auto picks the topic; perfect detections give a near-perfect score."""
+def _ground_truth_as_detections(scene_bag: Path, bag: Path, topic: str = "/detections",
+                               score: float = 0.9) -> None:
+    """``scene_bag`` without its thermal images, its ground truth copied to ``topic`` as
+    detections scored ``score`` (like a MOTChallenge import)."""
     def change(reader, types, m):
         if m.topic == "/thermal/image_raw" or m.topic == "/thermal/ground_truth":
             return []
         if m.topic != "/ground_truth":
             return None
         msg = reader.deserialize(m)
-        dets = [Detection(d.box, 0.9) for d in read_detection_array(msg)]
+        dets = [Detection(d.box, score) for d in read_detection_array(msg)]
         return [(m.topic, m.msgtype, m.data),
-                ("/detections", m.msgtype, make_detection_array(dets, msg.header, types))]
+                (topic, m.msgtype, make_detection_array(dets, msg.header, types))]
 
-    bag = tmp_path / "with_detections"
     _copy_bag(scene_bag, bag, change)
+
+
+def test_topic_mode_with_ground_truth_as_detections(scene_bag, tmp_path):
+    """A bag without thermal images but with a /detections topic (like a MOTChallenge
+    import): auto picks the topic; perfect detections give a near-perfect score."""
+    bag = tmp_path / "with_detections"
+    _ground_truth_as_detections(scene_bag, bag)
     result = process_bag(bag, tmp_path / "out", options=PipelineOptions(progress=False))
     assert result.detection_source == "topic:/detections"
+    assert result.tracker_profile == "external"
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["tracker_profile"] == "external"
     assert result.detection_frames == FRAMES
     # only the confirmation delay (min_hits frames) is missed: >= 0.85
     assert result.metrics["mota"] >= 0.85, result.metrics
     assert result.metrics["num_switches"] == 0
     assert _count(tmp_path / "out" / "bag", "/tracks") == FRAMES
     assert _count(tmp_path / "out" / "bag", "/thermal/detections") == 0
+
+
+def test_another_detectors_boxes_use_the_external_tracker_profile(scene_bag, tmp_path):
+    """Detections of another detector are tracked with config/tracker_public_detections.yaml
+    on top of the defaults (its ``lifecycle.min_hits`` confirms a track on an earlier
+    detection, so more boxes are reported); ``--tracker-profile own`` keeps the defaults,
+    and the project's own detector output (/thermal/detections) keeps them under auto."""
+    import yaml
+    overlay = yaml.safe_load((CONFIG_DIR / "tracker_public_detections.yaml").read_text())
+    hits = overlay["/**/tracker_node"]["ros__parameters"]["tracker"]["lifecycle"]["min_hits"]
+    config = load_pipeline_config()
+    assert config.tracker_external.lifecycle.min_hits == hits
+    assert config.tracker.lifecycle.min_hits > hits      # the shipped default differs
+
+    bag = tmp_path / "with_detections"
+    _ground_truth_as_detections(scene_bag, bag)
+    runs = {}
+    for profile in ("auto", "own"):
+        runs[profile] = process_bag(bag, tmp_path / profile, config=config,
+                                    options=PipelineOptions(progress=False, write_video=False,
+                                                            tracker_profile=profile))
+    assert runs["auto"].tracker_profile == "external"
+    assert runs["own"].tracker_profile == "own"
+    assert len(runs["auto"].mot_rows) > len(runs["own"].mot_rows)
+
+    own_bag = tmp_path / "own_detector_output"
+    _ground_truth_as_detections(scene_bag, own_bag, topic="/thermal/detections")
+    result = process_bag(own_bag, tmp_path / "own_topic", config=config,
+                         options=PipelineOptions(progress=False, write_video=False))
+    assert result.detection_source == "topic:/thermal/detections"
+    assert result.tracker_profile == "own"
+    assert len(result.mot_rows) == len(runs["own"].mot_rows)
+
+    # scores on another scale (TUD-Campus's public ones reach 133): the overlay's score
+    # floor means nothing there, so auto keeps the defaults
+    raw_bag = tmp_path / "raw_scores"
+    _ground_truth_as_detections(scene_bag, raw_bag, score=42.0)
+    result = process_bag(raw_bag, tmp_path / "raw", config=config,
+                         options=PipelineOptions(progress=False, write_video=False))
+    assert result.tracker_profile == "own"
+    assert len(result.mot_rows) == len(runs["own"].mot_rows)
+
+
+def test_a_given_parameters_file_wins_over_the_external_profile(tmp_path):
+    params = tmp_path / "mine.yaml"
+    params.write_text("tracker_node:\n  ros__parameters:\n    tracker:\n"
+                      "      lifecycle:\n        min_hits: 5\n")
+    config = load_pipeline_config([params])
+    assert config.tracker.lifecycle.min_hits == 5
+    assert config.tracker_external.lifecycle.min_hits == 5
+    # the overlay's other values still apply
+    assert config.tracker_external.min_detection_score > config.tracker.min_detection_score
+
+
+def test_a_bad_tracker_profile_is_refused(scene_bag, tmp_path):
+    with pytest.raises(PipelineError, match="tracker-profile"):
+        process_bag(scene_bag, tmp_path, options=PipelineOptions(
+            progress=False, tracker_profile="fancy"))
+    with pytest.raises(SystemExit) as exc:          # argparse: usage and exit status 2
+        cli_main(["process", str(scene_bag), "--out", str(tmp_path / "cli"),
+                  "--tracker-profile", "fancy"])
+    assert exc.value.code == 2
 
 
 def test_detections_in_an_unknown_frame_are_skipped_and_counted(scene_bag, tmp_path):
