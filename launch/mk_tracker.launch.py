@@ -5,6 +5,8 @@
         image_topic:=/camera/image_raw thermal_image_topic:=/flir/image_raw
     ros2 launch mk_tracker mk_tracker.launch.py namespace:=cam1   # one launch per camera pair
     ros2 launch mk_tracker mk_tracker.launch.py thermal_only:=true  # no RGB camera
+    ros2 launch mk_tracker mk_tracker.launch.py public_detections:=true \
+        detections_topic:=/detector/detections      # another detector's boxes, scored in [0, 1]
 
 * ``detector_node`` reads thermal images and publishes ``vision_msgs/Detection2DArray``;
   ``tracker_node`` reads RGB images plus those detections and publishes the tracks.
@@ -16,6 +18,10 @@
   so they resolve inside it (``/NS/image_raw`` ...) and several pairs run side by side.
 * ``thermal_only:=true`` (a thermal camera and no RGB camera): the tracker reads the
   thermal image too, and follows the people found in it there (issue #19).
+* ``public_detections:=true`` (the tracker follows another detector's boxes, scored in
+  [0, 1]): ``config/tracker_public_detections.yaml`` is loaded after ``tracker_params``,
+  the leave-one-sequence-out protocol's values for such detections (issue #16; what
+  ``mk_tracker process`` applies by itself to such a detection topic).
 * Topics are remapped from the nodes' names (``thermal/image_raw``, ``image_raw``,
   ``thermal/detections``, ``tracks``; they are not parameters) to the launch arguments.
 * With ``bag:=PATH`` the bag is played with ``ros2 bag play --clock`` (add
@@ -144,6 +150,10 @@ def generate_launch_description():
                               description="no RGB camera: the tracker follows the people in "
                               "the thermal image (its image_raw is remapped to "
                               "thermal_image_topic)"),
+        DeclareLaunchArgument("public_detections", default_value="false",
+                              description="the detections come from another detector, "
+                              "scored in [0, 1]: load config/tracker_public_detections.yaml "
+                              "after tracker_params"),
         DeclareLaunchArgument("fastdds_shm", default_value="true",
                               description="give every process config/fastdds_shm.xml (Fast "
                               "DDS shared memory) unless a profiles file is already set"),
@@ -167,10 +177,16 @@ def generate_launch_description():
         namespace=namespace,
         parameters=[LaunchConfiguration("detector_params"), {"use_sim_time": use_sim_time}],
         remappings=[(src, LaunchConfiguration(arg)) for src, arg in DETECTOR_REMAPS.items()])
+    # the overlay when public_detections:=true, else the parameters file once more (no-op)
+    tracker_overlay = PythonExpression([
+        "'", PathJoinSubstitution([config_dir, "tracker_public_detections.yaml"]), "' if '",
+        LaunchConfiguration("public_detections"), "'.lower() == 'true' else '",
+        LaunchConfiguration("tracker_params"), "'"])
     tracker = Node(
         package=PACKAGE, executable="tracker_node", name="tracker_node", output="screen",
         namespace=namespace,
-        parameters=[LaunchConfiguration("tracker_params"), {"use_sim_time": use_sim_time}],
+        parameters=[LaunchConfiguration("tracker_params"), tracker_overlay,
+                    {"use_sim_time": use_sim_time}],
         remappings=[(src, _tracker_topic(arg)) for src, arg in TRACKER_REMAPS.items()])
     player = ExecuteProcess(
         cmd=["ros2", "bag", "play", LaunchConfiguration("bag"), "--rate",

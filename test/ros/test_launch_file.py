@@ -145,7 +145,11 @@ def _render(substitution, values: dict) -> str:
     if isinstance(substitution, str):
         return substitution
     if kind == "LaunchConfiguration":
-        return values[substitution.args[0]]
+        return _render(values[substitution.args[0]], values)
+    if kind == "PathJoinSubstitution":
+        return "/".join(_render(p, values) for p in substitution.args[0])
+    if kind == "FindPackageShare":
+        return f"<share of {substitution.args[0]}>"
     assert kind == "PythonExpression", substitution
     return str(eval("".join(_render(p, values) for p in substitution.args[0])))
 
@@ -172,3 +176,28 @@ def test_thermal_only_feeds_the_thermal_camera_to_the_tracker_alone(launch_modul
                                                        "thermal/detections":
                                                        "thermal/detections"}
         assert topics(tracker, thermal_only=mode)["thermal/detections"] == "thermal/detections"
+
+
+def test_public_detections_loads_the_overlay_after_the_tracker_parameters(launch_module):
+    entities = launch_module["generate_launch_description"]().args[0]
+    declared = {a.args[0]: a.kwargs for a in _of(entities, "DeclareLaunchArgument")}
+    assert declared["public_detections"]["default_value"] == "false"
+    detector, tracker = _of(entities, "Node")
+
+    def files(node, **changes):
+        values = {name: kwargs["default_value"] for name, kwargs in declared.items()}
+        values.update(changes)
+        return [_render(entry, values) for entry in node.kwargs["parameters"]
+                if not isinstance(entry, dict)]
+
+    config = "<share of mk_tracker>/config"
+    assert files(tracker) == [f"{config}/tracker.yaml", f"{config}/tracker.yaml"]
+    assert files(tracker, public_detections="True", tracker_params="mine.yaml") == [
+        "mine.yaml", f"{config}/tracker_public_detections.yaml"]
+    assert files(tracker, tracker_params="mine.yaml") == ["mine.yaml", "mine.yaml"]
+    # the overlay file is the one the offline pipeline uses, and it exists
+    from mk_tracker.tools.pipeline_config import CONFIG_DIR, EXTERNAL_DETECTIONS_PARAMS_FILE
+    assert (CONFIG_DIR / EXTERNAL_DETECTIONS_PARAMS_FILE).is_file()
+    assert files(tracker, public_detections="true")[1].endswith(EXTERNAL_DETECTIONS_PARAMS_FILE)
+    # the detector's parameters do not change
+    assert files(detector, public_detections="true") == [f"{config}/detector.yaml"]
