@@ -1077,15 +1077,12 @@ def development_set() -> list[tuple[str, Sequence]]:
 #: ``failure_sigmas``, ``similarity_spread_prior``) and the growing re-detection window
 #: (``recovery_growth``) were run through this protocol and lost held out
 #: (docs/benchmark_single_target.md, "Findings"); they stay off and out of the grid.
-#: ``failure_test`` (issue #16 item 3): the absolute similarity or its contrast to a ring
-#: around the peak (mk_tracker.tracking.peak_contrast).  To keep the run under ~50 min with
-#: it, ``multi_start_radius`` 0 (chosen by no fold since the 13:40 run of 2026-11-27) left
-#: the grid, as did the cbwh weights without a floor (:data:`WEIGHTINGS`).
+#: The contrast of the peak to a ring around it as the failure test (``failure_test``,
+#: issue #16 item 3, at commit e43c509) lost held out too and was deleted.
 GRID = {
-    "multi_start_radius": (0.5, 1.0),
+    "multi_start_radius": (0.0, 0.5, 1.0),
     "recovery_similarity": (0.0, 0.25, 0.4),
     "max_coast_position_std": (0.0, 1.0),
-    "failure_test": ("level", "contrast"),
 }
 
 #: the background weighting of the kernel models (issue #16 item 3; Ning et al. 2012's
@@ -1095,6 +1092,7 @@ GRID = {
 #: configuration (``--set`` syntax), the others are ``manual_track`` fields.
 WEIGHTINGS = (
     {"background_weighting": "none"},
+    {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.0},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25},
 )
 

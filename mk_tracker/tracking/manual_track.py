@@ -42,7 +42,6 @@ from mk_tracker.tracking.kernel_layouts import (COLUMN_SPACING, column_best, col
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
 from mk_tracker.tracking.multi_kernel import VISIBILITY_STATISTICS
 from mk_tracker.tracking.multi_kernel_config import MultiKernelConfig
-from mk_tracker.tracking.peak_contrast import FAILURE_TESTS
 from mk_tracker.tracking.redetection import LEARNT_MEASURES
 from mk_tracker.tracking.track import LifecycleConfig
 
@@ -167,17 +166,6 @@ class ManualTrackConfig:
         "from the best one, kept if the multiple-kernel similarity confirms it; 0 = never",
         minimum=0.0, maximum=1.0)
 
-    failure_test: str = parameter(
-        "level", "Failure test of a track started by hand (replaces "
-        "multi_kernel.failure_test): level = the kernels' similarities exp(-J_i) against "
-        "recovery_similarity / occlusion_similarity; contrast = each kernel's contrast "
-        "c_i = 1 - (best similarity on a ring of displaced copies of the layout) / (similarity "
-        "at the result) (a distinct peak is "
-        "seen at any level, a flat or shared one is not; mk_tracker.tracking.peak_contrast)",
-        choices=FAILURE_TESTS)
-    contrast_ring_distance: float = parameter(
-        1.0, "Ring distance of failure_test contrast for a track started by hand, box sizes "
-        "(replaces multi_kernel.contrast_ring_distance)", minimum=0.1, maximum=5.0)
     similarity_reference_rate: float = parameter(
         0.0, "Failure detection of a track started by hand against its own history (replaces "
         "multi_kernel.similarity_reference_rate): each kernel's similarity is its "
@@ -257,8 +245,6 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    multi_start_similarity=(m.occlusion_similarity if m.multi_start_radius > 0
                                            else config.multi_kernel.multi_start_similarity),
                    recovery_similarity=m.recovery_similarity,
-                   failure_test=m.failure_test,
-                   contrast_ring_distance=m.contrast_ring_distance,
                    recovery_growth=m.recovery_growth,
                    recovery_margin=m.recovery_margin,
                    similarity_reference_rate=m.similarity_reference_rate,

@@ -99,7 +99,6 @@ from mk_tracker.tracking.image_border import complete_models, inside_fractions, 
 from mk_tracker.tracking.background_weighting import (BackgroundModel, background_model,
                                                       corrected_costs, histogram_overlap,
                                                       reweighted, ring_histogram, ring_region)
-from mk_tracker.tracking.peak_contrast import peak_contrasts
 from mk_tracker.tracking.redetection import (grid_start, redetect, relative_similarities,
                                              update_reference)
 from mk_tracker.tracking.scale_estimation import ScaleStep, gated_step, scale_step
@@ -444,11 +443,7 @@ class MultiKernelTracker:
           ``kernel_similarities`` use each kernel's ``-J_i`` (or ``B_i``) against the
           level learnt from the track's history (:meth:`decision_similarities`); the model
           and scale gates
-          keep ``exp(-J_i)``;
-        * ``failure_test`` contrast: the re-search, lost and visibility tests and the
-          reported ``kernel_similarities`` use each kernel's contrast ``c_i`` to a ring of
-          displaced copies of the layout
-          (:mod:`mk_tracker.tracking.peak_contrast`); candidates are still ranked by (5).
+          keep ``exp(-J_i)``.
 
         See the module docstring for how the state is mutated.  Never raises for a bad
         frame: a target outside the image, NaN pixels or a similarity below
@@ -488,20 +483,13 @@ class MultiKernelTracker:
                 alt_sims = self.decision_similarities(alt[1], state)
                 if float(alt_sims.mean()) > float(first.mean()):
                     best, first = alt, alt_sims
-        score = float(first.mean())     # candidates are ranked by the similarity (5)
-        if cfg.failure_test != "level":                 # peak_contrast.py
-            first = self._contrast_values(image, state, best, first)
         failing = visibility_similarity(first, None, "weighted") < cfg.recovery_similarity
         if cfg.recovery_similarity > 0 and failing:
-            found = self._recover(image, state, start_box, score)
+            found = self._recover(image, state, start_box, float(first.mean()))
             if found is not None:
-                found_sims = self.decision_similarities(found[0][1], state)
-                if cfg.failure_test != "level":
-                    found_sims = self._contrast_values(image, state, found[0], found_sims)
-                if visibility_similarity(found_sims, None, "weighted") >= \
-                        cfg.recovery_similarity:
-                    (best, search), first = found, found_sims
-                    failing = False
+                best, search = found
+                first = self.decision_similarities(best[1], state)
+                failing = False
         state.failed_frames = state.failed_frames + 1 if failing else 0
         x, ev, iterations, history = best
         n_k = state.num_kernels
@@ -643,20 +631,8 @@ class MultiKernelTracker:
 
     def _recover(self, image: np.ndarray, state: TargetState,
                  start_box: tuple[float, float, float, float], score: float):
-        """The re-detection after a failure (:func:`mk_tracker.tracking.redetection.redetect`);
-        with ``failure_test`` contrast the caller confirms the result by its contrast."""
-        level = None if self.config.failure_test == "level" else 0.0
-        return redetect(self, image, state, start_box, score, level)
-
-    def _contrast_values(self, image: np.ndarray, state: TargetState, found: tuple,
-                         sims: np.ndarray) -> np.ndarray:
-        """``failure_test`` contrast: the per-kernel contrast ``c_i`` of a search result
-        ``found = (x, evaluation at x, ...)`` to the ring at ``contrast_ring_distance``
-        (:func:`~mk_tracker.tracking.peak_contrast.peak_contrasts`), in place of its
-        similarities ``sims``."""
-        x, ev = found[0], found[1]
-        c = peak_contrasts(self, image, state, x, ev.costs, self.config.contrast_ring_distance)
-        return c
+        """The re-detection after a failure (:func:`mk_tracker.tracking.redetection.redetect`)."""
+        return redetect(self, image, state, start_box, score)
 
     def _update_scale(self, search: SearchRegion, state: TargetState, weights: np.ndarray,
                       ev: KernelBatch, statistic: float = float("nan")) -> ScaleStep:

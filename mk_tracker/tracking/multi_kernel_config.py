@@ -16,7 +16,6 @@ from mk_tracker.parameters import parameter
 from mk_tracker.tracking.background_weighting import BACKGROUND_WEIGHTINGS
 from mk_tracker.tracking.kernel_histograms import COLOUR_SPACES, PIXEL_WEIGHTINGS, PROFILES
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
-from mk_tracker.tracking.peak_contrast import FAILURE_TESTS
 from mk_tracker.tracking.redetection import LEARNT_MEASURES
 from mk_tracker.tracking.scale_estimation import ScaleEstimationConfig
 
@@ -140,17 +139,6 @@ class MultiKernelConfig:
         "replaces the first one when its weighted visibility reaches this value and its mean "
         "similarity is higher.  0 = never",
         minimum=0.0, maximum=1.0)
-    failure_test: str = parameter(
-        "level", "What the failure, lost and visibility tests compare with their levels "
-        "(recovery_similarity, lost_similarity, the lifecycle's occlusion_similarity; not in "
-        "the paper): level = each kernel's similarity rho_i = exp(-J_i); contrast = "
-        "c_i = 1 - max rho_i over a ring of 8 copies of the layout moved "
-        "contrast_ring_distance box sizes / rho_i at the result (a peak distinct from its "
-        "surroundings at any level, mk_tracker.tracking.peak_contrast)", choices=FAILURE_TESTS)
-    contrast_ring_distance: float = parameter(
-        1.0, "Ring of failure_test contrast: the copies are moved this many box widths in x "
-        "and box heights in y (times cos / sin of 0, 45, ... 315 degrees)",
-        minimum=0.1, maximum=5.0)
     recovery_margin: float = parameter(
         2.0, "Scan region of the failure re-search: the start box grown by this many box "
         "sizes on every side, clipped to the image", minimum=0.1, maximum=100.0)

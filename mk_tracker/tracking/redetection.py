@@ -260,14 +260,13 @@ def back_projection_peaks(tracker: "MultiKernelTracker", image: np.ndarray,
 
 
 def redetect(tracker: "MultiKernelTracker", image: np.ndarray, state: "TargetState",
-             start_box: tuple[float, float, float, float], score: float,
-             level: float | None = None):
+             start_box: tuple[float, float, float, float], score: float):
     """Re-detection after a failure: the kernel layout is placed at every
     :func:`back_projection_peaks` candidate and evaluated (one batch); from the candidate
     with the highest mean decision similarity, if that already beats ``score`` (the first
     search's), Algorithm 1 runs in its own search region.  Returns ``((x, ev, iterations,
     history), search)`` when the result is confirmed -- weighted decision similarity (7)-(8)
-    at least ``level`` (default ``recovery_similarity``) and mean above
+    at least ``recovery_similarity`` and mean above
     ``score`` -- else None."""
     from mk_tracker.tracking.multi_kernel import _region, visibility_similarity
     cfg = tracker.config
@@ -298,8 +297,7 @@ def redetect(tracker: "MultiKernelTracker", image: np.ndarray, state: "TargetSta
         return None
     res = tracker._algorithm1(search, region, x, state)
     found = tracker.decision_similarities(res[1], state)
-    level = cfg.recovery_similarity if level is None else float(level)
-    if visibility_similarity(found, None, "weighted") >= level \
+    if visibility_similarity(found, None, "weighted") >= cfg.recovery_similarity \
             and float(found.mean()) > score:
         return res, search
     return None
