@@ -85,7 +85,8 @@ DEVELOPMENT = ("TUD-Campus", "TUD-Stadtmitte", "crowd-15", "far-7fps")
 #: ``duplicates.enabled`` and ``lifecycle.still_speed`` stay at their defaults: every fold of
 #: the 128-setting grid that had them chose those values or was indifferent (a tie), and each
 #: dimension doubles the run time.  ``group.member_min_height`` came with the real
-#: low-frame-rate checks (``--low-fps-checks``).
+#: low-frame-rate checks (``--low-fps-checks``); ``min_reported_coast_occluder_coverage`` (a
+#: coasting box is reported only behind a detected track) is issue #16's mechanism on trial.
 GRID: dict[str, tuple] = {
     "min_detection_score": (-1e9, 0.2),
     "max_reported_coast_time": (0.2, 0.6),
@@ -93,6 +94,7 @@ GRID: dict[str, tuple] = {
     "max_reported_coast_std": (0.0, 0.12),
     "reacquire_hold_time": (0.6, 0.0),
     "group.member_min_height": (0.0, 0.8),
+    "min_reported_coast_occluder_coverage": (0.0, 0.1),
 }
 
 #: Real low-frame-rate CHECKS (``--low-fps-checks``), not folds: every ``LOW_FPS_STEP``-th
