@@ -199,3 +199,64 @@ def test_reporting_bounds_do_not_change_tracking():
         assert a.tracks == b.tracks
         differ += [t.id for t in a.reported()] != [t.id for t in b.reported()]
     assert differ > 0
+
+
+def _placed(track_id, state, box, since=0.1) -> TrackOutput:
+    return TrackOutput(id=track_id, state=state, box=box, score=0.0, velocity=(0.0, 0.0),
+                       age=1.0, time_since_detection=since, hits=5,
+                       position_covariance=(1.0, 0.0, 0.0, 1.0))
+
+
+def test_a_coasting_track_is_reported_only_behind_a_track_detected_this_frame():
+    # coverage of a 30 x 80 box at x = 0 by a 30 x 80 box at x = 24: 6 of 30 columns = 0.2
+    tracks = [_placed(1, "occluded", (0, 0, 30, 80)),           # behind 2: 0.2, kept
+              _placed(2, "confirmed", (24, 0, 30, 80), since=0.0),
+              _placed(3, "occluded", (200, 0, 30, 80)),         # nobody in front: dropped
+              _placed(4, "occluded", (400, 0, 30, 80)),         # behind 5, which is not
+              _placed(5, "confirmed", (400, 0, 30, 80), since=0.2),  # detected: dropped
+              _placed(6, "occluded", (600, 0, 30, 80)),         # behind 7, a coasting
+              _placed(7, "occluded", (600, 0, 30, 80)),         # one: dropped (both)
+              _placed(8, "occluded", (0, 300, 30, 80)),         # 0.1 < 0.2 of 9: dropped
+              _placed(9, "confirmed", (27, 300, 30, 80), since=0.0)]
+    result = FrameResult(stamp=1.0, tracks=tracks, max_reported_coast_time=0.3,
+                         min_reported_coast_occluder_coverage=0.2)
+    assert [t.id for t in result.reported()] == [1, 2, 5, 9]
+    # 0 = no such bound: every coasting track within the time bound
+    result.min_reported_coast_occluder_coverage = 0.0
+    assert [t.id for t in result.reported()] == [1, 2, 3, 4, 5, 6, 7, 8, 9]
+
+
+def _passing_behind(bound: float, with_front: bool) -> list[bool]:
+    """Person A walks right, detected for 20 frames, then undetected for 8 (the tracker
+    without kernels: it coasts); person B (``with_front``) stands where A goes, detected in
+    every frame.  Per undetected frame: is A's track reported?"""
+    trk = MultiObjectTracker(updated(MultiObjectTrackerConfig(), {
+        "use_multi_kernel": False, "max_reported_coast_time": 10.0,
+        "max_reported_coast_std": 0.0, "lifecycle.max_coast_time": 10.0,
+        "lifecycle.max_undetected_time": 0.0,
+        "min_reported_coast_occluder_coverage": bound}))
+    front = FrameDetection((200, 200, 30, 60), 0.9)
+    ids = None
+    out = []
+    for i in range(28):
+        dets = [front] if with_front else []
+        if i < 20:
+            dets.append(FrameDetection((100 + 4.0 * i, 200, 30, 60), 0.9))
+        r = trk.step(IMG, i * DT, dets)
+        if i == 19:
+            ids = {t.id for t in r.tracks if t.box[0] < 190}
+            assert len(ids) == 1
+        if i >= 20:
+            (a,) = [t for t in r.tracks if t.id in ids]
+            assert a.state == "occluded"
+            out.append(a.id in {t.id for t in r.reported()})
+    return out
+
+
+def test_a_person_passing_behind_a_detected_one_stays_reported():
+    """A's prediction reaches B's box (x 200) from x 180 at 100 px/s, so it overlaps B by
+    more than 0.1 in every coasting frame: reported throughout.  Without B, the same
+    coasting track is reported only with the bound off."""
+    assert all(_passing_behind(0.1, with_front=True))
+    assert not any(_passing_behind(0.1, with_front=False))
+    assert all(_passing_behind(0.0, with_front=False))
