@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 
-from mk_tracker.tracking.group_measurement import coverage_matrix
 from mk_tracker.tracking.track import TrackOutput, TrackState
 
 __all__ = ["FrameResult", "TrackKernels", "coast_position_std", "track_kernels"]
@@ -73,7 +72,6 @@ class FrameResult:
     max_reported_coast_time: float = float("inf")
     max_reported_coast_std: float = 0.0
     min_reported_coast_match_iou: float = 0.0
-    min_reported_coast_occluder_coverage: float = 0.0
     #: live tracks stacked on another one of the same person, not reported
     suppressed_ids: set[int] = field(default_factory=set)
 
@@ -83,10 +81,8 @@ class FrameResult:
         position is certain to ``max_reported_coast_std`` of the box
         (:func:`coast_position_std`; 0 = no such bound) and while their prediction met
         their last detection at an IoU of at least ``min_reported_coast_match_iou``
-        (``TrackOutput.last_match_iou``; 0 = no such bound) and while a track detected
-        in this frame covers at least ``min_reported_coast_occluder_coverage`` of their box
-        (:meth:`_occluder_coverage`; 0 = no such bound); always for tracks started by hand,
-        which have no detector; never those in ``suppressed_ids``."""
+        (``TrackOutput.last_match_iou``; 0 = no such bound); always for tracks started
+        by hand, which have no detector; never those in ``suppressed_ids``."""
         return [t for t in self.tracks if t.id not in self.suppressed_ids and (
                 t.state == TrackState.CONFIRMED.value
                 or (t.state == TrackState.OCCLUDED.value
@@ -100,29 +96,8 @@ class FrameResult:
                 not coast_position_std(t) <= self.max_reported_coast_std:
             return False
         # NaN match IoU (never produced by the tracker) fails the bound like a low one
-        if self.min_reported_coast_match_iou > 0.0 and \
-                not t.last_match_iou >= self.min_reported_coast_match_iou:
-            return False
-        return self.min_reported_coast_occluder_coverage <= 0.0 or \
-            self._occluder_coverage(t) >= self.min_reported_coast_occluder_coverage
-
-    def _occluder_coverage(self, t: TrackOutput) -> float:
-        """The largest fraction of ``t``'s box covered by the box of one other track that
-        was detected in this frame (confirmed, ``time_since_detection`` 0): its occluder.
-
-        A coasting track is one that neither the detector nor its multiple-kernel
-        appearance model (Chu et al. 2013, Sec. III-D: the kernels' similarities fall as the
-        target is covered) sees.  When a person in front of it is detected, that person
-        explains the disappearance (inter-object occlusion, the case the kernels' adaptive
-        weights are made for) and the person behind is still there; when no detected track
-        covers it, nothing in the frame explains it: the person left, or the track drifted
-        off (a constant-velocity prediction of a real walker), and the box is most often
-        a false positive.  0 when no other track is detected."""
-        others = [o.box for o in self.tracks if o.id != t.id
-                  and o.state == TrackState.CONFIRMED.value and o.time_since_detection == 0.0]
-        if not others:
-            return 0.0
-        return float(coverage_matrix([t.box], others).max())
+        return self.min_reported_coast_match_iou <= 0.0 or \
+            t.last_match_iou >= self.min_reported_coast_match_iou
 
 
 def coast_position_std(output: TrackOutput) -> float:

@@ -149,11 +149,5 @@ class MultiObjectTrackerConfig:
         "innovation at its last update, in the IoU the scoring uses): a filter that already "
         "missed the one-frame-ahead observation (a box around two people, a person turning) "
         "extrapolates a box off the person; 0 = no such bound", minimum=0.0, maximum=1.0)
-    min_reported_coast_occluder_coverage: float = parameter(
-        0.0, "FrameResult.reported() also drops an occluded (coasting) track unless a track "
-        "detected in this frame covers at least this fraction of its box (a detected person "
-        "in front explains why neither the detector nor the kernels see it; with nothing in "
-        "front the person left or the prediction drifted off); 0 = no such bound",
-        minimum=0.0, maximum=1.0)
     max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
                                 "not started", minimum=1, maximum=100000)
