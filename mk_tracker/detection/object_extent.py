@@ -7,9 +7,11 @@ factors (5.1) are clustered by K-means (3.12) with the merge rule (3.13) from ``
 on the real clip BU-TIV-lab that gives ``M_up = 20`` clusters, none of them larger than half
 the frame.  The link rule (``link_gap``: support pixels closer than 4 px are one object,
 added so that the default needs no size prior) then joins the clusters of people who touch
-into one object of up to 449x448 px (a 512x512 frame); the footprint merge and
-``drop_background_footprints`` change nothing about it (benchmarks/diagnose_group_objects.py,
-docs/benchmark_thermal_gain.md, "Half-frame group objects").  Algorithm 2 has nothing that
+into one object of up to 449x448 px (a 512x512 frame): at constant gain 0.93, 8 of the 9
+full passes that made a half-frame object made it at the link rule, one at the footprint
+merge (``merge_by_footprint``), and ``drop_background_footprints`` dropped none
+(benchmarks/diagnose_group_objects.py, docs/benchmark_thermal_gain.md, "Half-frame group
+objects").  Algorithm 2 has nothing that
 splits an object again: in the tracking passes the object's (5.2) window covers the whole
 group, every support pixel in it is the object's, and its footprint is the group's; at the
 next full pass the group is found again and matched to the same Kalman filter.
@@ -26,14 +28,14 @@ the frame, and people side by side make a group wide.
   column coordinates of its newest-frame footprint's pixels (column ranges: upright
   people side by side).  Parts still oversized at ``max_parts`` are dropped.  The parts
   then go through the tracking passes as any objects, each footprint confined to its
-  Voronoi cell.
-  Objects made by the other splits (``split_by_valleys``, ``split_by_person_size``,
+  Voronoi cell.  Objects made by the other splits (``split_by_valleys``, ``split_by_person_size``,
   ``split_clusters``) are not re-split; an oversized one is dropped.
 * Tracking pass (``in_tracking``): an object whose footprint grows past the bound (it
-  fused with people it touches) keeps the column part of its footprint nearest its Kalman prediction, split as
-  above; when that part is still oversized the object is not published and its Kalman
-  filter is dropped (it is not carried).  Either way the next full-frame pass is brought
-  forward to ``group_recheck_frames`` after the last one, to find the others.
+  fused with people it touches) keeps the column part of its footprint nearest its Kalman
+  prediction, split as above; when that part is still oversized the object is not
+  published and its Kalman filter is dropped (it is not carried).  Either way the next
+  full-frame pass is brought forward to ``group_recheck_frames`` after the last one, to
+  find the others.
 
 Measured (docs/benchmark_thermal_gain.md, "Half-frame group objects"): it removes every
 box wider than half the frame on BU-TIV-lab and puts the clip's detections per frame in one
@@ -56,7 +58,7 @@ from mk_tracker.parameters import parameter
 
 __all__ = ["ObjectExtent", "ObjectExtentConfig", "oversized_width"]
 
-#: K-means centroids are fitted on at most this many support pixels (a stride sample), as
+#: K-means centroids are fitted on at most this many footprint pixels (a stride sample), as
 #: :func:`mk_tracker.detection.pixel_clustering.cluster_support_pixels` does
 _SAMPLE = 1000
 
