@@ -90,8 +90,10 @@ def step_frames(n: int) -> tuple[int, int, int]:
     return tuple(25 * round(f * (n - 1) / 25.0) + 3 for f in (0.25, 0.5, 0.75))
 
 
-def perturbed(frame: np.ndarray, k: int, n: int, kind: str) -> np.ndarray:
-    """Frame ``k`` of ``n`` (uint8) as a camera whose AGC does ``kind`` would deliver it."""
+def perturbed(frame: np.ndarray, k: int, n: int, kind: str, gain: float = 0.93
+              ) -> np.ndarray:
+    """Frame ``k`` of ``n`` (uint8) as a camera whose AGC does ``kind`` would deliver it
+    (``gain``: the factor of ``constant``)."""
     if kind == "none":
         return frame
     t = k / max(n - 1, 1)
@@ -103,7 +105,7 @@ def perturbed(frame: np.ndarray, k: int, n: int, kind: str) -> np.ndarray:
         stepped = a <= k < b or k >= c
         y = (0.85 * x + 15.0 if kind == "steps" else 0.7 * x + 40.0) if stepped else x
     elif kind == "constant":
-        y = 0.93 * x
+        y = gain * x
     elif kind == "gamma":
         y = 255.0 * (x / 255.0) ** _ramp(t, 1.0, 1.4, 0.8)
     else:
@@ -111,7 +113,7 @@ def perturbed(frame: np.ndarray, k: int, n: int, kind: str) -> np.ndarray:
     return np.clip(np.rint(y), 0, 255).astype(np.uint8)
 
 
-def perturbed_bag(src: Path, dst: Path, kind: str) -> None:
+def perturbed_bag(src: Path, dst: Path, kind: str, gain: float = 0.93) -> None:
     """A copy of ``src`` whose thermal images went through :func:`perturbed`."""
     with open_bag(src) as reader:
         n = sum(1 for _ in reader.messages([THERMAL_TOPIC]))
@@ -124,7 +126,7 @@ def perturbed_bag(src: Path, dst: Path, kind: str) -> None:
                 writer.write_raw(m.topic, m.timestamp_ns, m.data)
                 continue
             msg = reader.deserialize(m)
-            frame = perturbed(image_to_numpy(msg), k, n, kind)
+            frame = perturbed(image_to_numpy(msg), k, n, kind, gain)
             writer.write(m.topic, m.timestamp_ns,
                          numpy_to_image(frame, msg.encoding, msg.header, types=types))
             k += 1
@@ -188,11 +190,14 @@ def detector_alone(bag: Path, regions: tuple, extra: tuple) -> tuple[float, int,
     return 1000.0 * float(np.median(times[10:] or times)), resets, large, changed
 
 
-def control_rows(bag: Path, gains: list[float]) -> list[tuple]:
-    """The default detector alone (counter masked) on BU-TIV-lab with a constant gain ``g``
-    (``rint(g x)`` clipped to [0, 255], no temporal change at all): ``(g, detections /
-    frame, detections larger than half the frame)``."""
-    cfg = load_pipeline_config()
+def control_rows(bag: Path, gains: list[float], extra: tuple = (), tmp: Path | None = None
+                 ) -> list[tuple]:
+    """The detector alone (counter masked; defaults, then the ``extra`` parameter files) on
+    BU-TIV-lab with a constant gain ``g`` (``rint(g x)`` clipped to [0, 255], no temporal
+    change at all): ``(g, detections / frame, detections larger than half the frame)``,
+    and with ``tmp`` the pipeline's ``tracks / frame, distinct ids, duplicate pairs /
+    frame`` on a bag of those frames."""
+    cfg = load_pipeline_config(list(extra))
     with open_bag(bag) as reader:
         frames = [(m.timestamp_ns * 1e-9, image_to_numpy(reader.deserialize(m)))
                   for m in reader.messages([THERMAL_TOPIC])]
@@ -205,7 +210,15 @@ def control_rows(bag: Path, gains: list[float]) -> list[tuple]:
             found = det.process(scaled, stamp)
             count += len(found)
             large += sum(1 for d in found if d.box[2] * d.box[3] > 0.5 * frame.size)
-        rows.append((g, count / max(len(frames), 1), large))
+        row = (g, count / max(len(frames), 1), large)
+        if tmp is not None:
+            src = tmp / f"butiv_gain_{g:.3f}"
+            perturbed_bag(bag, src, "constant", g)
+            tracks, dets, _ = run_pipeline(src, tmp / f"run_butiv_gain_{g:.3f}",
+                                           COUNTER_REGION, extra)
+            f = identity_figures(tracks, dets)
+            row += (f["tracks"], f["ids"], f["duplicates"])
+        rows.append(row)
         print(rows[-1], file=sys.stderr, flush=True)
     return rows
 
@@ -215,7 +228,8 @@ def real_rows(args, tmp: Path) -> list[tuple]:
     bag = tmp / "butiv"
     import_recording(source, bag, thermal=True)
     if args.constant_gains:
-        args.controls = control_rows(bag, args.constant_gains)
+        args.controls = control_rows(bag, args.constant_gains, tuple(args.params),
+                                     tmp if args.control_pipeline else None)
     rows = []
     for kind in args.perturbations:
         src = bag
@@ -311,6 +325,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--constant-gains", type=float, nargs="*", default=[],
                         help="also run the default detector alone on BU-TIV-lab at these "
                              "constant gains (a control: no temporal change)")
+    parser.add_argument("--control-pipeline", action="store_true",
+                        help="the constant-gain rows also run the pipeline (tracks / frame, "
+                             "ids, duplicate pairs)")
+    parser.add_argument("--params", type=Path, nargs="*", default=[],
+                        help="parameter files for the constant-gain rows")
     parser.add_argument("--out", type=Path, default=None, help="markdown report to write")
     args = parser.parse_args(argv)
     args.controls = []
@@ -335,9 +354,14 @@ def main(argv: list[str] | None = None) -> int:
                   for k, m, d, big, ch, t, ids, dup, r, ms in real]
         lines.append("")
     if args.controls:
+        pipe = len(args.controls[0]) > 3
         lines += ["| BU-TIV-lab, constant gain (no AGC event), gain.model off | detections / "
-                  "frame | detections > half the frame |", "|---:|---:|---:|"]
-        lines += [f"| {g:.2f} | {d:.2f} | {big} |" for g, d, big in args.controls]
+                  "frame | detections > half the frame |"
+                  + (" tracks / frame | distinct ids (~7) | duplicate pairs / frame |"
+                     if pipe else ""), "|---:|---:|---:|" + ("---:|---:|---:|" if pipe else "")]
+        lines += [f"| {r[0]:.2f} | {r[1]:.2f} | {r[2]} |"
+                  + (f" {r[3]:.2f} | {r[4]} | {r[5]:.2f} |" if pipe else "")
+                  for r in args.controls]
         lines.append("")
     if generated:
         lines += ["| people | seed | AGC | gain.model | det. recall / precision (centroid) | "

@@ -78,6 +78,12 @@ Where the paper is silent, and what we add (each switchable):
   one band are joined while they fit one person, the footprint is shared by Voronoi cells
   and slivers are joined to a neighbour; the previous pass's objects are kept apart
   (:mod:`mk_tracker.detection.crowd_split`).  Off by default (docs/benchmark_groups.md).
+* **Extent bound** (``extent.bound``).  An object wider than half the frame (or, once a
+  person size is learnt, than three expected person widths) is a group the link rule made
+  one object: full-frame passes re-split its footprint into column ranges by K-means
+  (3.12) with more clusters; in tracking passes it keeps the part nearest its prediction
+  or is dropped (:mod:`mk_tracker.detection.object_extent`).  Off by default
+  (docs/benchmark_thermal_gain.md).
 * **Stacked parts joined** (``body_extent.join_stacked``).  A person reported as an upper
   and a lower box (two objects of one full pass, each keeping its Voronoi cell) is
   reported as one box; the objects themselves are unchanged
@@ -150,6 +156,7 @@ from mk_tracker.detection.gain_compensation import (GAIN_MODELS, IntensityMap,
                                                     fit_intensity_map)
 from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate,
                                                  _footprint_levels)
+from mk_tracker.detection.object_extent import ObjectExtent
 from mk_tracker.detection.person_size import PersonHeightModel
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
                                                    link_groups, merge_linked)
@@ -201,7 +208,7 @@ def _overlap(a: tuple, b: tuple) -> bool:
             and min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]) > 0)
 
 
-class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
+class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExtent):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
@@ -255,6 +262,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
                                          c.size_min_samples)
         self.aspects = np.zeros(2)      # forgetting sums of (1, width / height) of samples
         self._group_seen = False        # a tracking pass saw a footprint of several people
+        self._oversize_seen = False     # extent.bound: a tracking pass met a group
         self._extents: dict = {}        # body_extent: object id -> its person's extent
 
     def reset(self) -> None:
@@ -328,7 +336,8 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
             return self._whole_bodies(self._learn_sizes(self._full_pass()))
         self._since_full += 1
         if self._since_full >= c.reconfigure_period or (
-                self._group_seen and self._since_full >= c.group_recheck_frames):
+                (self._group_seen or self._oversize_seen)
+                and self._since_full >= c.group_recheck_frames):
             self.last_mode = "reconfiguration"
             return self._whole_bodies(self._learn_sizes(self._full_pass()))
         self.last_mode = "tracking"
@@ -419,6 +428,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
         c = self.config
         self.full_passes += 1
         self._since_full = 0
+        self._oversize_seen = False
         order = self._order(c.startup_frames)
         self._update_map([self._ring[i] for i in order])
         result = _support(self._ring, order, self._map[0], c, self._map[1], self._integer, None)
@@ -453,8 +463,13 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
                                                             bounds, fp))
                     continue
                 cand = self._candidate(frame, result, rows[g], cols[g], bounds, footprint=fp)
-                if cand is not None:
+                if cand is not None and c.extent.bound and self._oversized(cand.box):
+                    # a group made one object (link rule): K-means with more clusters
+                    candidates.extend(self._resplit(frame, result, rows[g], cols[g], bounds))
+                elif cand is not None:
                     candidates.append(cand)
+            if c.extent.bound:
+                candidates = [cand for cand in candidates if not self._oversized(cand.box)]
             if c.current_frame_refinement and c.drop_background_footprints and candidates:
                 candidates = self._without_background(frame, result.support, candidates)
         return self._reassociate(candidates)
@@ -697,6 +712,11 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent):
                 if split is cand:
                     tr.size = cand.box[2:]     # it grew but is one object: its new size
                 cand = split
+            if c.extent.bound and c.extent.in_tracking and self._oversized(cand.box):
+                # a group: the part nearest the prediction, or neither published nor carried
+                cand = self._bounded_part(frame, result, regions, centres, k, cand)
+                if cand is None:
+                    continue
             tr.kf.update(cand.centroid)
             tr.box, tr.missed = cand.box, 0
             kept.append(tr)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from mk_tracker.detection.body_extent import BodyExtentConfig
 from mk_tracker.detection.gain_compensation import GainConfig
+from mk_tracker.detection.object_extent import ObjectExtentConfig
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
 
@@ -185,3 +186,6 @@ class ThermalDetectorConfig:
     gain: GainConfig = parameter(
         GainConfig(), "compensation of the camera's automatic gain control "
         "(mk_tracker.detection.gain_compensation)")
+    extent: ObjectExtentConfig = parameter(
+        ObjectExtentConfig(), "bound on an object's width: groups re-split or not carried "
+        "(mk_tracker.detection.object_extent)")
