@@ -7,6 +7,8 @@
   OTB result files.
 * :mod:`~mk_tracker.evaluation.error_plots` -- per-frame error plots (matplotlib, no
   display).
+* :mod:`~mk_tracker.evaluation.annotation_occlusion` -- how occluded the annotated people
+  of a ground truth are, from its boxes alone (which people a ground truth counts).
 
 From the papers: the centre error is the measure of Chu et al. 2013 (Sec. IV-B, Fig. 6
 and Table I: pixel distance between the result's and the ground truth's centroid); the
