@@ -212,9 +212,10 @@ class ManualTrackConfig:
         "is at least confident_level_ratio of its running mean; "
         "mk_tracker.tracking.confident_update)", choices=MODEL_UPDATES)
     confident_update_rate: float = parameter(
-        0.02, "Blend rate of model_update confident for a track started by hand (replaces "
-        "multi_kernel.confident_update_rate when model_update is confident; 0.02 = a memory "
-        "of ~50 frames, 2 s at 25 fps)", minimum=0.0, maximum=1.0)
+        0.1, "Blend rate of model_update confident for a track started by hand (replaces "
+        "multi_kernel.confident_update_rate when model_update is confident; 0.1 = a memory "
+        "of ~10 frames, chosen in-sample on OTB Woman over 0.02: 34.2 against 51.7 px)",
+        minimum=0.0, maximum=1.0)
     confident_contrast: float = parameter(
         0.5, "Smallest peak contrast of a kernel blended by model_update confident (replaces "
         "multi_kernel.confident_contrast)", minimum=0.0, maximum=1.0)
