@@ -1078,16 +1078,12 @@ def development_set() -> list[tuple[str, Sequence]]:
 #: (``recovery_growth``) were run through this protocol and lost held out
 #: (docs/benchmark_single_target.md, "Findings"); they stay off and out of the grid.
 #: The contrast of the peak to a ring around it as the failure test (``failure_test``,
-#: issue #16 item 3, at commit e43c509) lost held out too and was deleted.
-#: ``model_update`` (issue #16 item 3): the first frame's models or the update in confident
-#: frames only (mk_tracker.tracking.confident_update).  To keep the run near 48 settings with
-#: it, ``multi_start_radius`` 0 (chosen by no fold since the 13:40 run of 2026-11-27) left
-#: the grid, as did the cbwh weights without a floor (:data:`WEIGHTINGS`).
+#: issue #16 item 3, at commit e43c509) lost held out too and was deleted, as did a model
+#: update in confident frames only (``model_update``, at commit 9024b07).
 GRID = {
-    "multi_start_radius": (0.5, 1.0),
+    "multi_start_radius": (0.0, 0.5, 1.0),
     "recovery_similarity": (0.0, 0.25, 0.4),
     "max_coast_position_std": (0.0, 1.0),
-    "model_update": ("none", "confident"),
 }
 
 #: the background weighting of the kernel models (issue #16 item 3; Ning et al. 2012's
@@ -1097,6 +1093,7 @@ GRID = {
 #: configuration (``--set`` syntax), the others are ``manual_track`` fields.
 WEIGHTINGS = (
     {"background_weighting": "none"},
+    {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.0},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25},
 )
 

@@ -37,7 +37,6 @@ import numpy as np
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
 from mk_tracker.tracking.background_weighting import BACKGROUND_WEIGHTINGS
-from mk_tracker.tracking.confident_update import MODEL_UPDATES
 from mk_tracker.tracking.kernel_layouts import (COLUMN_SPACING, column_best, column_coverage,
                                                 has_columns)
 from mk_tracker.tracking.kernel_layouts import SUPPORTED_KERNEL_COUNTS
@@ -204,25 +203,6 @@ class ManualTrackConfig:
         "leave-one-clip-out protocol of bench_single_target.py over none, the plain "
         "models: a look-alike passer-by no longer takes the track), or none",
         choices=BACKGROUND_WEIGHTINGS)
-    model_update: str = parameter(
-        "none", "Kernel model update of a track started by hand: none keeps the first "
-        "frame's models; confident blends a kernel's model towards its candidate at "
-        "confident_update_rate only in frames the track is confidently on target (its peak "
-        "stands out from a ring of displaced copies by confident_contrast and its similarity "
-        "is at least confident_level_ratio of its running mean; "
-        "mk_tracker.tracking.confident_update)", choices=MODEL_UPDATES)
-    confident_update_rate: float = parameter(
-        0.1, "Blend rate of model_update confident for a track started by hand (replaces "
-        "multi_kernel.confident_update_rate when model_update is confident; 0.1 = a memory "
-        "of ~10 frames, chosen in-sample on OTB Woman over 0.02: 34.2 against 51.7 px)",
-        minimum=0.0, maximum=1.0)
-    confident_contrast: float = parameter(
-        0.5, "Smallest peak contrast of a kernel blended by model_update confident (replaces "
-        "multi_kernel.confident_contrast)", minimum=0.0, maximum=1.0)
-    confident_level_ratio: float = parameter(
-        0.7, "Smallest similarity, as a share of the kernel's running mean, of a kernel "
-        "blended by model_update confident (replaces multi_kernel.confident_level_ratio)",
-        minimum=0.0, maximum=1.0)
 
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
@@ -271,11 +251,7 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    failure_sigmas=m.failure_sigmas,
                    learnt_measure=m.learnt_measure,
                    similarity_spread_prior=m.similarity_spread_prior,
-                   background_weighting=m.background_weighting,
-                   confident_update_rate=(m.confident_update_rate
-                                          if m.model_update == "confident" else 0.0),
-                   confident_contrast=m.confident_contrast,
-                   confident_level_ratio=m.confident_level_ratio)
+                   background_weighting=m.background_weighting)
 
 
 def columns_cover(res: Any, floor: float) -> bool:

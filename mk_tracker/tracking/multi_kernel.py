@@ -14,8 +14,6 @@ with the projected-gradient iteration of Algorithm 1 and the step (5)/(8):
 where ``J_x`` is minus the kernels' mean-shift vectors (C.4).  Afterwards the scale is updated
 from the bandwidth derivative of the density estimate (9)-(11), and the models are blended
 towards the current candidates, both only when the mean similarity is above a gate (0.3).
-Tracks started by hand can instead blend the models in confident frames only
-(``confident_update_rate``, :mod:`mk_tracker.tracking.confident_update`).
 
 Rank deficiency of ``C_x^T C_x`` and how the step (5)/(8) copes with it: see
 :mod:`mk_tracker.tracking.projected_gradient`, which holds the constraints and the step.
@@ -101,7 +99,6 @@ from mk_tracker.tracking.image_border import complete_models, inside_fractions, 
 from mk_tracker.tracking.background_weighting import (BackgroundModel, background_model,
                                                       corrected_costs, histogram_overlap,
                                                       reweighted, ring_histogram, ring_region)
-from mk_tracker.tracking.confident_update import confident_update
 from mk_tracker.tracking.redetection import (grid_start, redetect, relative_similarities,
                                              update_reference)
 from mk_tracker.tracking.scale_estimation import ScaleStep, gated_step, scale_step
@@ -193,13 +190,6 @@ class TargetState:
     #: the background weighting (``background_weighting`` ``cbwh``): plain models, ring
     #: histogram, weights, cost offsets; ``models`` then holds the weighted models
     background: BackgroundModel | None = None
-    #: per kernel: running mean of its level over the frames it was seen (the confident
-    #: update, :mod:`mk_tracker.tracking.confident_update`); None = none yet
-    level_reference: np.ndarray | None = None
-    #: frames counted into ``level_reference``
-    level_frames: int = 0
-    #: kernel models blended by the confident update so far (all kernels, all frames)
-    confident_updates: int = 0
 
     @property
     def num_kernels(self) -> int:
@@ -539,8 +529,6 @@ class MultiKernelTracker:
                     if sims[i] > cfg.similarity_gate and ev.n_pixels[i] > 0:
                         models[i] = (1.0 - rate) * models[i] + rate * ev.p[i]
                         changed += 1
-        if cfg.confident_update_rate > 0 and not failing:     # confident_update.py
-            changed += confident_update(self, image, state, x, ev, sims, models)
         if bg is not None and changed:
             state.models = reweighted(bg, cfg.background_weight_floor, cfg.histogram_epsilon)
         if mean_sim > cfg.similarity_gate:

@@ -98,26 +98,6 @@ class MultiKernelConfig:
         "gate (the paper gives no rate; 0, the default, keeps the first frame's models: "
         "0.02 and 0.1 drifted onto the background in docs/benchmark_single_target.md)",
         minimum=0.0, maximum=1.0)
-    confident_update_rate: float = parameter(
-        0.0, "Model update in confident frames only (not in the paper; "
-        "mk_tracker.tracking.confident_update): a kernel whose contrast to a ring of "
-        "displaced copies of the layout is at least confident_contrast and whose similarity "
-        "is at least confident_level_ratio times its running mean has its model blended "
-        "towards its candidate at this rate, in frames the failure test calls seen; "
-        "0 = off", minimum=0.0, maximum=1.0)
-    confident_contrast: float = parameter(
-        0.5, "Smallest contrast c_i = 1 - (best similarity on the ring) / (similarity at the "
-        "result) of a kernel the confident update blends (0.5: the peak at least twice "
-        "the ring's best copy, mk_tracker.tracking.peak_contrast)", minimum=0.0, maximum=1.0)
-    confident_level_ratio: float = parameter(
-        0.7, "A kernel the confident update blends has a similarity of at least this share "
-        "of its mean over the frames the track was seen (0.7 = beta_1 of Wang, Liu "
-        "& Huang, LMCF, CVPR 2017: a sudden drop is an occluder or another person)",
-        minimum=0.0, maximum=1.0)
-    contrast_ring_distance: float = parameter(
-        1.0, "Ring of the confident update's contrast: the copies of the layout are moved "
-        "this many box widths in x and box heights in y (times cos / sin of 0, 45, ... 315 "
-        "degrees)", minimum=0.1, maximum=5.0)
     lost_similarity: float = parameter(
         0.1, "A result whose mean kernel similarity is below this is reported lost",
         minimum=0.0, maximum=1.0)

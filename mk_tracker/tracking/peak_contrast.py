@@ -20,11 +20,12 @@ background) or a neighbour as similar as the box gives ~0.  A ring copy with no 
 weighting's ``J0_i``, :mod:`~mk_tracker.tracking.background_weighting`) cancels in the
 difference.
 
-Used by the confident model update of hand-started tracks
-(:mod:`mk_tracker.tracking.confident_update`) and by
-``benchmarks/diagnose_single_target.py --separation``.  As the *failure test* of
-hand-started tracks it lost held out (a look-alike passer-by is an equally distinct peak;
-commit e43c509, docs/benchmark_single_target.md "Findings").
+Used by ``benchmarks/diagnose_single_target.py --separation``; nothing in the tracker uses
+it.  Both uses tried in the tracker lost in the leave-one-clip-out protocol and were
+deleted (docs/benchmark_single_target.md, "Findings"): as the *failure test* of hand-started
+tracks (a look-alike passer-by is an equally distinct peak; commit e43c509), and as the
+gate of a model update in confident frames only (``manual_track.model_update`` confident,
+commit 9024b07).
 
 Cost: one batched evaluation of ``8 N`` kernels on one more search region (the box grown by
 ``distance`` on every side); ~0.24 ms on OTB Woman.
