@@ -1078,7 +1078,8 @@ def development_set() -> list[tuple[str, Sequence]]:
 #: (``recovery_growth``) were run through this protocol and lost held out
 #: (docs/benchmark_single_target.md, "Findings"); they stay off and out of the grid.
 #: The contrast of the peak to a ring around it as the failure test (``failure_test``,
-#: issue #16 item 3, at commit e43c509) lost held out too and was deleted.
+#: issue #16 item 3, at commit e43c509) lost held out too and was deleted, as did a model
+#: update in confident frames only (``model_update``, at commit 9024b07).
 GRID = {
     "multi_start_radius": (0.0, 0.5, 1.0),
     "recovery_similarity": (0.0, 0.25, 0.4),

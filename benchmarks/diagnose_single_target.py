@@ -19,7 +19,8 @@ the truth (Algorithm 1 only), are labelled on (IoU with the truth >= 0.5) or off
 and for each test the area under the ROC curve of on against off is printed, pooled and per
 sequence: the absolute level (the weighted statistic (7)-(8) of exp(-J_i)), the contrast of
 the peak to a ring of displaced copies of its layout at several distances (the
-peak-to-sidelobe idea of MOSSE, Bolme et al. CVPR 2010: :func:`kernel_contrasts`), and the
+peak-to-sidelobe idea of MOSSE, Bolme et al. CVPR 2010:
+:func:`mk_tracker.tracking.peak_contrast.kernel_contrasts`), and the
 geometric mean of level and contrast per kernel.  (The contrast as the failure test of
 hand-started tracks, ``manual_track.failure_test``, lost held out and was deleted; commit
 e43c509 has it, docs/benchmark_single_target.md "Findings".)::
@@ -48,7 +49,7 @@ from setting_values import setting_changes  # noqa: E402
 from mk_tracker.boxes import iou  # noqa: E402
 from mk_tracker.tracking.multi_kernel import (MultiKernelTracker,  # noqa: E402
                                               visibility_similarity)
-from mk_tracker.tracking.kernel_layouts import kernels_bounding_box  # noqa: E402
+from mk_tracker.tracking.peak_contrast import kernel_contrasts, ring_costs  # noqa: E402
 
 #: ring distances (box sizes) whose contrast --separation measures
 SEPARATION_DISTANCES = (0.5, 0.75, 1.0)
@@ -109,50 +110,6 @@ def diagnose(seq, rows: list[tuple]) -> dict:
                        "within_half_w_after": float(np.mean(later)) if later.size else 0.0,
                        "state_before": rows[max(0, f - 3)][1]}
     return out
-
-
-def ring_offsets(width: float, height: float, distance: float, directions: int = 8
-                 ) -> np.ndarray:
-    """``(directions, 2)`` translations ``distance * (w cos t_k, h sin t_k)``,
-    ``t_k = 2 pi k / directions``."""
-    t = 2.0 * np.pi * np.arange(directions) / directions
-    return np.stack([distance * width * np.cos(t), distance * height * np.sin(t)], axis=1)
-
-
-def kernel_contrasts(box_costs: np.ndarray, ring: np.ndarray) -> np.ndarray:
-    """Per kernel ``clip(1 - exp(-(min_k J_ik - J_i)), 0, 1)`` = ``1 - max_k rho_ik / rho_i``
-    for the costs ``J_i`` at the peak and ``J_ik`` on the ring (``(K, N)``): ~1 for a peak
-    distinct from its surroundings at any level, ~0 for a flat one or one a neighbour
-    shares.  A ring copy without pixels is no competitor; a kernel without pixels at the
-    peak has contrast 0."""
-    box = np.asarray(box_costs, dtype=np.float64).reshape(-1)
-    ring = np.asarray(ring, dtype=np.float64).reshape(-1, box.size)
-    nearest = np.where(np.isfinite(ring), ring, np.inf).min(axis=0)
-    with np.errstate(invalid="ignore", over="ignore"):
-        out = 1.0 - np.exp(-(nearest - box))
-    out = np.where(np.isfinite(box), out, 0.0)
-    return np.clip(np.nan_to_num(out, nan=0.0), 0.0, 1.0)
-
-
-def ring_costs(refiner: MultiKernelTracker, image, state, centres: np.ndarray,
-               distance: float) -> np.ndarray | None:
-    """``(8, N)`` costs ``J_i`` of the state's layout at ``centres`` moved to every ring
-    position, one batched evaluation of the tracker's own kernels (models, axes, stride);
-    None when the region is outside the image or holds NaN pixels."""
-    from mk_tracker.tracking.multi_kernel import _region
-    axes = state.half_axes
-    box = kernels_bounding_box(centres, axes)
-    region = _region(box, distance, image.shape[1], image.shape[0])
-    search = None if region is None else \
-        refiner._search_region(image, region, refiner._stride(axes))
-    if search is None:
-        return None
-    offsets = ring_offsets(box[2], box[3], distance)
-    n_k, n_o = state.num_kernels, len(offsets)
-    layouts = (centres[None, :, :] + offsets[:, None, :]).reshape(-1, 2)
-    ev = refiner._evaluate(search, np.tile(axes, (n_o, 1)), layouts,
-                           np.tile(state.models, (n_o, 1)))
-    return np.asarray(ev.costs, dtype=np.float64).reshape(n_o, n_k)
 
 
 def _auc(on: list[float], off: list[float]) -> float:
