@@ -4,6 +4,11 @@ to the recorder's own callbacks, one ready callback per ``spin_once`` as rclpy d
 
 from __future__ import annotations
 
+import os
+import signal
+
+import pytest
+
 from mk_tracker.ros.bag_recorder import Recorder, drain
 
 
@@ -64,3 +69,33 @@ def test_drain_is_bounded_when_messages_never_stop():
     executor = Executor(recorder, [], endless=True)
     assert drain(executor, recorder, max_rounds=50) == 50
     assert executor.spins == 50 and len(writer.rows) == 50
+
+
+def test_run_drains_after_a_stop_before_it_closes_the_bag(tmp_path, monkeypatch):
+    """run() itself: a SIGINT ends the loop and drain() gets the run's executor and
+    recorder while the bag is still open (the DDS test cannot show it: the race it closes
+    is rare on an idle machine)."""
+    pytest.importorskip("rclpy")
+    from nodes_harness import apply_env_to_test_process, unique_domain
+
+    from mk_tracker.bags import bag_io
+    from mk_tracker.ros import bag_recorder
+
+    apply_env_to_test_process(monkeypatch, unique_domain())
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    monkeypatch.setattr(bag_recorder.Recorder, "discover",
+                        lambda self: os.kill(os.getpid(), signal.SIGINT))
+    closed: list[bool] = []
+    original_close = bag_io.BagWriter.close
+    monkeypatch.setattr(bag_io.BagWriter, "close",
+                        lambda self: (closed.append(True), original_close(self))[1])
+    calls = []
+    monkeypatch.setattr(bag_recorder, "drain", lambda executor, recorder: calls.append(
+        (type(executor).__name__, type(recorder).__name__, list(closed))))
+    try:
+        assert bag_recorder.main(["-o", str(tmp_path / "bag"), "/a"]) == 0
+    finally:                                        # run() installed its own handlers
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    assert calls == [("SingleThreadedExecutor", "Recorder", [])]   # once, bag still open
+    assert closed == [True]
