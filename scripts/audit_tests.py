@@ -1,6 +1,6 @@
 """Static checks of the test suite against the project's test standard (docs/test_audit.md).
 
-    python3 scripts/test_audit.py [test]        # prints candidates; exit status always 0
+    python3 scripts/audit_tests.py [test]        # prints candidates; exit status always 0
 
 Candidates, each to be read by a person (a listed line is not necessarily a defect):
 
