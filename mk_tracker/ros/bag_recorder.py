@@ -10,8 +10,9 @@ RELIABLE, else BEST_EFFORT; TRANSIENT_LOCAL if every publisher offers it, else V
 The offered profiles of those publishers are stored in the bag metadata, so that
 ``bag_player`` (or ``ros2 bag play``) can reproduce them.
 
-SIGINT and SIGTERM stop the recording cleanly: subscriptions are destroyed, the bag is
-closed and its ``metadata.yaml`` written, and the exit status is 0.
+SIGINT and SIGTERM stop the recording cleanly: the messages already received (waiting in
+the subscriptions' queues) are written first (:func:`drain`), then subscriptions are
+destroyed, the bag is closed and its ``metadata.yaml`` written, and the exit status is 0.
 
 Example::
 
@@ -113,6 +114,25 @@ class Recorder:
         return on_message
 
 
+def drain(executor: Any, recorder: Recorder, max_rounds: int = 100_000) -> int:
+    """Write what the subscriptions already hold: non-blocking spins until two in a row
+    take no message (one may run another ready callback, e.g. a guard condition);
+    ``max_rounds`` bounds a publisher that never pauses.  Returns how many were written.
+
+    Without it a stop right after the last message arrived lost the messages the executor
+    had not taken yet (a player whose every message was acknowledged, then a Ctrl-C)."""
+    start = total = sum(recorder.counts.values())
+    idle = 0
+    for _ in range(max_rounds):
+        executor.spin_once(timeout_sec=0.0)
+        now = sum(recorder.counts.values())
+        idle = idle + 1 if now == total else 0
+        total = now
+        if idle == 2:
+            break
+    return total - start
+
+
 def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("topics", nargs="+", metavar="TOPIC", help="topics to record")
     parser.add_argument("-o", "--output", required=True, help="bag directory to create")
@@ -157,6 +177,7 @@ def run(args: argparse.Namespace) -> int:
                 recorder.discover()
                 next_discovery = time.monotonic() + args.discovery_period
             executor.spin_once(timeout_sec=0.05)
+        drain(executor, recorder)
     finally:
         for sub in recorder.subscriptions.values():
             node.destroy_subscription(sub)

@@ -96,6 +96,7 @@ def test_ros_world_stores_bytes_as_array_array():
         pytest.skip("rclpy message packages not installed")
     msg = numpy_to_image(np.full((480, 640, 3), 7, np.uint8), "bgr8", types=WORLDS["ros"])
     assert isinstance(msg.data, array.array) and len(msg.data) == 480 * 640 * 3
+    assert msg.data.typecode == "B" and set(msg.data) == {7}     # the pixels, as bytes
 
 
 def test_bag_world_survives_cdr_serialization():

@@ -164,9 +164,9 @@ def test_a_signal_while_the_node_is_constructed_ends_the_run_with_0(keep_sigterm
             _busy(5.0)                    # a start that would go on (a compile)
             reached.append("end of construction")
 
-    t0 = time.monotonic()
     assert run_node(Slow, "runner_slow_node") == 0
-    assert time.monotonic() - t0 < 5.0    # the construction was cut short
+    # the construction was cut short: the 5 s busy loop did not run to its end (a marker,
+    # not a wall-clock bound, which would assume how fast start-up and shutdown are)
     assert reached == []
     assert capsys.readouterr().err.count("[runner_slow_node] interrupted while starting; "
                                          "stopping") == 1
@@ -234,10 +234,9 @@ def test_an_interrupt_swallowed_by_a_ctypes_callback_is_raised_again(keep_sigter
             _busy(5.0)                    # the rest of a compile
             steps.append("constructed")
 
-    t0 = time.monotonic()
     assert run_node(Compiling, "runner_ctypes_node") == 0
-    assert time.monotonic() - t0 < 5.0
-    # the callback was cut short and the construction did not go on to its end
+    # the callback was cut short and the construction did not go on to its end (markers,
+    # not a wall-clock bound)
     assert steps == ["in the callback"]
     err = capfd.readouterr().err
     assert "Exception ignored" not in err and "Traceback" not in err, err

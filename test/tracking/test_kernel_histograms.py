@@ -492,9 +492,21 @@ def test_compiled_backend_glue_with_plain_loops_evaluates_like_numpy(plain_compi
 
 
 def test_warm_up_call_matches_the_loops_signatures():
-    # the start-up warm-up of the numba loops must be a valid call of both loops
+    # the start-up warm-up of the numba loops must be a valid call of both loops (a wrong
+    # argument list raises TypeError here), and it must call each of them once: a warm-up
+    # that skipped one would leave its compile to the first frame
     from mk_tracker.tracking import search_region as kh
-    kh._warm_up(kh._quantize_loops, kh._kernels_loops)
+    calls = []
+
+    def recording(name, loops):
+        def call(*args):
+            calls.append(name)
+            return loops(*args)
+        return call
+
+    kh._warm_up(recording("quantize", kh._quantize_loops),
+                recording("kernels", kh._kernels_loops))
+    assert calls == ["quantize", "kernels"]
 
 
 def test_number_of_bins_is_the_product():
