@@ -292,6 +292,13 @@ def low_fps_sequences(data: Path, offsets=tuple(range(LOW_FPS_STEP))) -> dict:
 #: gives it back: one visible pixel of a silhouette is far more than 1e-6 of it).
 GT_MIN_VISIBLE = 0.0
 
+#: ``--real-motion``: the motion variation of the generated people (crowd_scene /
+#: far_view_scene ``motion``: Ornstein-Uhlenbeck heading and relative-speed offsets) whose
+#: statistics lie between those of the TUD clips' ground truth (acceleration spread and
+#: constant-velocity drift after 0.5 / 1 s, benchmarks/diagnose_motion.py;
+#: docs/synthetic_scenes.md).
+REAL_MOTION = {"heading_std": 0.1, "speed_std": 0.1, "time_constant": 2.0}
+
 
 def in_ground_truth(visible_fraction: float, gt_min_visible: float = GT_MIN_VISIBLE) -> bool:
     """Whether a generated person in the RGB frame enters the ground truth."""
@@ -329,15 +336,26 @@ def scene_frames(scene, seed, min_visible, miss, false_positives, noise,
 
 
 def crowd_frames(n_people, seed, n_frames, min_visible, miss, false_positives, noise,
-                 gt_min_visible: float = GT_MIN_VISIBLE):
-    return scene_frames(crowd_scene(n_people, seed=seed, frames=n_frames), seed, min_visible,
-                        miss, false_positives, noise, gt_min_visible)
+                 gt_min_visible: float = GT_MIN_VISIBLE, motion: dict | None = None):
+    return scene_frames(crowd_scene(n_people, seed=seed, frames=n_frames, motion=motion), seed,
+                        min_visible, miss, false_positives, noise, gt_min_visible)
 
 
 def far_frames(seed, min_visible, miss, false_positives, noise,
-               gt_min_visible: float = GT_MIN_VISIBLE):
-    return scene_frames(far_view_scene(seed=seed), seed, min_visible, miss, false_positives,
-                        noise, gt_min_visible)
+               gt_min_visible: float = GT_MIN_VISIBLE, motion: dict | None = None):
+    return scene_frames(far_view_scene(seed=seed, motion=motion), seed, min_visible, miss,
+                        false_positives, noise, gt_min_visible)
+
+
+def motion_model(real_motion: bool) -> str:
+    """The generated people's motion, in words (report header)."""
+    if not real_motion:
+        return ("people walk piecewise-straight at constant speed between waypoints "
+                "(the generator's default)")
+    return ("people's heading and speed vary around their waypoint course (`--real-motion`: "
+            "Ornstein-Uhlenbeck offsets, heading std {heading_std:g} rad, relative speed std "
+            "{speed_std:g}, time constant {time_constant:g} s, matched to the TUD clips' "
+            "motion statistics by benchmarks/diagnose_motion.py)").format(**REAL_MOTION)
 
 
 def _table(rows, timing=True):
@@ -922,7 +940,8 @@ def markdown(rows, command, args, loso=None, checks=None) -> str:
              f"use ground-truth boxes of people at least {args.min_visible:.0%} visible, with "
              f"{args.noise:g} px noise, {args.miss:.0%} misses and {args.false_positives:g} "
              "false positives per frame on average; their ground truth "
-             f"{gt_convention(args.gt_min_visible)}.  Scores: motmetrics, IoU >= 0.5; HOTA: "
+             f"{gt_convention(args.gt_min_visible)}; "
+             f"{motion_model(getattr(args, 'real_motion', False))}.  Scores: motmetrics, IoU >= 0.5; HOTA: "
              "mk_tracker.evaluation.hota (mean over IoU 0.05..0.95; equal to TrackEval "
              "1.3.0 to 6 decimals, benchmarks/hota_check.py).  Peers run at their library "
              "defaults with the sequence's frame rate.", ""]
@@ -1038,6 +1057,10 @@ def main(argv=None) -> int:
                              "truth when its visible_fraction >= V (default 0: every person "
                              "in the frame, hidden or not, as the real clips are annotated; "
                              "1e-6: any visible pixel, the convention before 2026-11-27)")
+    parser.add_argument("--real-motion", action="store_true",
+                        help="generated people vary heading and speed around their course "
+                             "(REAL_MOTION, matched to the TUD clips by diagnose_motion.py) "
+                             "instead of walking piecewise-straight at constant speed")
     parser.add_argument("--miss", type=float, default=0.1)
     parser.add_argument("--false-positives", type=float, default=0.3)
     parser.add_argument("--noise", type=float, default=2.0)
@@ -1061,6 +1084,7 @@ def main(argv=None) -> int:
         name, _, values = item.partition("=")
         GRID[name] = tuple(_value(v) for v in values.split(","))
     args.results.mkdir(parents=True, exist_ok=True)
+    motion = REAL_MOTION if args.real_motion else None
     sequences: dict = {}
     for name in ("TUD-Campus", "TUD-Stadtmitte"):
         folder = args.data / "mot" / name
@@ -1071,9 +1095,10 @@ def main(argv=None) -> int:
     for n in args.people:
         sequences[f"crowd-{n}"] = crowd_frames(n, args.seed, args.frames, args.min_visible,
                                                args.miss, args.false_positives, args.noise,
-                                               args.gt_min_visible)
+                                               args.gt_min_visible, motion)
     sequences["far-7fps"] = far_frames(args.seed, args.min_visible, args.miss,
-                                       args.false_positives, args.noise, args.gt_min_visible)
+                                       args.false_positives, args.noise, args.gt_min_visible,
+                                       motion)
     rows = []
     for name, (frames, fps) in sequences.items():
         rows += run_sequence(name, frames, fps, args.results)
