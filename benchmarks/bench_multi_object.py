@@ -305,12 +305,47 @@ def in_ground_truth(visible_fraction: float, gt_min_visible: float = GT_MIN_VISI
     return visible_fraction >= gt_min_visible
 
 
+#: ``--real-detection-noise``: a box error like the TUD clips' public detections'
+#: (benchmarks/diagnose_motion.py): centre offset sd ``centre_std`` box heights, width and
+#: height ratio sd ``width_std`` / ``height_std``; a share ``correlated`` of each error's
+#: variance follows a per-person AR(1) process with time constant ``time_constant`` s, the
+#: rest is i.i.d. (lag-1 correlation correlated * rho, lag-5 correlated * rho^5: 0.6 and
+#: 0.23 pooled over the clips -> rho 0.785 per 25-fps frame, 0.165 s, share 0.76).
+REAL_DETECTION_NOISE = {"centre_std": 0.04, "width_std": 0.17, "height_std": 0.09,
+                        "correlated": 0.76, "time_constant": 0.165}
+
+
+class BoxError:
+    """Per-person correlated box errors (:data:`REAL_DETECTION_NOISE`): ``sample(id, dt)``
+    gives (dx, dy, dw, dh), offsets in box heights and size ratios minus 1."""
+
+    def __init__(self, params: dict, seed: int) -> None:
+        self.p = params
+        self.rng = np.random.default_rng([seed, 0xB0E])
+        self.state: dict = {}
+        self.sd = np.array([params["centre_std"], params["centre_std"], params["width_std"],
+                            params["height_std"]])
+
+    def sample(self, ident: int, dt: float) -> np.ndarray:
+        rho = float(np.exp(-dt / self.p["time_constant"]))
+        slow = self.state.get(ident)
+        kick = self.rng.standard_normal(4)
+        slow = kick if slow is None else rho * slow + np.sqrt(1.0 - rho * rho) * kick
+        self.state[ident] = slow
+        c = self.p["correlated"]
+        return self.sd * (np.sqrt(c) * slow + np.sqrt(1.0 - c) * self.rng.standard_normal(4))
+
+
 def scene_frames(scene, seed, min_visible, miss, false_positives, noise,
-                 gt_min_visible: float = GT_MIN_VISIBLE):
+                 gt_min_visible: float = GT_MIN_VISIBLE, box_error: dict | None = None):
     """Frames of a generated scene: ground truth by :func:`in_ground_truth`, detections of
     the people at least ``min_visible`` visible (seeded misses, box noise, false
-    positives)."""
+    positives).  ``box_error`` (e.g. :data:`REAL_DETECTION_NOISE`) replaces the i.i.d.
+    ``noise`` px / 3% size error by a per-person correlated one (:class:`BoxError`, its own
+    random stream: misses and false positives stay the same)."""
     rng = np.random.default_rng([seed, len(scene.config.people), 7])
+    errors = BoxError(box_error, seed) if box_error is not None else None
+    dt = 1.0 / float(scene.config.fps)
     frames = []
     for k in range(len(scene)):
         f = scene.frame(k)
@@ -324,9 +359,14 @@ def scene_frames(scene, seed, min_visible, miss, false_positives, noise,
             if o.visible_fraction < min_visible or rng.random() < miss:
                 continue
             x, y, w, h = o.box_rgb
-            dets.append((x + rng.normal(0, noise), y + rng.normal(0, noise),
-                         w * (1 + rng.normal(0, 0.03)), h * (1 + rng.normal(0, 0.03)),
-                         float(rng.uniform(0.6, 1.0))))
+            box = (x + rng.normal(0, noise), y + rng.normal(0, noise),
+                   w * (1 + rng.normal(0, 0.03)), h * (1 + rng.normal(0, 0.03)))
+            if errors is not None:   # same centre, correlated offsets and size ratios
+                ex, ey, ew, eh = errors.sample(o.id, dt)
+                bw, bh = w * max(1.0 + ew, 0.2), h * max(1.0 + eh, 0.2)
+                cx, cy = x + w / 2 + ex * h, y + h / 2 + ey * h
+                box = (cx - bw / 2, cy - bh / 2, bw, bh)
+            dets.append((*box, float(rng.uniform(0.6, 1.0))))
         for _ in range(rng.poisson(false_positives)):
             h = float(rng.uniform(0.15, 0.3)) * height
             dets.append((float(rng.uniform(0, width - 0.4 * h)), float(rng.uniform(0, height - h)),
@@ -336,15 +376,27 @@ def scene_frames(scene, seed, min_visible, miss, false_positives, noise,
 
 
 def crowd_frames(n_people, seed, n_frames, min_visible, miss, false_positives, noise,
-                 gt_min_visible: float = GT_MIN_VISIBLE, motion: dict | None = None):
+                 gt_min_visible: float = GT_MIN_VISIBLE, motion: dict | None = None,
+                 box_error: dict | None = None):
     return scene_frames(crowd_scene(n_people, seed=seed, frames=n_frames, motion=motion), seed,
-                        min_visible, miss, false_positives, noise, gt_min_visible)
+                        min_visible, miss, false_positives, noise, gt_min_visible, box_error)
 
 
 def far_frames(seed, min_visible, miss, false_positives, noise,
-               gt_min_visible: float = GT_MIN_VISIBLE, motion: dict | None = None):
+               gt_min_visible: float = GT_MIN_VISIBLE, motion: dict | None = None,
+               box_error: dict | None = None):
     return scene_frames(far_view_scene(seed=seed, motion=motion), seed, min_visible, miss,
-                        false_positives, noise, gt_min_visible)
+                        false_positives, noise, gt_min_visible, box_error)
+
+
+def detection_noise(args) -> str:
+    """The generated detections' box error, in words (report header)."""
+    if not getattr(args, "real_detection_noise", False):
+        return f"{args.noise:g} px noise"
+    return ("a box error like the TUD public detections' (`--real-detection-noise`: centre "
+            "sd {centre_std:g} box heights, width / height ratio sd {width_std:g} / "
+            "{height_std:g}, {correlated:.0%} of it correlated along a person over "
+            "{time_constant:g} s)").format(**REAL_DETECTION_NOISE)
 
 
 def motion_model(real_motion: bool) -> str:
@@ -938,7 +990,7 @@ def markdown(rows, command, args, loso=None, checks=None) -> str:
              f"pillars; `far_view_scene(seed={args.seed})`, 640x480, 7 fps, 140 frames, people "
              "18-38 px wide entering and leaving at the edges, one pillar) "
              f"use ground-truth boxes of people at least {args.min_visible:.0%} visible, with "
-             f"{args.noise:g} px noise, {args.miss:.0%} misses and {args.false_positives:g} "
+             f"{detection_noise(args)}, {args.miss:.0%} misses and {args.false_positives:g} "
              "false positives per frame on average; their ground truth "
              f"{gt_convention(args.gt_min_visible)}; "
              f"{motion_model(getattr(args, 'real_motion', False))}.  Scores: motmetrics, IoU >= 0.5; HOTA: "
@@ -1061,6 +1113,10 @@ def main(argv=None) -> int:
                         help="generated people vary heading and speed around their course "
                              "(REAL_MOTION, matched to the TUD clips by diagnose_motion.py) "
                              "instead of walking piecewise-straight at constant speed")
+    parser.add_argument("--real-detection-noise", action="store_true",
+                        help="generated detections err like the TUD clips' public ones "
+                             "(REAL_DETECTION_NOISE: per-person correlated offsets and "
+                             "sizes) instead of --noise px i.i.d. and 3%% size")
     parser.add_argument("--miss", type=float, default=0.1)
     parser.add_argument("--false-positives", type=float, default=0.3)
     parser.add_argument("--noise", type=float, default=2.0)
@@ -1085,6 +1141,7 @@ def main(argv=None) -> int:
         GRID[name] = tuple(_value(v) for v in values.split(","))
     args.results.mkdir(parents=True, exist_ok=True)
     motion = REAL_MOTION if args.real_motion else None
+    box_error = REAL_DETECTION_NOISE if args.real_detection_noise else None
     sequences: dict = {}
     for name in ("TUD-Campus", "TUD-Stadtmitte"):
         folder = args.data / "mot" / name
@@ -1095,10 +1152,10 @@ def main(argv=None) -> int:
     for n in args.people:
         sequences[f"crowd-{n}"] = crowd_frames(n, args.seed, args.frames, args.min_visible,
                                                args.miss, args.false_positives, args.noise,
-                                               args.gt_min_visible, motion)
+                                               args.gt_min_visible, motion, box_error)
     sequences["far-7fps"] = far_frames(args.seed, args.min_visible, args.miss,
                                        args.false_positives, args.noise, args.gt_min_visible,
-                                       motion)
+                                       motion, box_error)
     rows = []
     for name, (frames, fps) in sequences.items():
         rows += run_sequence(name, frames, fps, args.results)

@@ -170,10 +170,12 @@ def generated_tracks(scene) -> tuple[dict, float]:
     return tracks_from_frames(frames), float(c.fps)
 
 
-def generated_detection_errors(scene, noise: float, seed: int) -> dict:
-    """The bench's detection noise (bench_multi_object.scene_frames) on a scene's boxes."""
+def generated_detection_errors(scene, noise: float, seed: int,
+                               box_error: dict | None = None) -> dict:
+    """The bench's detection noise (bench_multi_object.scene_frames: ``noise`` px i.i.d.,
+    or ``box_error``) on a scene's boxes."""
     import bench_multi_object as bench
-    frames, _ = bench.scene_frames(scene, seed, 0.5, 0.0, 0.0, noise)
+    frames, _ = bench.scene_frames(scene, seed, 0.5, 0.0, 0.0, noise, box_error=box_error)
     truth = [{row.id: row.box for row in gt} for _, _, _, gt in frames]
     dets = [d for _, _, d, _ in frames]
     return detection_errors(truth, dets)
@@ -239,6 +241,9 @@ def main(argv=None) -> int:
     name, scene = next(iter(scenes.items()))
     errors.append(error_row(f"{name} (bench, {args.noise:g} px)",
                             generated_detection_errors(scene, args.noise, args.seed)))
+    errors.append(error_row(f"{name} (bench, --real-detection-noise)",
+                            generated_detection_errors(scene, args.noise, args.seed,
+                                                       bench.REAL_DETECTION_NOISE)))
     text = "\n".join([f"Motion (generator motion {motion}; velocity over "
                       f"{args.window:g} s):", ""] + lines + ["", "Detection error:", ""] + errors) + "\n"
     print(text)
