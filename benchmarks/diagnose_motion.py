@@ -107,7 +107,8 @@ def detection_errors(truth_per_frame, dets_per_frame, min_iou: float = 0.5) -> d
     ``dx``, ``dy``: centre offset over the true height; ``dw``, ``dh``: width and height
     ratio minus 1; ``autocorr``: ``{1: r1, 5: r5}``, the correlation of the centre offset
     of the same person ``lag`` frames apart (both frames matched), the mean of x's and
-    y's."""
+    y's; ``miss_runs``: lengths in frames of every run of frames in which a person of the
+    truth has no matched detection; ``truth_boxes``: their number."""
     per_id: dict = {}
     dx, dy, dw, dh = [], [], [], []
     for k, (truth, dets) in enumerate(zip(truth_per_frame, dets_per_frame)):
@@ -145,8 +146,26 @@ def detection_errors(truth_per_frame, dets_per_frame, min_iou: float = 0.5) -> d
         a_, b_ = np.asarray(a).reshape(-1, 2), np.asarray(b).reshape(-1, 2)
         auto[lag] = float(np.mean([np.corrcoef(a_[:, j], b_[:, j])[0, 1] for j in (0, 1)])) \
             if len(a) > 2 else float("nan")
+    present: dict = {}
+    for k, truth in enumerate(truth_per_frame):
+        for i in truth:
+            present.setdefault(i, []).append(k)
+    runs = []   # lengths (frames) of runs of a present person without a matched detection
+    for i, ks in present.items():
+        hit = per_id.get(i, {})
+        run = 0
+        for k in ks:
+            if k in hit:
+                if run:
+                    runs.append(run)
+                run = 0
+            else:
+                run += 1
+        if run:
+            runs.append(run)
     return {"dx": np.asarray(dx), "dy": np.asarray(dy), "dw": np.asarray(dw),
-            "dh": np.asarray(dh), "autocorr": auto}
+            "dh": np.asarray(dh), "autocorr": auto, "miss_runs": np.asarray(runs, int),
+            "truth_boxes": sum(len(ks) for ks in present.values())}
 
 
 def real_clip(folder: Path):
@@ -171,11 +190,12 @@ def generated_tracks(scene) -> tuple[dict, float]:
 
 
 def generated_detection_errors(scene, noise: float, seed: int,
-                               box_error: dict | None = None) -> dict:
-    """The bench's detection noise (bench_multi_object.scene_frames: ``noise`` px i.i.d.,
-    or ``box_error``) on a scene's boxes."""
+                               box_error: dict | None = None, miss: float = 0.1) -> dict:
+    """The bench's detections (bench_multi_object.scene_frames: people at least half
+    visible, ``miss`` of them missed, ``noise`` px i.i.d. or ``box_error``) against the
+    scene's ground truth (every person in the frame)."""
     import bench_multi_object as bench
-    frames, _ = bench.scene_frames(scene, seed, 0.5, 0.0, 0.0, noise, box_error=box_error)
+    frames, _ = bench.scene_frames(scene, seed, 0.5, miss, 0.0, noise, box_error=box_error)
     truth = [{row.id: row.box for row in gt} for _, _, _, gt in frames]
     dets = [d for _, _, d, _ in frames]
     return detection_errors(truth, dets)
@@ -192,11 +212,14 @@ def motion_row(name: str, stats: dict) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
-def error_row(name: str, e: dict) -> str:
+def error_row(name: str, e: dict, fps: float) -> str:
     def sd(v):
         return f"{np.std(v):.3f}" if len(v) else "-"
+    runs = e["miss_runs"]
+    long = int(runs[runs >= 0.5 * fps].sum()) / max(e["truth_boxes"], 1)
     return (f"| {name} | {len(e['dx'])} | {sd(e['dx'])} | {sd(e['dy'])} | {sd(e['dw'])} | "
-            f"{sd(e['dh'])} | {e['autocorr'][1]:.2f} | {e['autocorr'][5]:.2f} |")
+            f"{sd(e['dh'])} | {e['autocorr'][1]:.2f} | {e['autocorr'][5]:.2f} | "
+            f"{runs.sum() / max(e['truth_boxes'], 1):.3f} | {long:.3f} |")
 
 
 def main(argv=None) -> int:
@@ -223,7 +246,8 @@ def main(argv=None) -> int:
              + " | ".join(f"CV drift {t:g} s (median) | (p90)" for t in HORIZONS) + " |",
              "|" + "---|" * (4 + 2 * len(HORIZONS))]
     errors = ["| sequence | matched | centre x sd (H) | centre y sd (H) | width ratio sd | "
-              "height ratio sd | autocorr lag 1 | lag 5 |", "|---|---|---|---|---|---|---|---|"]
+              "height ratio sd | autocorr lag 1 | lag 5 | truth unmatched | in runs >= 0.5 s |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for name in ("TUD-Campus", "TUD-Stadtmitte"):
         folder = args.data / "mot" / name
         if not folder.is_dir():
@@ -231,7 +255,7 @@ def main(argv=None) -> int:
             continue
         tracks, fps, truth, dets = real_clip(folder)
         lines.append(motion_row(name, motion_statistics(tracks, fps, window=args.window)))
-        errors.append(error_row(name + " (public)", detection_errors(truth, dets)))
+        errors.append(error_row(name + " (public)", detection_errors(truth, dets), fps))
     scenes = {f"crowd-15 (seed {args.seed})": crowd_scene(15, seed=args.seed,
                                                           frames=args.frames, motion=motion),
               f"far-7fps (seed {args.seed})": far_view_scene(seed=args.seed, motion=motion)}
@@ -239,11 +263,12 @@ def main(argv=None) -> int:
         tracks, fps = generated_tracks(scene)
         lines.append(motion_row(name, motion_statistics(tracks, fps, window=args.window)))
     name, scene = next(iter(scenes.items()))
+    fps = float(scene.config.fps)
     errors.append(error_row(f"{name} (bench, {args.noise:g} px)",
-                            generated_detection_errors(scene, args.noise, args.seed)))
+                            generated_detection_errors(scene, args.noise, args.seed), fps))
     errors.append(error_row(f"{name} (bench, --real-detection-noise)",
                             generated_detection_errors(scene, args.noise, args.seed,
-                                                       bench.REAL_DETECTION_NOISE)))
+                                                       bench.REAL_DETECTION_NOISE), fps))
     text = "\n".join([f"Motion (generator motion {motion}; velocity over "
                       f"{args.window:g} s):", ""] + lines + ["", "Detection error:", ""] + errors) + "\n"
     print(text)
