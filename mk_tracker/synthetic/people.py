@@ -106,10 +106,10 @@ def _simulate_path(p: PersonSpec, frames: int, turn_rate: float,
         xs.append(x)
         ys.append(y)
         if done and cont and offsets is not None:   # walking on, varying: keep stepping
-            ox, oy = offsets[t]
-            step = speed * max(1.0 + oy, 0.0) if t >= p.start_frame else 0.0
-            x += step * math.cos(heading + ox)
-            y += step * math.sin(heading + ox)
+            turn, rel = offsets[t]
+            step = speed * max(1.0 + rel, 0.0) if t >= p.start_frame else 0.0
+            x += step * math.cos(heading + turn)
+            y += step * math.sin(heading + turn)
             t += 1
             continue
         if done:   # stopped for good, or walking straight on: the rest is closed-form
