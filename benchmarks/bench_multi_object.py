@@ -10,7 +10,11 @@ All trackers run in the same process on the same detections:
   (:func:`mk_tracker.synthetic.presets.far_view_scene`: 7 fps, people 18-38 px wide entering
   and leaving at the edges); detections come from the ground truth: people at least
   ``--min-visible`` visible, box noise, ``--miss`` misses and on average
-  ``--false-positives`` false positives per frame, all seeded.
+  ``--false-positives`` false positives per frame, all seeded.  ``--real-motion`` (the
+  protocol's development data since 2026-11-27) lets the generated people's heading and
+  speed vary like the TUD people's (:data:`REAL_MOTION`), ``--real-detection-noise`` gives
+  the generated detections the public detections' correlated box error
+  (:data:`REAL_DETECTION_NOISE`); both matched by ``benchmarks/diagnose_motion.py``.
 
 **Leave-one-sequence-out** (the primary figures): every setting of a small grid of our
 association/lifecycle parameters (:data:`GRID`) is scored on every development sequence
