@@ -82,6 +82,8 @@ def main(argv=None) -> int:
                         default=bench.GT_MIN_VISIBLE, metavar="V",
                         help="ground-truth convention of the generated sequences, as "
                              "bench_multi_object.py's option")
+    parser.add_argument("--real-motion", action="store_true",
+                        help="generated sequences as bench_multi_object.py --real-motion")
     parser.add_argument("--out", type=Path, default=None, help="JSON of every score")
     parser.add_argument("--views", nargs="*", default=[], metavar="NAME=V1,V2;NAME=V",
                         help="also report the protocol on these sub-grids (settings whose "
@@ -96,7 +98,8 @@ def main(argv=None) -> int:
         name, _, values = item.partition("=")
         grid[name] = tuple(setting_value(v) for v in values.split(","))
     settings = bench.grid_settings(grid)
-    sequences = _sequences(args.data, args.gt_min_visible)
+    sequences = _sequences(args.data, args.gt_min_visible,
+                           bench.REAL_MOTION if args.real_motion else None)
 
     runs: dict = {}
     memo: dict = {}
@@ -141,13 +144,16 @@ def main(argv=None) -> int:
     return 0
 
 
-def _sequences(data: Path, gt_min_visible: float = bench.GT_MIN_VISIBLE) -> dict:
-    """The development sequences, as bench_multi_object builds them (``--people 15``)."""
+def _sequences(data: Path, gt_min_visible: float = bench.GT_MIN_VISIBLE,
+               motion: dict | None = None) -> dict:
+    """The development sequences, as bench_multi_object builds them (``--people 15``;
+    ``motion``: its ``--real-motion``)."""
     sequences = {}
     for name in ("TUD-Campus", "TUD-Stadtmitte"):
         sequences[name] = bench.tud_frames(data / "mot" / name)
-    sequences["crowd-15"] = bench.crowd_frames(15, 1, 300, 0.5, 0.1, 0.3, 2.0, gt_min_visible)
-    sequences["far-7fps"] = bench.far_frames(1, 0.5, 0.1, 0.3, 2.0, gt_min_visible)
+    sequences["crowd-15"] = bench.crowd_frames(15, 1, 300, 0.5, 0.1, 0.3, 2.0, gt_min_visible,
+                                               motion)
+    sequences["far-7fps"] = bench.far_frames(1, 0.5, 0.1, 0.3, 2.0, gt_min_visible, motion)
     return sequences
 
 

@@ -267,7 +267,10 @@ def main(argv=None) -> int:
     parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data")
     parser.add_argument("--sequences", nargs="+", default=["TUD-Campus", "TUD-Stadtmitte"])
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--real-motion", action="store_true",
+                        help="generated sequences as bench_multi_object.py --real-motion")
     args = parser.parse_args(argv)
+    motion = bmo.REAL_MOTION if args.real_motion else None
     changes = setting_changes(args.set)
     config = updated(MultiObjectTrackerConfig(), changes)
     print(f"# Our errors by cause, next to the peers'\n\nsetting: defaults"
@@ -283,9 +286,9 @@ def main(argv=None) -> int:
                 raise SystemExit(f"{name}: expected CLIP or CLIP/STEP+OFFSET ({exc})") from None
         elif name.startswith("crowd-"):
             frames, fps = bmo.crowd_frames(int(name.split("-")[1]), 1, 300, 0.5, 0.1, 0.3,
-                                           2.0)
+                                           2.0, motion=motion)
         else:
-            frames, fps = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0)
+            frames, fps = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0, motion=motion)
         print("\n".join(report(name, frames, config, fps)), flush=True)
     return 0
 

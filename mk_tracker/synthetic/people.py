@@ -4,6 +4,12 @@
   speed, its heading turning by at most ``SceneConfig.turn_rate_deg`` per frame; between
   turns this is the noise-free constant-velocity model (2.1)-(2.2) of Schizas, Maroulas &
   Ren (2018), "kept constant for a certain number of frames and then changed" (Sec. 2).
+  Optionally (``PersonSpec.motion_heading_std`` / ``motion_speed_std`` > 0, off by
+  default) the walking direction and speed vary around the waypoint course as real people
+  do: an Ornstein-Uhlenbeck offset of the heading (rad) and of the relative speed, each
+  with stationary std ``motion_*_std`` and correlation time ``motion_time_constant`` s
+  (:func:`ou_offsets`); the steering towards the waypoint still acts on the true
+  position, so the offsets bend the path without leaving the course.
 * **Appearance** (:func:`person_sprites`): a person is drawn once per walking phase at a
   reference size (head, textured upper and lower body, walking legs; BGR colours and a
   temperature per body part, K) and resized per frame; a ``block`` target (the paper's
@@ -24,7 +30,7 @@ import numpy as np
 from mk_tracker.synthetic.scene_config import PersonSpec
 
 __all__ = ["PERSON_ASPECT", "WALK_PHASES", "Sprite", "block_sprite", "distinct_colors",
-           "person_sprites", "resized", "simulate_paths"]
+           "ou_offsets", "person_sprites", "resized", "simulate_paths"]
 
 PERSON_ASPECT = 1.0 / 2.75  # width / height of a person's box (human ~1:2.5-3)
 _SPRITE_H = 176             # reference height of a person sprite; width = PERSON_ASPECT * it
@@ -37,21 +43,51 @@ WALK_PHASES = 4            # leg poses cycled while walking
 
 
 def simulate_paths(people: Sequence[PersonSpec], frames: int,
-                    turn_rate: float) -> np.ndarray:
+                    turn_rate: float, fps: float = 25.0, seed: int = 0) -> np.ndarray:
     """Foot points ``(frames, P, 2)`` of every target: constant velocity between waypoints,
     heading turning by at most ``turn_rate`` rad per frame; a target heads for the next
     waypoint once the current one is within its turning radius (smooth corners).
 
     Between turns this is the noise-free constant-velocity model (2.1)-(2.2) of Schizas et
-    al. (2018), "kept constant for a certain number of frames and then changed" (Sec. 2)."""
+    al. (2018), "kept constant for a certain number of frames and then changed" (Sec. 2).
+    A target with motion variation (``motion_heading_std`` or ``motion_speed_std`` > 0)
+    draws its offsets (:func:`ou_offsets`, time constant in seconds at ``fps``) from a
+    random stream of its own, ``[seed, k, 0x307]`` for target ``k``; a target without one
+    draws nothing, so it walks as before the variation existed."""
     out = np.zeros((frames, len(people), 2))
     for k, person in enumerate(people):
-        out[:, k] = _simulate_path(person, frames, turn_rate)
+        offsets = None
+        if person.motion_heading_std > 0 or person.motion_speed_std > 0:
+            rng = np.random.default_rng([int(seed), k, 0x307])
+            offsets = ou_offsets(rng, frames, fps, person.motion_time_constant,
+                                 (person.motion_heading_std, person.motion_speed_std))
+        out[:, k] = _simulate_path(person, frames, turn_rate, offsets)
     return out
 
 
-def _simulate_path(p: PersonSpec, frames: int, turn_rate: float) -> np.ndarray:
-    """``(frames, 2)`` foot points of one target (see :func:`simulate_paths`)."""
+def ou_offsets(rng: np.random.Generator, frames: int, fps: float, time_constant: float,
+               stds: Sequence[float]) -> np.ndarray:
+    """``(frames, len(stds))`` stationary Ornstein-Uhlenbeck processes sampled every frame.
+
+    Exact discretisation: ``x[t+1] = a x[t] + sqrt(1 - a^2) std e[t]``, ``a =
+    exp(-1 / (fps * time_constant))``, ``e`` standard normal, ``x[0] ~ N(0, std^2)``, so
+    every sample has std ``std`` and samples ``d`` s apart correlate by
+    ``exp(-d / time_constant)``."""
+    stds = np.asarray(stds, float)
+    a = math.exp(-1.0 / (float(fps) * float(time_constant)))
+    noise = rng.standard_normal((frames, len(stds)))
+    out = np.empty((frames, len(stds)))
+    out[0] = noise[0] * stds
+    kick = math.sqrt(max(1.0 - a * a, 0.0)) * stds
+    for t in range(1, frames):
+        out[t] = a * out[t - 1] + kick * noise[t]
+    return out
+
+
+def _simulate_path(p: PersonSpec, frames: int, turn_rate: float,
+                   offsets: np.ndarray | None = None) -> np.ndarray:
+    """``(frames, 2)`` foot points of one target (see :func:`simulate_paths`); ``offsets``
+    ``(frames, 2)``: heading offset (rad) and relative speed offset of every frame."""
     wps = [(float(x), float(y)) for x, y in p.waypoints]
     out = np.empty((frames, 2))
     x, y = wps[0]
@@ -69,6 +105,13 @@ def _simulate_path(p: PersonSpec, frames: int, turn_rate: float) -> np.ndarray:
     while t < frames:
         xs.append(x)
         ys.append(y)
+        if done and cont and offsets is not None:   # walking on, varying: keep stepping
+            turn, rel = offsets[t]
+            step = speed * max(1.0 + rel, 0.0) if t >= p.start_frame else 0.0
+            x += step * math.cos(heading + turn)
+            y += step * math.sin(heading + turn)
+            t += 1
+            continue
         if done:   # stopped for good, or walking straight on: the rest is closed-form
             if cont:
                 steps = np.clip(np.arange(t, frames) - max(t, p.start_frame), 0, None)
@@ -94,8 +137,15 @@ def _simulate_path(p: PersonSpec, frames: int, turn_rate: float) -> np.ndarray:
                 delta = min(max(delta, -turn_rate), turn_rate)  # it (never circle it)
             heading += delta
             move = min(speed, dist) if (last and not cont) else speed
-            x += move * math.cos(heading)
-            y += move * math.sin(heading)
+            turn = 0.0
+            if offsets is not None:   # vary around the course (never on the final stop)
+                turn, rel = offsets[t]
+                if not (last and not cont and dist <= radius):
+                    move *= max(1.0 + rel, 0.0)
+                else:
+                    turn = 0.0
+            x += move * math.cos(heading + turn)
+            y += move * math.sin(heading + turn)
         done = finish
         t += 1
     out[:len(xs), 0] = xs

@@ -26,6 +26,19 @@ __all__ = ["paper_scene", "occlusion_scene", "crossing_scene", "approach_scene",
            "CROSS_MODAL_HOMOGRAPHY", "PRESETS"]
 
 
+def _motion_fields(motion) -> dict:
+    """The PersonSpec motion-variation fields of a preset's ``motion`` argument: ``None``
+    (off) or a mapping with ``heading_std`` (rad), ``speed_std`` and ``time_constant`` (s);
+    see :class:`~mk_tracker.synthetic.scene_config.PersonSpec`."""
+    if motion is None:
+        return {}
+    keys = {"heading_std", "speed_std", "time_constant"}
+    if not isinstance(motion, dict) or not set(motion) <= keys:
+        raise SceneError("motion must be None or a dict with keys among heading_std, "
+                         f"speed_std and time_constant, got {motion!r}")
+    return {f"motion_{k}": float(v) for k, v in motion.items()}
+
+
 def _check_preset_args(seed, frames=None, **sizes) -> None:
     """Reject a bad seed, frame count or size before a preset computes anything with it."""
     values = {"seed": (seed, 0)}
@@ -151,7 +164,8 @@ def approach_scene(seed: int = 0, frames: int = 120) -> SyntheticScene:
 
 def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int = 480,
                 frames: int = 300, occluders: int = 2, perspective: float = 0.6,
-                thermal_encoding: str = "mono8", stop_fraction: float = 0.0) -> SyntheticScene:
+                thermal_encoding: str = "mono8", stop_fraction: float = 0.0,
+                motion: dict | None = None) -> SyntheticScene:
     """``n_people`` people wandering with random turns, crossings and ``occluders`` pillars.
 
     Each person starts at a random point of the floor (lower 70% of the image) and walks at
@@ -166,6 +180,11 @@ def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int 
     draws from a random stream of its own, so at the default 0 the scene is the same as
     before the argument existed, and a stopper's waypoints are the first ones of the walk it
     has at 0.
+
+    ``motion`` (default ``None``: piecewise-straight walks at constant speed) gives every
+    person the motion variation ``{"heading_std": rad, "speed_std": relative,
+    "time_constant": s}`` (PersonSpec ``motion_*``); the same waypoints, so the same people
+    walk the same course with varying heading and speed.
     """
     _check_preset_args(seed, frames, width=width, height=height)
     for name, value in (("n_people", n_people), ("occluders", occluders)):
@@ -174,6 +193,7 @@ def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int 
     if not (isinstance(stop_fraction, (int, float)) and not isinstance(stop_fraction, bool)
             and 0.0 <= stop_fraction <= 1.0):
         raise SceneError(f"stop_fraction must be in [0, 1], got {stop_fraction!r}")
+    varied = _motion_fields(motion)
     rng = np.random.default_rng([seed, 0xC20D])
     stops = np.random.default_rng([seed, 0x5709])
     x0, x1 = 0.06 * width, 0.94 * width
@@ -203,7 +223,8 @@ def crowd_scene(n_people: int = 5, seed: int = 0, width: int = 640, height: int 
             wps = wps[:max(int(np.searchsorted(along, walk, side="right")) - 1, 1) + 1]
         people.append(PersonSpec(waypoints=tuple(map(tuple, wps.tolist())),
                                  speed=round(speed, 3), height=0.3 * height,
-                                 torso_temperature=float(rng.uniform(301.5, 304.0))))
+                                 torso_temperature=float(rng.uniform(301.5, 304.0)),
+                                 **varied))
     occ = []
     for k in range(int(occluders)):
         ow, oh = 0.06 * width, 0.42 * height
@@ -254,7 +275,7 @@ def enter_leave_scene(seed: int = 0, frames: int = 150) -> SyntheticScene:
 def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
                    fps: float = 7.0, stop_fraction: float = 0.0, shadows: float = 0.0,
                    illumination_drift: float = 0.0, heights: tuple = (50.0, 105.0),
-                   perspective: float = 0.0) -> SyntheticScene:
+                   perspective: float = 0.0, motion: dict | None = None) -> SyntheticScene:
     """A far view at a low frame rate: small people crossing from edge to edge (640x480).
 
     The condition of issue #16's unseen outdoor clips: ``fps`` 7, people 50-105 px tall
@@ -269,7 +290,8 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
     ``rgb_illumination_drift``; ``heights`` the range of the people's heights at the
     reference row (80% of the image height), ``perspective`` the scene's (sizes
     proportional to the row of the feet).  At their defaults the scene is the same as
-    before they existed: the stops draw from a random stream of their own.
+    before they existed: the stops draw from a random stream of their own.  ``motion``:
+    the people's motion variation, as in :func:`crowd_scene` (default ``None``, straight).
     """
     _check_preset_args(seed, frames)
     if isinstance(n_people, bool) or not isinstance(n_people, (int, np.integer)) \
@@ -279,6 +301,7 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
         raise SceneError(f"fps must be a positive number, got {fps!r}")
     if not (isinstance(stop_fraction, (int, float)) and 0.0 <= stop_fraction <= 1.0):
         raise SceneError(f"stop_fraction must be in [0, 1], got {stop_fraction!r}")
+    varied = _motion_fields(motion)
     rng = np.random.default_rng([seed, 0xFA7])
     stops = np.random.default_rng([seed, 0x5709])
     width, height = 640, 480
@@ -306,14 +329,15 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
                 waypoints=((xs[0] - lag, y_start), end),
                 speed=round(speed, 3), height=round(h * (1.0 + 0.05 * g), 2),
                 start_frame=start, after_last="continue" if stop_at is None else "stop",
-                torso_temperature=float(rng.uniform(301.5, 304.0))))
+                torso_temperature=float(rng.uniform(301.5, 304.0)), **varied))
     ow, oh = 0.05 * width, 0.35 * height
     cx = float(rng.uniform(0.3, 0.7)) * width
     bottom = float(rng.uniform(0.65, 0.8)) * height
     occ = (OccluderSpec(box=(cx - ow / 2, bottom - oh, ow, oh),
                         color=tuple(int(v) for v in rng.integers(40, 120, 3))),)
     cfg = SceneConfig(seed=seed, frames=frames, fps=float(fps), width=width, height=height,
-                      perspective=float(perspective), turn_rate_deg=20.0,
+                      perspective=float(perspective),
+                      turn_rate_deg=20.0,
                       people=tuple(people),
                       occluders=occ, rgb_shadow_strength=float(shadows),
                       rgb_illumination_drift=float(illumination_drift))

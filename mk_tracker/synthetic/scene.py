@@ -147,7 +147,8 @@ class SyntheticScene:
         self._identity = bool(np.array_equal(self.homography, np.eye(3)))
         self._resize_cache: dict = {}
         static = np.random.default_rng([c.seed, 0x5CE1E])
-        self._paths = simulate_paths(c.people, c.frames, math.radians(c.turn_rate_deg))
+        self._paths = simulate_paths(c.people, c.frames, math.radians(c.turn_rate_deg),
+                                     fps=c.fps, seed=c.seed)
         steps = np.diff(self._paths, axis=0, prepend=self._paths[:1])
         self._walked = np.cumsum(np.hypot(steps[..., 0], steps[..., 1]), axis=0)
         # appearance of every target

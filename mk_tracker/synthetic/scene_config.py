@@ -53,6 +53,14 @@ class PersonSpec:
     ``kind="block"`` draws a ``block_size`` rectangle whose thermal pixels take random
     integer values in ``block_range`` each frame (the objects of the paper's synthetic test).
     Colours are BGR; an empty tuple means "pick a distinct colour from the scene seed".
+
+    Motion variation (off at the defaults 0): the walking direction deviates from the
+    waypoint course by an Ornstein-Uhlenbeck heading offset of stationary std
+    ``motion_heading_std`` rad and the speed by a relative offset of std
+    ``motion_speed_std`` (the speed is ``speed * max(1 + offset, 0)``), both with
+    correlation time ``motion_time_constant`` s (people.py :func:`ou_offsets`).  Useful
+    ranges: heading 0-0.5 rad, speed 0-0.5, time constant 0.3-5 s; the values matched to
+    the TUD clips are ``bench_multi_object.REAL_MOTION`` (docs/synthetic_scenes.md).
     """
 
     waypoints: tuple = parameter(((0.0, 0.0),), "foot points (x, y) in thermal px, start first")
@@ -69,6 +77,13 @@ class PersonSpec:
                                          "legs -2.5 K)", minimum=0.0)
     block_size: tuple = parameter((10.0, 10.0), "(w, h) of a block in thermal px")
     block_range: tuple = parameter((240.0, 255.0), "thermal value range of a block's pixels, K")
+    motion_heading_std: float = parameter(0.0, "std of the OU heading offset from the "
+                                          "waypoint course, rad (0 = straight)",
+                                          minimum=0.0, maximum=math.pi)
+    motion_speed_std: float = parameter(0.0, "std of the OU relative speed offset "
+                                        "(0 = constant speed)", minimum=0.0, maximum=5.0)
+    motion_time_constant: float = parameter(1.0, "correlation time of the OU offsets, s",
+                                            minimum=1e-3, maximum=1e4)
 
 
 @dataclass(frozen=True)
