@@ -14,7 +14,10 @@ came close are two objects while they pass.  In a full-frame pass, an object who
 newest-frame footprint box holds the Kalman predictions (4.2) of two or more *seeds* is
 split: K-means (3.12) of its footprint pixels' coordinates started at those predictions
 (centroids fitted on a stride sample, every pixel to its nearest centroid), one candidate
-per cluster; the candidates are then matched to the filters as any others
+per cluster.  The object is kept whole when a cluster ends nearer another seed than its
+own: two filters predicted at one place (one object) leave a cluster empty, K-means
+refills it elsewhere and would cut the object into bands (without this check BU-TIV-lab
+had tracks taller than the frame).  The candidates are then matched to the filters as any others
 (Hungarian matching on predicted-centroid distance), so each seed keeps its id.
 
 A seed is an object found in the newest frame (no missed frame) that was found as an object
@@ -31,9 +34,9 @@ prediction without the K-means refinement.  A group is made only where the full 
 single object for it.
 
 Measured (docs/benchmark_groups.md, "Previous objects kept apart"): off by default.  Held
-out it raises 640x480 with 8 people (MOTA 0.159 -> 0.217) but lowers both 15-people cells
-(mean over 8 and 15 people 0.027 -> 0.036), and on BU-TIV-lab's constant-gain control it
-gives 8.4 ids on average against 7.75; it cannot split people never seen apart.
+out it raises MOTA / IDF1 over 8 and 15 people from 0.027 / 0.303 to 0.043 / 0.317, but
+on BU-TIV-lab it gives 8 ids against 7 (constant-gain control 8.0 against 7.75); it
+cannot split people never seen apart.
 """
 
 from __future__ import annotations
@@ -106,7 +109,9 @@ class KeepApart:
         or more ``seeds``, else None (keep it whole).
 
         The footprint's pixel coordinates are clustered by K-means (3.12) started at the
-        seeds inside the box; clusters smaller than ``min_object_pixels`` are left out."""
+        seeds inside the box; clusters smaller than ``min_object_pixels`` are left out.  The
+        object is kept whole when a cluster ends nearer another seed than its own, or when
+        fewer than two parts are left."""
         inside = seeds_inside(cand.box, seeds)
         if inside.size < 2:
             return None
@@ -122,7 +127,13 @@ class KeepApart:
         if points.shape[0] < 2 * self.config.min_object_pixels:
             return None
         sample = points[::max(1, points.shape[0] // _SAMPLE)]
-        centroids, _ = kmeans(sample, init=seeds[inside])
+        start = seeds[inside]
+        centroids, _ = kmeans(sample, init=start)
+        # each cluster must stay the one nearest its own seed: seeds in one place (two
+        # filters on one object) would otherwise cut it where K-means refills the empty one
+        own = np.argmin(_sq_dists(start, centroids), axis=1)
+        if centroids.shape[0] != start.shape[0] or np.unique(own).size != own.size:
+            return None
         labels = np.argmin(_sq_dists(points, centroids), axis=1)
         levels = _footprint_levels(frame, result.support, fp)
         parts = []

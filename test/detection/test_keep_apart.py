@@ -106,3 +106,40 @@ def test_out_of_range_settings_are_refused(value):
     with pytest.raises(ParameterError):
         ThermalDetector(ThermalDetectorConfig(
             keep_apart=KeepApartConfig(enabled=True, min_full_passes=value)))
+
+
+def _pair_footprint():
+    """A 20x40 px footprint of two touching 10 px wide people at columns 20-29 and 30-39,
+    rows 10-49, in an 80x60 frame; its candidate box holds both people's centres."""
+    frame = np.full((60, 80), 40.0, np.float32)
+    frame[10:50, 20:40] = 200.0
+    mask = np.zeros((60, 80), bool)
+    mask[10:50, 20:40] = True
+    support = np.zeros((60, 80), bool)
+    support[10:50, 20:22] = True
+    from types import SimpleNamespace
+    from mk_tracker.detection.footprint_split import _Candidate
+    cand = _Candidate((30.0, 30.0), (20.0, 10.0, 20.0, 40.0), 1.0, 800)
+    return frame, SimpleNamespace(support=support), ((0, 0), mask), cand
+
+
+def test_the_footprint_goes_to_the_nearest_seed():
+    det = ThermalDetector(ThermalDetectorConfig(keep_apart=KeepApartConfig(enabled=True)))
+    frame, result, fp, cand = _pair_footprint()
+    seeds = np.array([[24.0, 30.0], [36.0, 30.0], [70.0, 30.0]])   # the third is outside
+    parts = det._apart_parts(frame, result, np.zeros(0, int), np.zeros(0, int),
+                             (0, 60, 0, 80), cand, fp, seeds)
+    assert parts is not None and len(parts) == 2
+    boxes = sorted(p.box for p in parts)
+    assert boxes == [(20.0, 10.0, 10.0, 40.0), (30.0, 10.0, 10.0, 40.0)]
+    assert sum(p.pixel_count for p in parts) == 800
+
+
+def test_one_seed_or_seeds_in_one_place_leave_the_object_whole():
+    det = ThermalDetector(ThermalDetectorConfig(keep_apart=KeepApartConfig(enabled=True)))
+    frame, result, fp, cand = _pair_footprint()
+    args = (frame, result, np.zeros(0, int), np.zeros(0, int), (0, 60, 0, 80), cand, fp)
+    assert det._apart_parts(*args, np.array([[24.0, 30.0]])) is None
+    assert det._apart_parts(*args, np.zeros((0, 2))) is None
+    # two filters predicted at one point (K-means leaves the second cluster empty)
+    assert det._apart_parts(*args, np.array([[30.0, 30.0], [30.0, 30.0]])) is None
