@@ -37,6 +37,7 @@ import numpy as np
 from mk_tracker.tracking.association import assign
 from mk_tracker.detection.pixel_clustering import load_valley_split
 from mk_tracker.synthetic.presets import crowd_scene, paper_scene, static_warm_objects_scene
+from mk_tracker.detection.keep_apart import KeepApartConfig
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 from mk_tracker.detection.threshold_detector import ThresholdDetector, ThresholdDetectorConfig
 
@@ -159,6 +160,8 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs" /
                                              "benchmark_thermal_detector.md"))
+    parser.add_argument("--keep-apart", action="store_true",
+                        help="add a row with detector.keep_apart.enabled to the crowd scenes")
     args = parser.parse_args(argv)
 
     load_before = os.getloadavg()
@@ -177,6 +180,7 @@ def main(argv=None) -> int:
     crowd = {"merge_distance_sq": 1000.0, "link_gap": 0, "merge_by_footprint": False}
     no_refine = {"current_frame_refinement": False}
     valleys = {"split_by_valleys": True}
+    apart = {"keep_apart": KeepApartConfig(enabled=True)}
     cases = [("paper Sec. 6, 100x100, 3 blocks", lambda: paper_scene(args.seed),
               [{}, no_refine, valleys])]
     for (w, h) in ((320, 240), (640, 512)):
@@ -185,7 +189,8 @@ def main(argv=None) -> int:
             cases.append((f"crowd {w}x{h}, {n} people",
                           lambda w=w, h=h, n=n: crowd_scene(n, seed=args.seed, width=w, height=h,
                                                             frames=args.frames),
-                          [{}, valleys, dict(crowd, merge_distance_sq=1000.0 * scale)]))
+                          [{}, valleys, dict(crowd, merge_distance_sq=1000.0 * scale)]
+                          + ([apart] if args.keep_apart else [])))
     cases.append(("static warm objects + cooler person, 640x480",
                   lambda: static_warm_objects_scene(args.seed), [{}, valleys]))
     loads = [load_before[0]]
@@ -200,6 +205,8 @@ def main(argv=None) -> int:
                 label = "kernel, swept support (no newest-frame footprint)"
             elif overrides is valleys:
                 label = VALLEYS
+            elif overrides is apart:
+                label = "kernel + keep_apart"
             else:
                 label = "kernel, crowd preset eps_d={:.0f}".format(overrides["merge_distance_sq"])
             detectors.append((label, ThermalDetector(dataclasses.replace(

@@ -84,6 +84,14 @@ Where the paper is silent, and what we add (each switchable):
   (3.12) with more clusters; in tracking passes it keeps the part nearest its prediction
   or is dropped (:mod:`mk_tracker.detection.object_extent`).  Off by default
   (docs/benchmark_thermal_gain.md).
+* **Previous objects kept apart** (``keep_apart.enabled``).  In a full-frame pass an
+  object whose footprint box holds the Kalman predictions (4.2) of two or more objects
+  followed on their own (found alone at ``keep_apart.min_full_passes`` full passes and in
+  the newest frame) is split by K-means (3.12) of its footprint pixels started at those
+  predictions: people who were two objects before the link rule joined them stay two, with
+  no size prior.  Tracking passes already give each pixel to the nearest prediction
+  (below).  Off by default (:mod:`mk_tracker.detection.keep_apart`,
+  docs/benchmark_groups.md).
 * **Stacked parts joined** (``body_extent.join_stacked``).  A person reported as an upper
   and a lower box (two objects of one full pass, each keeping its Voronoi cell) is
   reported as one box; the objects themselves are unchanged
@@ -156,6 +164,7 @@ from mk_tracker.detection.gain_compensation import (GAIN_MODELS, IntensityMap,
                                                     fit_intensity_map)
 from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate,
                                                  _footprint_levels)
+from mk_tracker.detection.keep_apart import KeepApart
 from mk_tracker.detection.object_extent import ObjectExtent
 from mk_tracker.detection.person_size import PersonHeightModel
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
@@ -199,6 +208,7 @@ class _Track:
     stamp: float
     missed: int = 0
     size: tuple[float, float] = (math.inf, math.inf)   # box size at its last full pass
+    passes: int = 0      # full passes that found it as an object of its own (keep_apart)
 
 
 def _overlap(a: tuple, b: tuple) -> bool:
@@ -208,7 +218,8 @@ def _overlap(a: tuple, b: tuple) -> bool:
             and min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]) > 0)
 
 
-class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExtent):
+class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExtent,
+                      KeepApart):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
@@ -436,6 +447,8 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         bounds = (0, frame.shape[0], 0, frame.shape[1])
         rows, cols = np.nonzero(result.support)
         candidates: list[_Candidate] = []
+        parts: set[int] = set()       # ids of the candidates made by keep_apart
+        made: list[_Candidate] = []    # ... and the candidates, so that no id is reused
         if rows.size:
             _, labels = cluster_support_pixels(np.column_stack([cols, rows]),
                                                max_objects=c.max_objects,
@@ -453,6 +466,8 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
             if c.current_frame_refinement and c.merge_by_footprint and len(groups) > 1:
                 groups, footprints = self._merge_by_footprint(frame, result.support, rows,
                                                               cols, groups, bounds)
+            apart = c.current_frame_refinement and c.keep_apart.enabled and not crowd
+            seeds = self._seed_points() if apart else None
             for g, fp in zip(groups, footprints):
                 if c.current_frame_refinement and c.split_by_valleys:
                     candidates.extend(self._valley_candidates(frame, result, rows[g], cols[g],
@@ -463,7 +478,14 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
                                                             bounds, fp))
                     continue
                 cand = self._candidate(frame, result, rows[g], cols[g], bounds, footprint=fp)
-                if cand is not None and c.extent.bound and self._oversized(cand.box):
+                split = None if cand is None or not apart else self._apart_parts(
+                    frame, result, rows[g], cols[g], bounds, cand, fp, seeds)
+                if split is not None:
+                    # objects followed apart that the link rule / footprint merge joined
+                    candidates.extend(split)
+                    parts.update(id(p) for p in split)
+                    made.extend(split)
+                elif cand is not None and c.extent.bound and self._oversized(cand.box):
                     # a group made one object (link rule): K-means with more clusters
                     candidates.extend(self._resplit(frame, result, rows[g], cols[g], bounds))
                 elif cand is not None:
@@ -472,7 +494,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
                 candidates = [cand for cand in candidates if not self._oversized(cand.box)]
             if c.current_frame_refinement and c.drop_background_footprints and candidates:
                 candidates = self._without_background(frame, result.support, candidates)
-        return self._reassociate(candidates)
+        return self._reassociate(candidates, parts)
 
     def _without_background(self, frame: np.ndarray, support: np.ndarray,
                             candidates: list[_Candidate]) -> list[_Candidate]:
@@ -566,9 +588,11 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         return _Candidate(now.centroid, now.box, score, now.pixel_count,
                           *_footprint_levels(frame, result.support, fp))
 
-    def _reassociate(self, candidates: list[_Candidate]) -> list[ThermalDetection]:
+    def _reassociate(self, candidates: list[_Candidate], parts: set[int] = frozenset()
+                     ) -> list[ThermalDetection]:
         """Full pass: keep the filters of objects found again, start new ones, and let the
-        others go after ``max_missed`` frames."""
+        others go after ``max_missed`` frames.  A candidate whose ``id`` is in ``parts``
+        was made by ``keep_apart`` and does not count as a pass of its own."""
         stamp = self._last_stamp
         old = self._tracks
         predicted = []
@@ -597,10 +621,12 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
                 tr.kf.update(cand.centroid)
                 tr.box, tr.stamp, tr.missed = cand.box, stamp, 0
                 tr.size = cand.box[2:]
+                tr.passes += id(cand) not in parts
             else:
                 tr = _Track(self._next_id,
                             ConstantVelocityKalman.from_config(cand.centroid, self.config.kalman),
-                            cand.box, stamp, size=cand.box[2:])
+                            cand.box, stamp, size=cand.box[2:],
+                            passes=int(id(cand) not in parts))
                 self._next_id += 1
             new_tracks.append(tr)
             detections.append(self._detection(tr, cand))

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from mk_tracker.detection.body_extent import BodyExtentConfig
 from mk_tracker.detection.gain_compensation import GainConfig
+from mk_tracker.detection.keep_apart import KeepApartConfig
 from mk_tracker.detection.object_extent import ObjectExtentConfig
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
@@ -189,3 +190,6 @@ class ThermalDetectorConfig:
     extent: ObjectExtentConfig = parameter(
         ObjectExtentConfig(), "bound on an object's width: groups re-split or not carried "
         "(mk_tracker.detection.object_extent)")
+    keep_apart: KeepApartConfig = parameter(
+        KeepApartConfig(), "objects followed apart before they met are kept apart at "
+        "full-frame passes (mk_tracker.detection.keep_apart)")
