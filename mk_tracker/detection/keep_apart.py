@@ -47,14 +47,12 @@ from typing import Any
 import numpy as np
 
 from mk_tracker.detection.footprint_split import _Candidate, _footprint_levels
-from mk_tracker.detection.pixel_clustering import _sq_dists, describe_pixels, kmeans
+from mk_tracker.detection.pixel_clustering import (_sq_dists, describe_pixels, kmeans,
+                                                   stride_sample)
 from mk_tracker.parameters import parameter
 
 __all__ = ["KeepApart", "KeepApartConfig", "seeds_inside"]
 
-#: K-means centroids are fitted on at most this many footprint pixels (a stride sample), as
-#: :func:`mk_tracker.detection.pixel_clustering.cluster_support_pixels` does
-_SAMPLE = 1000
 
 
 @dataclass(frozen=True)
@@ -126,7 +124,7 @@ class KeepApart:
         points = np.column_stack([fc + x0 + 0.5, fr + y0 + 0.5]).astype(np.float64)
         if points.shape[0] < 2 * self.config.min_object_pixels:
             return None
-        sample = points[::max(1, points.shape[0] // _SAMPLE)]
+        sample = stride_sample(points)
         start = seeds[inside]
         centroids, _ = kmeans(sample, init=start)
         # each cluster must stay the one nearest its own seed: seeds in one place (two

@@ -53,14 +53,12 @@ import numpy as np
 
 from mk_tracker.detection.footprint import _owned_support, _VoronoiCell
 from mk_tracker.detection.footprint_split import _Candidate, _footprint_levels
-from mk_tracker.detection.pixel_clustering import _sq_dists, describe_pixels, kmeans
+from mk_tracker.detection.pixel_clustering import (_sq_dists, describe_pixels, kmeans,
+                                                   stride_sample)
 from mk_tracker.parameters import parameter
 
 __all__ = ["ObjectExtent", "ObjectExtentConfig", "oversized_width"]
 
-#: K-means centroids are fitted on at most this many footprint pixels (a stride sample), as
-#: :func:`mk_tracker.detection.pixel_clustering.cluster_support_pixels` does
-_SAMPLE = 1000
 
 
 @dataclass(frozen=True)
@@ -170,7 +168,7 @@ class ObjectExtent:
             return []
         levels = _footprint_levels(frame, support, fp)
         points = fc.astype(np.float64)[:, None]
-        sample = points[::max(1, points.shape[0] // _SAMPLE)]
+        sample = stride_sample(points)
         parts: list[Any] = []
         for z in range(2, c.extent.max_parts + 1):
             if z > np.unique(sample).size:

@@ -84,6 +84,19 @@ def closest_pair(centroids: np.ndarray) -> tuple[int, int, float]:
     return i, j, float(d[i, j])
 
 
+#: the K-means of the object-level splits (:mod:`~mk_tracker.detection.keep_apart`,
+#: :mod:`~mk_tracker.detection.object_extent`) fit their centroids on about this many
+#: footprint pixels
+SPLIT_FIT_POINTS = 1000
+
+
+def stride_sample(points: np.ndarray, max_points: int = SPLIT_FIT_POINTS) -> np.ndarray:
+    """Every ``n // max_points``-th row of ``points`` (all of them when ``n <= 2 *
+    max_points - 1``): a deterministic sample of between ``max_points`` and ``2 *
+    max_points - 1`` rows to fit centroids on, before every pixel takes its nearest one."""
+    return points[::max(1, points.shape[0] // max_points)]
+
+
 def cluster_support_pixels(coords: np.ndarray, *, max_objects: int, merge_distance_sq: float,
                            seed: int = 0, max_points: int = 1000
                            ) -> tuple[np.ndarray, np.ndarray]:
