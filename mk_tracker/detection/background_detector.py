@@ -40,6 +40,14 @@ This module turns the foreground mask into one box per person:
 7. **Trimming.**  Columns at a box's sides holding less than ``column_trim`` of its fullest
    column's foreground (a stride's leg, a swinging arm) are cut off the box.
 
+8. **Frame rate** (``counts_fps``).  The model's constants are counts of frames; with
+   ``counts_fps`` > 0 they are durations in seconds instead (``history / counts_fps``
+   seconds, ...), converted to frames at the frame rate measured from the stamps (the median
+   of the last :data:`RATE_WINDOW` stamp differences): at 6.25 fps a history of 500 frames
+   counted at 25 fps is 125 frames, the same 20 s, and the start-up lasts 0.4 s, not
+   1.6 s.  OpenCV's automatic rate ``1 / (2 n)`` in the first frames is already the same
+   per second at any frame rate; only its floor ``1 / history`` is per frame.
+
 People who stand still become background and are no longer detected: with OpenCV's
 background ratio (0.9) a still colour joins the background after about ``0.1 * history``
 frames at the automatic learning rate; the tracker keeps their tracks by coasting (its lifecycle), as for any missed
@@ -66,6 +74,8 @@ from mk_tracker.stamps import checked_stamp
 MODELS = ("mog2", "knn")
 SHADOW_METHODS = ("model", "ratio", "none")
 SHADOW_VALUE = 127
+#: Stamp differences over which ``counts_fps`` measures the frame rate (median).
+RATE_WINDOW = 25
 
 
 @dataclass(frozen=True)
@@ -151,6 +161,11 @@ class BackgroundDetectorConfig:
     size_memory: float = parameter(
         500.0, "Person-size samples remembered by the per-row height model (exponential "
         "forgetting)", minimum=1.0, maximum=1e6)
+    counts_fps: float = parameter(
+        0.0, "Frame rate at which history, bootstrap_frames, startup_frames and a fixed "
+        "learning_rate are counted: at another frame rate (measured from the stamps) they "
+        "are rescaled to the same durations in seconds (0 = per frame at any rate)",
+        minimum=0.0, maximum=1000.0)
 
 
 @dataclass(frozen=True)
@@ -182,6 +197,36 @@ class BackgroundDetector:
         self._mono16_map: tuple[float, float] | None = None
         self._buffer: list[np.ndarray] = []
         self._seeded = False
+        self._intervals: list[float] = []
+
+    # -- frame rate ----------------------------------------------------------------------
+    def frames_for(self, count: int) -> int:
+        """``count`` frames counted at ``counts_fps``, in frames at the measured frame rate
+        (the same duration in seconds); ``count`` itself with ``counts_fps`` 0 or before two
+        stamps gave a rate.  A positive count stays at least 1 frame."""
+        scale = self._rate_scale()
+        if scale is None or count <= 0:
+            return count
+        return max(1, int(np.floor(count * scale + 0.5)))
+
+    def _rate_scale(self) -> float | None:
+        """Measured frame rate / ``counts_fps`` (None: off or not measured yet)."""
+        if self.config.counts_fps <= 0.0 or not self._intervals:
+            return None
+        return 1.0 / (float(np.median(self._intervals)) * self.config.counts_fps)
+
+    def _learning_rate(self) -> float:
+        """``learning_rate`` per frame at the measured frame rate (the same forgetting per
+        second); -1 (OpenCV's automatic rate) as it is."""
+        rate, scale = self.config.learning_rate, self._rate_scale()
+        if rate <= 0.0 or scale is None:
+            return rate
+        return float(1.0 - (1.0 - rate) ** (1.0 / scale))
+
+    def _sync_history(self) -> None:
+        history = self.frames_for(self.config.history)
+        if self._model is not None and self._model.getHistory() != history:
+            self._model.setHistory(max(2, history))
 
     # -- model ---------------------------------------------------------------------------
     def _new_model(self) -> Any:
@@ -201,6 +246,7 @@ class BackgroundDetector:
     def reset(self) -> None:
         """Forget the background (the person-size model is kept: the camera is the same)."""
         self._model = self._new_model()
+        self._sync_history()
         self._since_restart = 0
         self._mono16_map = None
         self._buffer = []
@@ -231,10 +277,10 @@ class BackgroundDetector:
         self._since_restart += 1
         if not self._seeded:
             self._buffer.append(small)
-            if len(self._buffer) < self.config.bootstrap_frames:
+            if len(self._buffer) < self.frames_for(self.config.bootstrap_frames):
                 return None
             self._seed()
-        return self._model.apply(small, learningRate=self.config.learning_rate)
+        return self._model.apply(small, learningRate=self._learning_rate())
 
     def _foreground(self, small: np.ndarray, raw: np.ndarray) -> np.ndarray:
         """Foreground mask (0/1) without shadows and highlights."""
@@ -288,6 +334,9 @@ class BackgroundDetector:
         elif self._last_stamp is not None and t < self._last_stamp:
             self.last_event = "time went backwards: background model restarted"
             self.reset()
+        elif self._last_stamp is not None and self.config.counts_fps > 0.0:
+            self._intervals = (self._intervals + [t - self._last_stamp])[-RATE_WINDOW:]
+            self._sync_history()
         self._shape = image.shape
         self._last_stamp = t
         height, width = image.shape[:2]
@@ -300,7 +349,8 @@ class BackgroundDetector:
             self.last_mode = "startup"
             return []
         moving = float(np.count_nonzero(raw == 255)) / raw.size
-        if self._since_restart > self.config.startup_frames and \
+        startup = self.frames_for(self.config.startup_frames)
+        if self._since_restart > startup and \
                 moving > self.config.max_foreground_fraction:
             self.global_changes += 1
             self.last_event = (f"{100 * moving:.0f} % of the frame changed at once: "
@@ -313,7 +363,7 @@ class BackgroundDetector:
                 self._since_restart = 1
             self.last_mode = "global_change"
             return []
-        if self._since_restart <= self.config.startup_frames:
+        if self._since_restart <= startup:
             self.last_mode = "startup"
             return []
         mask = self._foreground(small, raw)
