@@ -39,14 +39,14 @@ This module turns the foreground mask into one box per person:
    tightened to its own foreground rows.
 7. **Trimming.**  Columns at a box's sides holding less than ``column_trim`` of its fullest
    column's foreground (a stride's leg, a swinging arm) are cut off the box.
-
 8. **Start-up in seconds** (``counts_fps``).  ``bootstrap_frames`` and ``startup_frames``
    are counted at ``counts_fps`` frames per second and converted to the same durations at
-   the frame rate measured from the stamps (the median of the last :data:`RATE_WINDOW`
-   stamp differences): at 6.25 fps the start-up lasts 3 frames (0.4 s), not 10 (1.6 s,
-   most of a short clip).  ``history`` and ``learning_rate`` stay per frame: converting
-   them too lost on the generated 7-fps scene (walkers who stop became background sooner)
-   and did not help the real 6.25-fps checks (docs/benchmark_background_detector.md).
+   the frame rate measured from the stamps (the median of the last ``rate_window`` stamp
+   differences, at most ``max_frame_rate``): at 6.25 fps the start-up lasts 3 frames
+   (0.4 s), not 10 (1.6 s, most of a short clip).  ``history`` and ``learning_rate`` stay
+   per frame: converting them too lost on the generated 7-fps scene (walkers who stop
+   became background sooner) and did not help the real 6.25-fps checks
+   (docs/benchmark_background_detector.md).
 
 People who stand still become background and are no longer detected: with OpenCV's
 background ratio (0.9) a still colour joins the background after about ``0.1 * history``
@@ -74,8 +74,6 @@ from mk_tracker.stamps import checked_stamp
 MODELS = ("mog2", "knn")
 SHADOW_METHODS = ("model", "ratio", "none")
 SHADOW_VALUE = 127
-#: Stamp differences over which ``counts_fps`` measures the frame rate (median).
-RATE_WINDOW = 25
 
 
 @dataclass(frozen=True)
@@ -165,6 +163,12 @@ class BackgroundDetectorConfig:
         25.0, "Frame rate at which bootstrap_frames and startup_frames are counted: at "
         "another frame rate (measured from the stamps) they are converted to the same "
         "durations in seconds (0 = frames at any rate)", minimum=0.0, maximum=1000.0)
+    rate_window: int = parameter(25, "Stamp differences whose median is the measured frame "
+                                 "rate (counts_fps)", minimum=1, maximum=10_000)
+    max_frame_rate: float = parameter(
+        1000.0, "Highest frame rate taken from the stamps for counts_fps (stamps closer than "
+        "this are broken, not a faster camera: the start-up stays bounded)", minimum=1.0,
+        maximum=1e6)
 
 
 @dataclass(frozen=True)
@@ -212,7 +216,9 @@ class BackgroundDetector:
         """Measured frame rate / ``counts_fps`` (None: off or not measured yet)."""
         if self.config.counts_fps <= 0.0 or not self._intervals:
             return None
-        return 1.0 / (float(np.median(self._intervals)) * self.config.counts_fps)
+        c = self.config
+        rate = 1.0 / max(float(np.median(self._intervals)), 1.0 / c.max_frame_rate)
+        return rate / c.counts_fps
 
     # -- model ---------------------------------------------------------------------------
     def _new_model(self) -> Any:
@@ -320,7 +326,8 @@ class BackgroundDetector:
             self.last_event = "time went backwards: background model restarted"
             self.reset()
         elif self._last_stamp is not None and self.config.counts_fps > 0.0:
-            self._intervals = (self._intervals + [t - self._last_stamp])[-RATE_WINDOW:]
+            self._intervals = (self._intervals
+                               + [t - self._last_stamp])[-self.config.rate_window:]
         self._shape = image.shape
         self._last_stamp = t
         height, width = image.shape[:2]

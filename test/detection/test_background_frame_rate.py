@@ -63,3 +63,12 @@ def test_a_stamp_gap_does_not_break_the_detector():
     for k, t in enumerate(stamps):
         det.process(with_person(20 + 10 * k), t, encoding="bgr8")
     assert det.last_mode == "tracking"
+
+
+def test_stamps_too_close_for_a_camera_keep_the_start_up_bounded():
+    # stamps a microsecond apart (a broken clock) would make the 10 start-up frames counted
+    # at 25 fps 400 000 frames; the rate is capped at max_frame_rate (100 fps: 40 frames)
+    det = BackgroundDetector(config(counts_fps=25.0, startup_frames=10, max_frame_rate=100.0))
+    for k in range(60):
+        det.process(with_person(20 + 3 * k), k * 1e-6, encoding="bgr8")
+    assert det.last_mode == "tracking"
