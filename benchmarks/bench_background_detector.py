@@ -3,7 +3,7 @@ with every default of the detector chosen by leave-one-sequence-out, and the aut
 RGB-only system (background detector -> this tracker) against this tracker on the
 sequences' public detections.
 
-    .venv/bin/python benchmarks/bench_background_detector.py --out docs/benchmark_background_detector.md
+    .venv/bin/python benchmarks/bench_background_detector.py --low-fps-checks --out docs/benchmark_background_detector.md
 
 Sequences: TUD-Campus and TUD-Stadtmitte (../shared/data/mot, static cameras, 25 fps,
 people present from the first frame), a generated crowd scene (640x480, 3 people,
@@ -17,7 +17,9 @@ reported.  Each grid setting (:data:`GRID`) runs on every sequence; for each hel
 sequence the setting with the best mean F1 over the *other* sequences is reported on it
 (the primary figures).  Time is the detector's CPU time per 640x480 frame (median over the
 frames, thread time).  Peers: plain OpenCV MOG2 connected components (issue #13's recipe)
-as a detector, and SORT and norfair fed by it and by our detector.
+as a detector, and SORT and norfair fed by it and by our detector.  With
+``--low-fps-checks``: the real 6.25-fps checks (every 4th frame of the TUD clips, offsets
+0-3), each with the setting chosen by the fold that held out its source clip.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from mk_tracker.bags.dataset_import import import_sequence  # noqa: E402
-from mk_tracker.bags.datasets import read_sequence  # noqa: E402
+from mk_tracker.bags.datasets import read_sequence, subsampled  # noqa: E402
 from mk_tracker.boxes import iou_matrix  # noqa: E402
 from mk_tracker.detection.background_detector import (BackgroundDetector,  # noqa: E402
                                                       BackgroundDetectorConfig)
@@ -67,7 +69,14 @@ GRID: dict[str, tuple] = {
     "min_height_ratio": (0.0, 0.5, 0.8),
     "split_ratio": (1.3, 1.6),
     "column_trim": (0.0, 0.2),
+    "counts_fps": (0.0, 25.0),
 }
+#: Real low-frame-rate CHECKS (``--low-fps-checks``), not folds: every ``LOW_FPS_STEP``-th
+#: frame of the TUD clips (25 fps -> 6.25 fps, 4x the motion per frame), each offset a run
+#: (:func:`mk_tracker.bags.datasets.subsampled`).  They show the people of the 25-fps folds,
+#: so each is reported with the setting chosen by the fold that held out its source clip.
+LOW_FPS_STEP = 4
+LOW_FPS_SOURCES = ("TUD-Campus", "TUD-Stadtmitte")
 #: The detector as first built for issue #13 (no bootstrap, no size filter): a reference.
 BEFORE = {"bootstrap_frames": 0, "min_height_ratio": 0.0, "split_ratio": 1.6,
           "join_gap": 0.3, "column_trim": 0.0, "shadow_method": "model",
@@ -164,6 +173,28 @@ def load_sequences(tmp: Path) -> list[tuple]:
     return sequences
 
 
+def load_low_fps_checks(tmp: Path, offsets=tuple(range(LOW_FPS_STEP))) -> list[tuple]:
+    """The real 6.25-fps checks as :func:`load_sequences` tuples, the last item the source
+    clip's name: every :data:`LOW_FPS_STEP`-th frame of each TUD clip from each offset, its
+    bag written with stamps ``k / 6.25`` s."""
+    checks = []
+    for source in LOW_FPS_SOURCES:
+        if not (DATA / source).is_dir():
+            print(f"{DATA / source} is absent: its low-frame-rate checks skipped",
+                  file=sys.stderr)
+            continue
+        full = read_sequence(DATA / source)
+        for offset in offsets:
+            seq = subsampled(full, LOW_FPS_STEP, offset)
+            name = f"{source} {seq.frame_rate:g} fps +{offset}"
+            bag = tmp / f"{source}-low{offset}"
+            import_sequence(seq, bag)
+            frames = [seq.image(k) for k in range(len(seq))]
+            truth = [list(seq.ground_truth[k].values()) for k in range(len(seq))]
+            checks.append((name, bag, frames, truth, seq.frame_rate, source))
+    return checks
+
+
 def peer_detection_scores(frames, truth) -> dict:
     """Recall / precision / F1 / CPU ms of the plain MOG2 peer, matched as ours."""
     peer = Mog2Components()
@@ -188,6 +219,85 @@ def peer_tracking_scores(frames, fps: float, gt_file: Path, detector, trackers) 
     return out
 
 
+def chain_rows(name: str, bag: Path, frames, fps: float, public: bool, held: dict,
+               tmp: Path) -> list[tuple[str, dict]]:
+    """Tracking scores of the RGB-only chain on one sequence: our detector (the setting
+    ``held`` and the shipped defaults) -> this tracker, the public detections -> this
+    tracker (``public``), and plain MOG2 / our detector -> SORT and norfair."""
+    rows = [("background, setting held out -> ours",
+             tracking_scores(bag, tmp / f"{name}-held", "background", held)),
+            ("background, shipped defaults -> ours",
+             tracking_scores(bag, tmp / f"{name}-bg", "background"))]
+    if public:
+        rows.append(("public detections -> ours",
+                     tracking_scores(bag, tmp / f"{name}-pub", "topic:/detections")))
+    ours, plain = BackgroundDetector(BackgroundDetectorConfig()), Mog2Components()
+
+    def background_boxes(k, img):
+        return [(*d.box, d.score) for d in ours.process(img, k / fps, encoding="bgr8")]
+    peers = {"SORT": SortTracker, "norfair": NorfairPeer}
+    gt_file = tmp / f"{name}-bg" / "gt.txt"
+    for det_name, det in (("plain MOG2 components", lambda _k, img: plain.detect(img)),
+                          ("background, shipped defaults", background_boxes)):
+        for trk_name, s in peer_tracking_scores(frames, fps, gt_file, det, peers).items():
+            rows.append((f"{det_name} -> {trk_name}", s))
+    return rows
+
+
+def low_fps_lines(checks: list[tuple], held: dict, tmp: Path) -> list[str]:
+    """The section of the real 6.25-fps checks (:func:`load_low_fps_checks`): detector
+    recall / precision and the chain's MOTA / IDF1 per check, each with the setting chosen
+    by the fold that held out its source clip (``held``: source -> setting), the shipped
+    defaults and the plain-MOG2 peers; then the means over the offsets per source."""
+    if not checks:
+        return []
+    lines = ["", "## Real video at 6.25 fps (checks, not folds)", "",
+             f"Every {LOW_FPS_STEP}th frame of " + " and ".join(LOW_FPS_SOURCES)
+             + " (25 fps -> 6.25 fps, 4x the motion per frame; each offset 0-3 a separate "
+             "run, stamps k / 6.25 s; `mk_tracker.bags.datasets.subsampled`).  They show the "
+             "people of the 25-fps folds, so each is reported with the setting chosen by the "
+             "fold that held out its source clip (`held out`).  Run with `--low-fps-checks`.",
+             "", "| check | detector | recall | precision | F1 | CPU ms / frame |",
+             "|---|---|---|---|---|---|"]
+    det_rows, chain = [], []
+    for name, bag, frames, truth, fps, source in checks:
+        for what, s in (
+                ("background, setting held out",
+                 detection_scores(frames, truth, fps,
+                                  BackgroundDetectorConfig(**held[source]))),
+                ("background, shipped defaults",
+                 detection_scores(frames, truth, fps, BackgroundDetectorConfig())),
+                ("plain MOG2 components", peer_detection_scores(frames, truth))):
+            det_rows.append((source, what, s))
+            lines.append(f"| {name} | {what} | {s['recall']:.3f} | {s['precision']:.3f} | "
+                         f"{s['f1']:.3f} | {s['ms']:.1f} |")
+            print(lines[-1], file=sys.stderr, flush=True)
+        for what, s in chain_rows(name.replace(" ", "_"), bag, frames, fps, True,
+                                  held[source], tmp):
+            chain.append((source, what, s))
+    lines += ["", "| check | detections -> tracker | MOTA | IDF1 | recall | precision |",
+              "|---|---|---|---|---|---|"]
+    k = 0
+    for name, *_rest in checks:
+        n = len(chain) // len(checks)
+        for _source, what, s in chain[k:k + n]:
+            lines.append(f"| {name} | {what} | {s['mota']:.3f} | {s['idf1']:.3f} | "
+                         f"{s['recall']:.3f} | {s['precision']:.3f} |")
+        k += n
+    lines += ["", "Mean over the offsets (detector recall / precision; chain MOTA / IDF1):",
+              "", "| what | " + " | ".join(LOW_FPS_SOURCES) + " |",
+              "|---|" + "---|" * len(LOW_FPS_SOURCES)]
+    for rows, keys in ((det_rows, ("recall", "precision")), (chain, ("mota", "idf1"))):
+        for what in dict.fromkeys(w for _s, w, _v in rows):
+            cells = []
+            for source in LOW_FPS_SOURCES:
+                vals = [v for s, w, v in rows if s == source and w == what]
+                cells.append("-" if not vals else " / ".join(
+                    f"{np.mean([v[key] for v in vals]):.3f}" for key in keys))
+            lines.append(f"| {what} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def _short(setting: dict) -> str:
     return ", ".join(f"{k}={v}" for k, v in setting.items())
 
@@ -195,6 +305,9 @@ def _short(setting: dict) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--low-fps-checks", action="store_true",
+                        help="also the real 6.25-fps checks (every 4th frame of the TUD "
+                        "clips, offsets 0-3)")
     args = parser.parse_args(argv)
     grid = settings()
     lines = []
@@ -205,8 +318,12 @@ def main(argv=None) -> int:
         scores = {}                       # (setting index, sequence) -> detection scores
         for i, setting in enumerate(grid):
             cfg = BackgroundDetectorConfig(**setting)
+            # at the frame rate it counts at, counts_fps changes nothing (the same boxes:
+            # test_background_frame_rate.py): its twin's scores are taken
+            twin = grid.index({**setting, "counts_fps": 0.0})
             for name, _bag, frames, truth, fps, _pub in sequences:
-                scores[i, name] = detection_scores(frames, truth, fps, cfg)
+                scores[i, name] = (scores[twin, name] if twin < i and setting["counts_fps"] == fps
+                                   else detection_scores(frames, truth, fps, cfg))
             print(i, _short(setting), " | ".join(
                 f"{n}: R {scores[i, n]['recall']:.3f} P {scores[i, n]['precision']:.3f}"
                 for n in names), file=sys.stderr, flush=True)
@@ -267,37 +384,22 @@ def main(argv=None) -> int:
         lines += ["", "## Tracking: background detector -> this tracker", "",
                   "| sequence | detections -> tracker | MOTA | IDF1 | recall | precision |",
                   "|---|---|---|---|---|---|"]
-        for name, bag, _frames, _truth, _fps, public in sequences:
-            rows = [("background, setting held out -> ours",
-                     tracking_scores(bag, tmp / f"{name}-held", "background",
-                                     grid[choices[name]])),
-                    ("background, shipped defaults -> ours",
-                     tracking_scores(bag, tmp / f"{name}-bg", "background"))]
-            if public:
-                rows.append(("public detections -> ours",
-                             tracking_scores(bag, tmp / f"{name}-pub", "topic:/detections")))
-            ours, plain = BackgroundDetector(BackgroundDetectorConfig()), Mog2Components()
-
-            def background_boxes(k, img):
-                return [(*d.box, d.score) for d in ours.process(img, k / _fps,
-                                                                encoding="bgr8")]
-            peers = {"SORT": SortTracker, "norfair": NorfairPeer}
-            gt_file = tmp / f"{name}-bg" / "gt.txt"
-            for det_name, det in (("plain MOG2 components", lambda _k, img: plain.detect(img)),
-                                  ("background, shipped defaults", background_boxes)):
-                for trk_name, s in peer_tracking_scores(_frames, _fps, gt_file, det,
-                                                        peers).items():
-                    rows.append((f"{det_name} -> {trk_name}", s))
-            for what, s in rows:
+        for name, bag, frames, _truth, fps, public in sequences:
+            for what, s in chain_rows(name, bag, frames, fps, public, grid[choices[name]], tmp):
                 lines.append(f"| {name} | {what} | {s['mota']:.3f} | {s['idf1']:.3f} | "
                              f"{s['recall']:.3f} | {s['precision']:.3f} |")
                 print(lines[-1], file=sys.stderr, flush=True)
+        if args.low_fps_checks:
+            checks = load_low_fps_checks(tmp)
+            lines += low_fps_lines(checks, {c[5]: grid[choices[c[5]]] for c in checks
+                                            if c[5] in choices}, tmp)
     table = "\n".join(lines)
     print(table)
     if args.out:
         args.out.write_text("# Background-subtraction detector (issue #13)\n\nProduced by:\n\n"
                             "```\n.venv/bin/python benchmarks/bench_background_detector.py "
-                            "--out docs/benchmark_background_detector.md\n```\n\n"
+                            + ("--low-fps-checks " if args.low_fps_checks else "")
+                            + "--out docs/benchmark_background_detector.md\n```\n\n"
                             + __doc__.split("\n\n", 2)[2] + "\n" + table + "\n")
     return 0
 

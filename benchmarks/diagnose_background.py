@@ -24,11 +24,13 @@ A person not matched is:
 * ``foreground, no box``: enough foreground, but every box was filtered out or went to
   someone else.
 
-Frame ranges: ``start-up`` = the first ``--early`` frames (25: 1 s at 25 fps), ``later`` =
-the rest.
+Frame ranges: ``start-up`` = the first ``--early`` frames (default: 1 s, 25 frames at
+25 fps), ``later`` = the rest.  ``--low-fps`` diagnoses the benchmark's real 6.25-fps checks
+instead (every 4th frame of the TUD clips, offsets 0-3, ``datasets.subsampled``).
 
     nice -n 10 .venv/bin/python benchmarks/diagnose_background.py
     nice -n 10 .venv/bin/python benchmarks/diagnose_background.py --set bootstrap_frames=0
+    nice -n 10 .venv/bin/python benchmarks/diagnose_background.py --low-fps --set counts_fps=25
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_background_detector import load_sequences, matches  # noqa: E402
+from bench_background_detector import (load_low_fps_checks, load_sequences,  # noqa: E402
+                                       matches)
 from mk_tracker.boxes import iou  # noqa: E402
 from mk_tracker.detection.background_detector import (BackgroundDetector,  # noqa: E402
                                                       BackgroundDetectorConfig)
@@ -113,8 +116,10 @@ def miss_cause(person, det, scale, false_boxes, group_boxes, fg_share) -> str:
 
 def diagnose(frames, truth, fps, config, early: int, fg_share: float):
     det = RecordingDetector(config)
-    first = [p for k in range(min(max(config.bootstrap_frames, 1), len(truth)))
-             for p in truth[k]]
+    bootstrap = max(config.bootstrap_frames, 1)
+    if config.counts_fps > 0:                  # the bootstrap frames at this frame rate
+        bootstrap = max(1, int(np.floor(bootstrap * fps / config.counts_fps + 0.5)))
+    first = [p for k in range(min(bootstrap, len(truth))) for p in truth[k]]
     false = {r: Counter() for r in ("start-up", "later")}
     missed = {r: Counter() for r in ("start-up", "later")}
     people = Counter()
@@ -146,14 +151,18 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="background.* settings changed from the defaults")
-    parser.add_argument("--early", type=int, default=25)
+    parser.add_argument("--early", type=int, default=None,
+                        help="start-up frames counted apart (default: 1 s of frames)")
+    parser.add_argument("--low-fps", action="store_true",
+                        help="the real 6.25-fps checks instead of the benchmark's sequences")
     parser.add_argument("--fg", type=float, default=0.15)
     parser.add_argument("--real-only", action="store_true")
     args = parser.parse_args(argv)
     changes = {k: yaml.safe_load(v) for k, v in (s.split("=", 1) for s in args.set)}
     config = BackgroundDetectorConfig(**changes)
     with tempfile.TemporaryDirectory() as tmp:
-        sequences = load_sequences(Path(tmp))
+        sequences = (load_low_fps_checks(Path(tmp)) if args.low_fps
+                     else load_sequences(Path(tmp)))
     print(f"settings: defaults {changes or ''}\n")
     print("| sequence | frames | people | false boxes: matched | " + " | ".join(FALSE)
           + " || misses: matched | " + " | ".join(MISSED) + " |")
@@ -161,9 +170,10 @@ def main(argv=None) -> int:
     for name, _bag, frames, truth, fps, real in sequences:
         if args.real_only and not real:
             continue
-        false, missed, people = diagnose(frames, truth, fps, config, args.early, args.fg)
+        early = args.early if args.early is not None else int(round(fps))
+        false, missed, people = diagnose(frames, truth, fps, config, early, args.fg)
         for span in ("start-up", "later"):
-            n = args.early if span == "start-up" else len(frames) - args.early
+            n = early if span == "start-up" else len(frames) - early
             print(f"| {name} | {span} ({n}) | {people[span]} | "
                   f"{false[span]['(matched)']} | {_row(false[span], FALSE)} || "
                   f"{missed[span]['(matched)']} | {_row(missed[span], MISSED)} |", flush=True)

@@ -39,6 +39,14 @@ This module turns the foreground mask into one box per person:
    tightened to its own foreground rows.
 7. **Trimming.**  Columns at a box's sides holding less than ``column_trim`` of its fullest
    column's foreground (a stride's leg, a swinging arm) are cut off the box.
+8. **Start-up in seconds** (``counts_fps``).  ``bootstrap_frames`` and ``startup_frames``
+   are counted at ``counts_fps`` frames per second and converted to the same durations at
+   the frame rate measured from the stamps (the median of the last ``rate_window`` stamp
+   differences, at most ``max_frame_rate``): at 6.25 fps the start-up lasts 3 frames
+   (0.4 s), not 10 (1.6 s, most of a short clip).  ``history`` and ``learning_rate`` stay
+   per frame: converting them too lost on the generated 7-fps scene (walkers who stop
+   became background sooner) and did not help the real 6.25-fps checks
+   (docs/benchmark_background_detector.md).
 
 People who stand still become background and are no longer detected: with OpenCV's
 background ratio (0.9) a still colour joins the background after about ``0.1 * history``
@@ -151,6 +159,16 @@ class BackgroundDetectorConfig:
     size_memory: float = parameter(
         500.0, "Person-size samples remembered by the per-row height model (exponential "
         "forgetting)", minimum=1.0, maximum=1e6)
+    counts_fps: float = parameter(
+        25.0, "Frame rate at which bootstrap_frames and startup_frames are counted: at "
+        "another frame rate (measured from the stamps) they are converted to the same "
+        "durations in seconds (0 = frames at any rate)", minimum=0.0, maximum=1000.0)
+    rate_window: int = parameter(25, "Stamp differences whose median is the measured frame "
+                                 "rate (counts_fps)", minimum=1, maximum=10_000)
+    max_frame_rate: float = parameter(
+        1000.0, "Highest frame rate taken from the stamps for counts_fps (stamps closer than "
+        "this are broken, not a faster camera: the start-up stays bounded)", minimum=1.0,
+        maximum=1e6)
 
 
 @dataclass(frozen=True)
@@ -182,6 +200,25 @@ class BackgroundDetector:
         self._mono16_map: tuple[float, float] | None = None
         self._buffer: list[np.ndarray] = []
         self._seeded = False
+        self._intervals: list[float] = []
+
+    # -- frame rate ----------------------------------------------------------------------
+    def frames_for(self, count: int) -> int:
+        """``count`` frames counted at ``counts_fps``, in frames at the measured frame rate
+        (the same duration in seconds); ``count`` itself with ``counts_fps`` 0 or before two
+        stamps gave a rate.  A positive count stays at least 1 frame."""
+        scale = self._rate_scale()
+        if scale is None or count <= 0:
+            return count
+        return max(1, int(np.floor(count * scale + 0.5)))
+
+    def _rate_scale(self) -> float | None:
+        """Measured frame rate / ``counts_fps`` (None: off or not measured yet)."""
+        if self.config.counts_fps <= 0.0 or not self._intervals:
+            return None
+        c = self.config
+        rate = 1.0 / max(float(np.median(self._intervals)), 1.0 / c.max_frame_rate)
+        return rate / c.counts_fps
 
     # -- model ---------------------------------------------------------------------------
     def _new_model(self) -> Any:
@@ -231,7 +268,7 @@ class BackgroundDetector:
         self._since_restart += 1
         if not self._seeded:
             self._buffer.append(small)
-            if len(self._buffer) < self.config.bootstrap_frames:
+            if len(self._buffer) < self.frames_for(self.config.bootstrap_frames):
                 return None
             self._seed()
         return self._model.apply(small, learningRate=self.config.learning_rate)
@@ -288,6 +325,9 @@ class BackgroundDetector:
         elif self._last_stamp is not None and t < self._last_stamp:
             self.last_event = "time went backwards: background model restarted"
             self.reset()
+        elif self._last_stamp is not None and self.config.counts_fps > 0.0:
+            self._intervals = (self._intervals
+                               + [t - self._last_stamp])[-self.config.rate_window:]
         self._shape = image.shape
         self._last_stamp = t
         height, width = image.shape[:2]
@@ -300,7 +340,8 @@ class BackgroundDetector:
             self.last_mode = "startup"
             return []
         moving = float(np.count_nonzero(raw == 255)) / raw.size
-        if self._since_restart > self.config.startup_frames and \
+        startup = self.frames_for(self.config.startup_frames)
+        if self._since_restart > startup and \
                 moving > self.config.max_foreground_fraction:
             self.global_changes += 1
             self.last_event = (f"{100 * moving:.0f} % of the frame changed at once: "
@@ -313,7 +354,7 @@ class BackgroundDetector:
                 self._since_restart = 1
             self.last_mode = "global_change"
             return []
-        if self._since_restart <= self.config.startup_frames:
+        if self._since_restart <= startup:
             self.last_mode = "startup"
             return []
         mask = self._foreground(small, raw)
