@@ -84,6 +84,9 @@ def main(argv=None) -> int:
                              "bench_multi_object.py's option")
     parser.add_argument("--real-motion", action="store_true",
                         help="generated sequences as bench_multi_object.py --real-motion")
+    parser.add_argument("--real-detection-noise", action="store_true",
+                        help="generated detections as bench_multi_object.py "
+                             "--real-detection-noise")
     parser.add_argument("--out", type=Path, default=None, help="JSON of every score")
     parser.add_argument("--views", nargs="*", default=[], metavar="NAME=V1,V2;NAME=V",
                         help="also report the protocol on these sub-grids (settings whose "
@@ -99,7 +102,8 @@ def main(argv=None) -> int:
         grid[name] = tuple(setting_value(v) for v in values.split(","))
     settings = bench.grid_settings(grid)
     sequences = _sequences(args.data, args.gt_min_visible,
-                           bench.REAL_MOTION if args.real_motion else None)
+                           bench.REAL_MOTION if args.real_motion else None,
+                           bench.REAL_DETECTION_NOISE if args.real_detection_noise else None)
 
     runs: dict = {}
     memo: dict = {}
@@ -145,15 +149,16 @@ def main(argv=None) -> int:
 
 
 def _sequences(data: Path, gt_min_visible: float = bench.GT_MIN_VISIBLE,
-               motion: dict | None = None) -> dict:
+               motion: dict | None = None, box_error: dict | None = None) -> dict:
     """The development sequences, as bench_multi_object builds them (``--people 15``;
-    ``motion``: its ``--real-motion``)."""
+    ``motion``: its ``--real-motion``; ``box_error``: its ``--real-detection-noise``)."""
     sequences = {}
     for name in ("TUD-Campus", "TUD-Stadtmitte"):
         sequences[name] = bench.tud_frames(data / "mot" / name)
     sequences["crowd-15"] = bench.crowd_frames(15, 1, 300, 0.5, 0.1, 0.3, 2.0, gt_min_visible,
-                                               motion)
-    sequences["far-7fps"] = bench.far_frames(1, 0.5, 0.1, 0.3, 2.0, gt_min_visible, motion)
+                                               motion, box_error)
+    sequences["far-7fps"] = bench.far_frames(1, 0.5, 0.1, 0.3, 2.0, gt_min_visible, motion,
+                                             box_error)
     return sequences
 
 

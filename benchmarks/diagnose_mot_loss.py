@@ -269,8 +269,12 @@ def main(argv=None) -> int:
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     parser.add_argument("--real-motion", action="store_true",
                         help="generated sequences as bench_multi_object.py --real-motion")
+    parser.add_argument("--real-detection-noise", action="store_true",
+                        help="generated detections as bench_multi_object.py "
+                             "--real-detection-noise")
     args = parser.parse_args(argv)
     motion = bmo.REAL_MOTION if args.real_motion else None
+    box_error = bmo.REAL_DETECTION_NOISE if args.real_detection_noise else None
     changes = setting_changes(args.set)
     config = updated(MultiObjectTrackerConfig(), changes)
     print(f"# Our errors by cause, next to the peers'\n\nsetting: defaults"
@@ -286,9 +290,10 @@ def main(argv=None) -> int:
                 raise SystemExit(f"{name}: expected CLIP or CLIP/STEP+OFFSET ({exc})") from None
         elif name.startswith("crowd-"):
             frames, fps = bmo.crowd_frames(int(name.split("-")[1]), 1, 300, 0.5, 0.1, 0.3,
-                                           2.0, motion=motion)
+                                           2.0, motion=motion, box_error=box_error)
         else:
-            frames, fps = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0, motion=motion)
+            frames, fps = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0, motion=motion,
+                                         box_error=box_error)
         print("\n".join(report(name, frames, config, fps)), flush=True)
     return 0
 
