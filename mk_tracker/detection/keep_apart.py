@@ -54,7 +54,6 @@ from mk_tracker.parameters import parameter
 __all__ = ["KeepApart", "KeepApartConfig", "seeds_inside"]
 
 
-
 @dataclass(frozen=True)
 class KeepApartConfig:
     """The constants of the rule (``detector.keep_apart.*``)."""

@@ -60,7 +60,6 @@ from mk_tracker.parameters import parameter
 __all__ = ["ObjectExtent", "ObjectExtentConfig", "oversized_width"]
 
 
-
 @dataclass(frozen=True)
 class ObjectExtentConfig:
     """The constants of the extent bound (``detector.extent.*``)."""
