@@ -285,7 +285,7 @@ class DetectorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of the ``detector_node`` console script."""
-    return run_node(DetectorNode, "detector_node", args)
+    return run_node(DetectorNode, "detector_node", args, end_process_after_interrupted_start=True)
 
 
 if __name__ == "__main__":

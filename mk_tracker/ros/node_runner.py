@@ -30,6 +30,7 @@ warm-up then checks the context when it returns, and a later ``create_*`` call's
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import time
@@ -185,14 +186,39 @@ def half_built_llvm_object(unraisable: Any) -> bool:
 
 
 def run_node(node_class: Callable[[], Node], name: str,
-             args: Sequence[str] | None = None) -> int:
+             args: Sequence[str] | None = None, *,
+             end_process_after_interrupted_start: bool = False) -> int:
     """Run one node until shutdown; returns the process exit status (0, or 1 when the node
-    cannot be constructed).  The process's signal handlers are restored at the end."""
+    cannot be constructed).  The process's signal handlers are restored at the end.
+
+    With ``end_process_after_interrupted_start`` (the nodes' console scripts) a process
+    whose start was interrupted ends here (:func:`end_process`) instead of returning."""
     guard = _StartGuard()
     try:
-        return _run(node_class, name, args, guard)
+        status = _run(node_class, name, args, guard)
     finally:
         guard.restore()
+    if end_process_after_interrupted_start and guard.interrupted:
+        end_process(status)
+    return status
+
+
+def end_process(status: int) -> None:
+    """End the process with ``status`` without Python's finalization (the streams are
+    flushed first; rclpy is already shut down).
+
+    A signal during numba's compile can cut an llvmlite / LLVM object's construction short.
+    Collecting such objects at the interpreter's end printed a teardown traceback once
+    (:func:`half_built_llvm_object`) and once crashed the process with SIGSEGV (exit status
+    -11 instead of 0, test/ros/test_nodes_interrupt.py in a fresh-clone CI run): the native
+    state under them is not consistent any more, so no finalizer of the process is safe to
+    run.  Nothing is left to save at this point: the node never started."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):   # a closed or broken stream: nothing to flush into
+            pass
+    os._exit(status)
 
 
 def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,

@@ -547,7 +547,7 @@ class TrackerNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of the ``tracker_node`` console script."""
-    return run_node(TrackerNode, "tracker_node", args)
+    return run_node(TrackerNode, "tracker_node", args, end_process_after_interrupted_start=True)
 
 
 if __name__ == "__main__":

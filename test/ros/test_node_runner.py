@@ -319,3 +319,56 @@ def test_the_guard_drops_only_that_teardown_error_and_only_after_an_interrupt():
         guard._previous_hook = __import__("sys").unraisablehook
         guard.interrupted = False
         guard.restore()
+
+
+_EXIT_SCRIPT = """
+import atexit, os, signal, sys, time
+from rclpy.node import Node
+from mk_tracker.parameters import ParameterError
+from mk_tracker.ros.node_runner import run_node
+
+atexit.register(lambda: print("finalized", flush=True))   # skipped by os._exit only
+MODE, END = sys.argv[1], sys.argv[2] == "end"
+
+
+class Starting(Node):
+    def __init__(self):
+        super().__init__("runner_exit_node")
+        if MODE == "bad parameter":
+            raise ParameterError("some.value: out of range")
+        os.kill(os.getpid(), signal.SIGINT)
+        end = time.monotonic() + 5.0         # a start that would go on (a compile)
+        while time.monotonic() < end:
+            sum(range(100))
+
+
+status = run_node(Starting, "runner_exit_node", [], end_process_after_interrupted_start=END)
+print("returned", status, flush=True)
+sys.exit(status)
+"""
+
+
+@pytest.mark.parametrize("mode,end,status,lines", [
+    ("interrupted", "end", 0, []),
+    ("interrupted", "return", 0, ["returned 0", "finalized"]),
+    ("bad parameter", "end", 1, ["returned 1", "finalized"]),
+], ids=["interrupted-ends-at-once", "interrupted-returns", "not-interrupted-returns"])
+def test_a_node_process_whose_start_was_interrupted_skips_the_finalizers(tmp_path, mode, end,
+                                                                       status, lines):
+    """The console scripts end a process whose start was interrupted without Python's
+    finalization (a half-built llvmlite object's teardown once crashed it: SIGSEGV); the
+    "interrupted" line is still written, and a start that was not interrupted returns
+    and finalizes as usual."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "node.py"
+    script.write_text(_EXIT_SCRIPT)
+    done = subprocess.run([sys.executable, str(script), mode, end], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == status, (done.stdout, done.stderr)
+    assert done.stdout.split("\n")[:-1] == lines, (done.stdout, done.stderr)
+    if mode == "interrupted":
+        assert "[runner_exit_node] interrupted while starting; stopping" in done.stderr
+    else:
+        assert "some.value: out of range" in done.stderr
