@@ -58,6 +58,7 @@ why); a stamp going backwards restarts it too; a repeated stamp is skipped
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -200,7 +201,8 @@ class BackgroundDetector:
         self._mono16_map: tuple[float, float] | None = None
         self._buffer: list[np.ndarray] = []
         self._seeded = False
-        self._intervals: list[float] = []
+        #: the last ``rate_window`` stamp differences (s), for the measured frame rate
+        self._intervals: deque[float] = deque(maxlen=self.config.rate_window)
 
     # -- frame rate ----------------------------------------------------------------------
     def frames_for(self, count: int) -> int:
@@ -326,8 +328,7 @@ class BackgroundDetector:
             self.last_event = "time went backwards: background model restarted"
             self.reset()
         elif self._last_stamp is not None and self.config.counts_fps > 0.0:
-            self._intervals = (self._intervals
-                               + [t - self._last_stamp])[-self.config.rate_window:]
+            self._intervals.append(t - self._last_stamp)
         self._shape = image.shape
         self._last_stamp = t
         height, width = image.shape[:2]

@@ -154,15 +154,28 @@ def _render(substitution, values: dict) -> str:
     return str(eval("".join(_render(p, values) for p in substitution.args[0])))
 
 
-def test_thermal_only_feeds_the_thermal_camera_to_the_tracker_alone(launch_module):
+def _nodes_and_arguments(launch_module):
+    """``(detector, tracker, declared)``: the two Node actions and the declared launch
+    arguments (name -> DeclareLaunchArgument keywords)."""
     entities = launch_module["generate_launch_description"]().args[0]
     declared = {a.args[0]: a.kwargs for a in _of(entities, "DeclareLaunchArgument")}
-    assert declared["thermal_only"]["default_value"] == "false"
     detector, tracker = _of(entities, "Node")
+    return detector, tracker, declared
+
+
+def _arguments(declared: dict, **changes) -> dict:
+    """The launch arguments' values: the declared defaults, with ``changes``."""
+    values = {name: kwargs["default_value"] for name, kwargs in declared.items()}
+    values.update(changes)
+    return values
+
+
+def test_thermal_only_feeds_the_thermal_camera_to_the_tracker_alone(launch_module):
+    detector, tracker, declared = _nodes_and_arguments(launch_module)
+    assert declared["thermal_only"]["default_value"] == "false"
 
     def topics(node, **changes):
-        values = {name: kwargs["default_value"] for name, kwargs in declared.items()}
-        values.update(changes)
+        values = _arguments(declared, **changes)
         return {source: _render(target, values) for source, target in node.kwargs["remappings"]}
 
     assert topics(tracker)["image_raw"] == "image_raw"
@@ -179,14 +192,11 @@ def test_thermal_only_feeds_the_thermal_camera_to_the_tracker_alone(launch_modul
 
 
 def test_public_detections_loads_the_overlay_after_the_tracker_parameters(launch_module):
-    entities = launch_module["generate_launch_description"]().args[0]
-    declared = {a.args[0]: a.kwargs for a in _of(entities, "DeclareLaunchArgument")}
+    detector, tracker, declared = _nodes_and_arguments(launch_module)
     assert declared["public_detections"]["default_value"] == "false"
-    detector, tracker = _of(entities, "Node")
 
     def files(node, **changes):
-        values = {name: kwargs["default_value"] for name, kwargs in declared.items()}
-        values.update(changes)
+        values = _arguments(declared, **changes)
         return [_render(entry, values) for entry in node.kwargs["parameters"]
                 if not isinstance(entry, dict)]
 
