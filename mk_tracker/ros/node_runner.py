@@ -92,20 +92,44 @@ def logged_warm_up(node: Node, what: str, warm_up: Callable[[], Any]) -> None:
     logger.info(f"preparing the compiled kernels of the {what} (the first run on a machine "
                 f"compiles them: tens of seconds; later runs load them from numba's cache)")
     start = time.monotonic()
+    interrupted = False
     try:
         seconds = warm_up().seconds
-    except (StartupInterrupted, KeyboardInterrupt):    # Ctrl-C / SIGTERM: stop, quietly
+    except Exception as exc:
+        if not caused_by_interrupt(exc):
+            # a warm-up problem must not stop the node; frames will show it
+            logger.warning(f"warm-up of the {what} failed ({type(exc).__name__}: {exc}); "
+                           f"the first frames may be slow")
+            return
+        interrupted = True
+    except (StartupInterrupted, KeyboardInterrupt):
+        interrupted = True
+    if interrupted:           # Ctrl-C / SIGTERM: stop, quietly
         _log_info(node, f"warm-up of the {what} interrupted after "
                         f"{time.monotonic() - start:.1f} s; stopping")
         raise StartupInterrupted(logged=True) from None
-    except Exception as exc:  # a warm-up problem must not stop the node; frames will show it
-        logger.warning(f"warm-up of the {what} failed ({type(exc).__name__}: {exc}); the "
-                       f"first frames may be slow")
-        return
     if not node.context.ok():     # shut down meanwhile (a SIGINT Python ignores)
         _log_info(node, f"shut down during the warm-up of the {what}; stopping")
         raise StartupInterrupted(logged=True)
     logger.info(f"{what} ready ({seconds:.1f} s)")
+
+
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is a start-up interrupt or was raised because of one.
+
+    numba's dispatcher runs Python code (unpickling a cached kernel, say) from C; an
+    interrupt raised there comes back out of the dispatcher as ``SystemError: ... returned a
+    result with an exception set`` whose cause is the :class:`StartupInterrupted` (seen once
+    in a fresh-clone test run, test/ros/test_nodes_interrupt.py).  So the cause and context
+    chain is searched, not only the exception's own type."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, (StartupInterrupted, KeyboardInterrupt)):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
 
 
 class _StartGuard:
@@ -230,10 +254,13 @@ def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,
         print(f"{name}: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 1
-    except (StartupInterrupted, KeyboardInterrupt, _rclpy_impl.RCLError) as exc:
+    except (Exception, StartupInterrupted, KeyboardInterrupt) as exc:
         # an RCLError while the context is up is a real error; after a shutdown (rclpy's
-        # signal handler) the node's next create_* call fails with "context is invalid"
-        if isinstance(exc, _rclpy_impl.RCLError) and rclpy.ok():
+        # signal handler) the node's next create_* call fails with "context is invalid".
+        # Any other error is the node's own, unless an interrupt caused it.
+        after_shutdown = isinstance(exc, _rclpy_impl.RCLError) and not rclpy.ok()
+        if not (after_shutdown or caused_by_interrupt(exc)):
+            rclpy.try_shutdown()
             raise
         if not getattr(exc, "logged", False):
             print(f"[{name}] interrupted while starting; stopping", file=sys.stderr,

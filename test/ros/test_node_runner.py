@@ -195,6 +195,53 @@ def test_an_interrupted_warm_up_says_so_once_and_stops_the_start(keep_sigterm, c
     assert "interrupted while starting" not in err     # one line, not two
 
 
+def _wrapped_interrupt():
+    """What numba's dispatcher makes of an interrupt raised in Python code it called from C:
+    a SystemError whose cause is the interrupt."""
+    try:
+        raise StartupInterrupted()
+    except StartupInterrupted as interrupt:
+        raise SystemError("CPUDispatcher(<function f>) returned a result with an exception "
+                          "set") from interrupt
+
+
+def test_an_interrupt_wrapped_by_a_compiled_call_is_still_an_interrupt(keep_sigterm, capsys):
+    class Wrapped(Node):
+        def __init__(self):
+            super().__init__("runner_wrapped_node")
+            _wrapped_interrupt()
+
+    assert run_node(Wrapped, "runner_wrapped_node") == 0
+    err = capsys.readouterr().err
+    assert err.count("[runner_wrapped_node] interrupted while starting; stopping") == 1
+    assert "SystemError" not in err and "Traceback" not in err
+    assert not rclpy.ok()
+
+
+def test_an_error_not_caused_by_an_interrupt_still_surfaces(keep_sigterm):
+    class Broken(Node):
+        def __init__(self):
+            super().__init__("runner_broken_node")
+            raise SystemError("a real bug")
+
+    with pytest.raises(SystemError, match="a real bug"):
+        run_node(Broken, "runner_broken_node")
+    assert not rclpy.ok()
+
+
+def test_a_wrapped_interrupt_in_the_warm_up_is_reported_as_an_interrupt(keep_sigterm, capfd):
+    class Warming(Node):
+        def __init__(self):
+            super().__init__("runner_wrapped_warm_up")
+            logged_warm_up(self, "test kernels", _wrapped_interrupt)
+
+    assert run_node(Warming, "runner_wrapped_warm_up") == 0
+    err = capfd.readouterr().err
+    assert "warm-up of the test kernels interrupted after" in err
+    assert "failed" not in err and "SystemError" not in err
+    assert "interrupted while starting" not in err     # one line, not two
+
+
 def test_a_warm_up_that_ends_after_a_shutdown_stops_the_start(keep_sigterm):
     class Warming(Node):
         def __init__(self):
