@@ -213,10 +213,39 @@ def run_low_fps_checks(checks: dict, out_dir, held: dict | None = None) -> list[
             "ours, public-detections overlay": OursAdapter(updated(overlay, OUR_CHANGES))}
         if held and source in held:
             trackers[f"ours, held out (fold without {source})"] = OursAdapter(updated(
-                MultiObjectTrackerConfig(), {**OUR_CHANGES, **held[source]}))
+                MultiObjectTrackerConfig(), {**OUR_CHANGES, **expanded(held[source])}))
         trackers.update(make_peers(fps))
         rows += run_trackers(name, frames, trackers, out_dir)
     return rows
+
+
+#: Joins the parameters of a joint grid dimension: ``--grid A&B=a1&b1,a2&b2`` varies A and
+#: B together (two values of the dimension, not four combinations), e.g. a noise model whose
+#: two constants were calibrated as a pair.  Such a dimension's values are tuples.
+JOINT = "&"
+
+
+def expanded(setting: dict) -> dict:
+    """``setting`` with each joint dimension (:data:`JOINT`) split into its parameters."""
+    out = {}
+    for key, value in setting.items():
+        if JOINT in key:
+            out.update(zip(key.split(JOINT), value))
+        else:
+            out[key] = value
+    return out
+
+
+def grid_value(text: str):
+    """A value of ``--grid``: YAML, or a tuple of YAML values for a joint dimension."""
+    return tuple(_value(v) for v in text.split(JOINT)) if JOINT in text else _value(text)
+
+
+def default_value(config, key: str):
+    """The value of grid dimension ``key`` in ``config`` (a tuple for a joint one)."""
+    if JOINT in key:
+        return tuple(get_value(config, k) for k in key.split(JOINT))
+    return get_value(config, key)
 
 
 def grid_settings(grid: dict) -> list[dict]:
@@ -233,7 +262,7 @@ def leave_one_out(sequences: dict, grid: dict, base: dict):
     settings = grid_settings(grid)
     scores: list[dict] = []
     for i, setting in enumerate(settings):
-        config = updated(MultiObjectTrackerConfig(), {**base, **setting})
+        config = updated(MultiObjectTrackerConfig(), {**base, **expanded(setting)})
         per = {}
         for name, (frames, _fps) in sequences.items():
             hyp, _, _ = run_tracker(OursAdapter(config), frames)
@@ -892,7 +921,7 @@ def _defaults_lines(settings, scores) -> list[str]:
     sequences), and the best setting that leaves ``min_detection_score`` at its default."""
     defaults = MultiObjectTrackerConfig()
     means = [float(np.mean([s[n]["MOTA"] + s[n]["IDF1"] for n in s])) for s in scores]
-    at_default = {k: get_value(defaults, k) for k in GRID}
+    at_default = {k: default_value(defaults, k) for k in GRID}
     lines = []
     if at_default in settings:
         i = settings.index(at_default)
@@ -1199,7 +1228,8 @@ def main(argv=None) -> int:
                         help="skip the leave-one-sequence-out grid")
     parser.add_argument("--grid", nargs="*", default=[], metavar="NAME=V1,V2",
                         help="replace or add a dimension of the leave-one-sequence-out grid "
-                             "(YAML values), e.g. high_detection_score=-1e12,0.5")
+                             "(YAML values), e.g. high_detection_score=-1e12,0.5; A&B=a1&b1,"
+                             "a2&b2 varies A and B together (one joint dimension)")
     parser.add_argument("--low-fps-checks", action="store_true",
                         help="also run the real low-frame-rate checks: TUD-Campus and "
                              "TUD-Stadtmitte at 6.25 fps (every 4th frame, offsets 0-3)")
@@ -1210,7 +1240,7 @@ def main(argv=None) -> int:
     OUR_CHANGES.update(setting_changes(args.set))
     for item in args.grid:
         name, _, values = item.partition("=")
-        GRID[name] = tuple(_value(v) for v in values.split(","))
+        GRID[name] = tuple(grid_value(v) for v in values.split(","))
     args.results.mkdir(parents=True, exist_ok=True)
     motion = REAL_MOTION if args.real_motion else None
     box_error = REAL_DETECTION_NOISE if args.real_detection_noise else None
@@ -1238,7 +1268,8 @@ def main(argv=None) -> int:
         held_rows = []
         for held, i in choices.items():
             frames, _ = dev[held]
-            config = updated(MultiObjectTrackerConfig(), {**OUR_CHANGES, **settings[i]})
+            config = updated(MultiObjectTrackerConfig(),
+                             {**OUR_CHANGES, **expanded(settings[i])})
             hyp, _, _ = run_tracker(OursAdapter(config), frames)
             held_rows.append(score(held, OURS, frames, hyp))
             r = held_rows[-1]
