@@ -666,7 +666,7 @@ DEFAULTS_NOTE = [
     "0.680 -> 0.529 / 0.685, the others unchanged), but the TUD-Campus fold's check at "
     "6.25 fps falls from 0.326 / 0.525 to 0.274 / 0.470 (TUD-Stadtmitte's unchanged).  "
     "Not kept: the checks do not improve.",
-    "* `lifecycle.process_noise` (new, off: 0 = `kalman.sigma_u` px / s^1.5): the process "
+    "* `lifecycle.process_noise` (measured, then deleted: reproduce at commit 1e5c4e4): the process "
     "noise (2.3) in box heights / s^1.5, scale-invariant like SORT's.  First measured "
     "without any tracker (`benchmarks/diagnose_kalman_consistency.py`, "
     "docs/kalman_consistency.md: the NIS of each prediction of the filter fed one person's "
@@ -695,8 +695,7 @@ DEFAULTS_NOTE = [
     " At the TUD-Campus fold's setting 0.48 lifts the TUD-Campus check to 0.350 / 0.496 "
     "and the TUD-Stadtmitte check's MOTA 0.677 -> 0.691, but its IDF1 falls 0.784 -> "
     "0.701 (at 25 fps 0.782 -> 0.728), as with `kalman.sigma_u` 90 (0.342 / 0.501, 0.690 / "
-    "0.701): a wider prediction lets neighbours' detections in.  Kept off, out of the "
-    "grid.",
+    "0.701): a wider prediction lets neighbours' detections in.  Deleted.",
     "* Screened in-sample at the overlay's setting and not pursued (checks TUD-Campus / "
     "TUD-Stadtmitte at 6.25 fps, then TUD-Campus at 25 fps, MOTA / IDF1): "
     "`association.gate` 40 (was 13.8) 0.401 / 0.558, 0.689 / 0.773, but 0.521 / 0.526 at "

@@ -18,8 +18,9 @@ with ``--real-motion`` / ``--real-detection-noise`` as the protocol builds them.
 frame rate and by box height.
 
 Process-noise models: ``px`` (``kalman.sigma_u`` px / s^1.5 for every size, today) and
-``heights`` (``lifecycle.process_noise`` box heights / s^1.5 times the last measured
-height).  ``--calibrate`` finds, on the TUD clips' matched public detections (the
+``heights`` (box heights / s^1.5 times the last measured height; the tracker option
+``lifecycle.process_noise`` that did this lost held out and was deleted, commit 1e5c4e4).
+``--calibrate`` finds, on the TUD clips' matched public detections (the
 development data the tracker sees), the relative process noise whose mean NIS is 2 at
 25 and at 6.25 fps (bisection on each rate).
 
@@ -74,7 +75,8 @@ NOTES = [
     "and costs TUD-Campus 0.510 / 0.692 -> 0.401 / 0.549 (MOTA / IDF1), mean 0.696 / 0.768 "
     "-> 0.669 / 0.732; the process noise alone (0.48, 1.44) is chosen by no fold.  "
     "Consistency of the filter is not what the scores reward: a filter that trusts the "
-    "detections more than their error warrants keeps its box on them.  Both stay off.",
+    "detections more than their error warrants keeps its box on them.  Both lost, so the tracker "
+    "option was deleted (commit 1e5c4e4 has it); this script models it by itself.",
     "",
 ]
 
@@ -130,8 +132,8 @@ def nis_samples(series: dict, fps: float, *, sigma_u: float, process_noise: floa
                 kf = ConstantVelocityKalman.from_config(centre, kalman)
                 last_k, height, updates = k, h, 1
                 continue
-            q = process_noise * height if process_noise > 0 else sigma_u
-            kf.predict((k - last_k) / fps, q)
+            kf.sigma_u = process_noise * height if process_noise > 0 else sigma_u
+            kf.predict((k - last_k) / fps)
             sw = measurement_sigma(h, 1.0, lifecycle)
             if updates >= burn_in:
                 out.append((kf.innovation_distance(centre, sw), h))

@@ -210,28 +210,20 @@ class ConstantVelocityKalman:
         """Estimated velocity ``(vx, vy)`` in px/s."""
         return self._state[2:].copy()
 
-    def predicted(self, dt: float, sigma_u: float | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """``(s(t|t-1), P(t|t-1))`` after ``dt`` seconds, without changing the filter.
 
         (4.2): ``s(t|t-1) = A s(t-1|t-1)``.  (4.3): ``P(t|t-1) = A P(t-1|t-1) A^T + Sigma_u``;
         the paper prints ``F^T`` in (4.3), a typo for ``A^T`` (F is its frame symbol).
-        ``sigma_u`` overrides the process noise for this step only (the tracker can make it
-        follow the box height, ``lifecycle.process_noise``).
         """
-        if sigma_u is None:
-            a, q = _step_matrices(dt, self.sigma_u)
-        else:
-            a = _step_matrices(dt, self.sigma_u)[0]
-            q = process_noise(dt, sigma_u)
+        a, q = _step_matrices(dt, self.sigma_u)
         state = a @ self._state
         cov = a @ self._cov @ a.T + q
         return state, _positive_semidefinite(0.5 * (cov + cov.T))
 
-    def predict(self, dt: float, sigma_u: float | None = None) -> np.ndarray:
-        """Advance the filter by ``dt`` seconds, (4.2)-(4.3); returns the predicted state.
-        ``sigma_u`` overrides the process noise for this step only."""
-        self._state, self._cov = self.predicted(dt, sigma_u)
+    def predict(self, dt: float) -> np.ndarray:
+        """Advance the filter by ``dt`` seconds, (4.2)-(4.3); returns the predicted state."""
+        self._state, self._cov = self.predicted(dt)
         return self._state.copy()
 
     def warp(self, linear: np.ndarray, translation: Sequence[float]) -> None:

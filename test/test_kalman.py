@@ -412,22 +412,3 @@ def test_kalman_warp_refuses_bad_input_and_leaves_the_filter(lin, shift):
         kf.warp(lin, shift)
     np.testing.assert_array_equal(kf.state, before[0])
     np.testing.assert_array_equal(kf.covariance, before[1])
-
-
-def test_per_call_sigma_u_is_the_process_noise_of_that_step_only():
-    a = ConstantVelocityKalman((0.0, 0.0), sigma_u=30.0)
-    b = ConstantVelocityKalman((0.0, 0.0), sigma_u=90.0)
-    s, p = a.predicted(0.16, sigma_u=90.0)
-    np.testing.assert_allclose(p, b.predicted(0.16)[1])
-    np.testing.assert_array_equal(s, b.predicted(0.16)[0])
-    a.predict(0.16, sigma_u=90.0)
-    b.predict(0.16)
-    np.testing.assert_allclose(a.covariance, b.covariance)
-    assert a.sigma_u == 30.0
-    # the next step without an override uses the filter's own sigma_u again
-    c = ConstantVelocityKalman((0.0, 0.0), sigma_u=30.0)
-    c.predict(0.16, sigma_u=90.0)
-    grown = c.predicted(0.16)[1][0, 0] - c.predicted(0.16, sigma_u=0.0)[1][0, 0]
-    assert grown == pytest.approx(30.0 ** 2 * 0.16 ** 3 / 3.0)
-    with pytest.raises(KalmanError, match="sigma_u"):
-        c.predict(0.16, sigma_u=-1.0)

@@ -109,11 +109,6 @@ class LifecycleConfig:
     measurement_noise: float = parameter(
         0.02, "Centroid measurement std (4.1) of a perfect match, as a fraction of the box "
         "height", minimum=1e-4, maximum=10.0)
-    process_noise: float = parameter(
-        0.0, "Process noise std (2.3) of a track's Kalman filter as box heights / s^1.5 "
-        "(white acceleration relative to the person's size, scale-invariant like the "
-        "measurement_noise; SORT-family filters scale theirs with the height too); 0 = "
-        "kalman.sigma_u in px / s^1.5 for every size", minimum=0.0, maximum=100.0)
     min_noise_px: float = parameter(1.0, "Lower bound of the centroid measurement std, px",
                                     minimum=1e-3, maximum=1e4)
     quality_floor: float = parameter(
@@ -269,15 +264,8 @@ class Track:
         search, :meth:`hold_if_uncertain`) keeps its position: only its stamp advances."""
         dt = float(stamp) - self.stamp
         if dt > 0 and not self.held:
-            self.kf.predict(dt, self.process_sigma())
+            self.kf.predict(dt)
         self.stamp = float(stamp)
-
-    def process_sigma(self) -> float | None:
-        """The process-noise std (2.3) of this track's next prediction, px / s^1.5:
-        ``lifecycle.process_noise`` box heights (the smoothed height), or None (the filter's
-        own ``kalman.sigma_u``) when that is 0."""
-        rel = self.config.process_noise
-        return rel * float(self.size[1]) if rel > 0.0 else None
 
     @property
     def position_std(self) -> float:
@@ -350,11 +338,10 @@ class Track:
         kf = copy.deepcopy(self.seen_filter)
         sigma = measurement_sigma(h, 1.0, self.config)
         step = gap / n
-        q = self.process_sigma()
         for k in range(1, n):
-            kf.predict(step, q)
+            kf.predict(step)
             kf.update(self.seen_center + (target - self.seen_center) * (k / n), sigma_w=sigma)
-        kf.predict(step, q)
+        kf.predict(step)
         self.kf = kf
         return True
 

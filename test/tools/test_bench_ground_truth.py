@@ -66,11 +66,11 @@ def test_a_joint_grid_dimension_varies_its_parameters_together():
     value = bench.grid_value("0.1&0.03")
     assert value == (0.1, 0.03)
     assert bench.grid_value("0.2") == 0.2
-    key = "lifecycle.process_noise&lifecycle.measurement_noise"
+    key = "lifecycle.min_noise_px&lifecycle.measurement_noise"
     settings = bench.grid_settings({key: ((0.0, 0.02), value), "lifecycle.min_hits": (2, 3)})
     assert len(settings) == 4                       # two values of the joint dimension x 2
-    assert bench.expanded(settings[-1]) == {"lifecycle.process_noise": 0.1,
+    assert bench.expanded(settings[-1]) == {"lifecycle.min_noise_px": 0.1,
                                             "lifecycle.measurement_noise": 0.03,
                                             "lifecycle.min_hits": 3}
     from mk_tracker.tracking.multi_object_tracker import MultiObjectTrackerConfig
-    assert bench.default_value(MultiObjectTrackerConfig(), key) == (0.0, 0.02)
+    assert bench.default_value(MultiObjectTrackerConfig(), key) == (1.0, 0.02)

@@ -212,23 +212,3 @@ def test_tracker_reupdates_after_a_gap_only_when_enabled():
     # correction of the standing prediction gives another value.
     assert 18.0 < velocities[1] < 22.0
     assert abs(velocities[1] - velocities[0]) > 0.5
-
-
-def test_relative_process_noise_scales_with_the_box_height():
-    # lifecycle.process_noise 0.1 box heights / s^1.5: a 200 px person gets 20 px / s^1.5,
-    # a 40 px one 4, whatever kalman.sigma_u says; 0 keeps kalman.sigma_u (30) for both
-    kalman = KalmanConfig(sigma_u=30.0)
-    rel = LifecycleConfig(process_noise=0.1)
-    grown = {}
-    for cfg in (rel, LifecycleConfig()):
-        for h in (200.0, 40.0):
-            t = Track(1, np.array([100.0, 100.0, h / 2.5, h]), 0.0, score=1.0,
-                      kalman=kalman, config=cfg)
-            without = t.kf.predicted(0.5, sigma_u=0.0)[1][0, 0]   # A P A^T alone
-            t.predict(0.5)
-            grown[cfg.process_noise, h] = t.kf.covariance[0, 0] - without
-    base = 0.5 ** 3 / 3.0   # position variance of (2.3) per unit sigma_u^2 over 0.5 s
-    assert grown[0.1, 200.0] == pytest.approx(20.0 ** 2 * base)
-    assert grown[0.1, 40.0] == pytest.approx(4.0 ** 2 * base)
-    assert grown[0.0, 200.0] == pytest.approx(30.0 ** 2 * base)
-    assert grown[0.0, 40.0] == pytest.approx(30.0 ** 2 * base)
