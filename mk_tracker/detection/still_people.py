@@ -55,7 +55,7 @@ class StillPeopleConfig:
     """The constants of the rule (``detector.still_people.*``)."""
 
     enabled: bool = parameter(
-        False, "report warm person-sized regions that stay in place for min_time, so that "
+        True, "report warm person-sized regions that stay in place for min_time, so that "
         "people who never move are detected (mk_tracker.detection.still_people; not in the "
         "paper)")
     min_time: float = parameter(
