@@ -37,7 +37,6 @@ the ignore regions are there for known ones.  Measured in docs/benchmark_real_th
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import cv2

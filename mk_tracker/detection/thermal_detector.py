@@ -105,7 +105,10 @@ Where the paper is silent, and what we add (each switchable):
 * Objects with fewer than ``min_object_pixels`` support pixels are dropped as noise; an
   object whose window has no support for more than ``max_missed`` frames is dropped until
   the next full-frame pass finds it again (a person who stands still has no temporal change
-  and is, as in the paper, not detected).
+  and is, as in the paper, not detected by the support).
+* **Still people** (``still_people.enabled``, on): a warm region of a detected person's
+  shape, size and warmth that stays in place for ``still_people.min_time`` is reported too
+  (:mod:`mk_tracker.detection.still_people`; docs/benchmark_real_thermal.md).
 * Centroids are continuous (pixel ``(c, r)`` has centre ``(c + 0.5, r + 0.5)``), not the
   floor in the definition of Sec. 2.
 * Frames: NaN/inf pixels are held at their last valid value (:mod:`mk_tracker.detection.thermal_image`);
