@@ -78,9 +78,6 @@ class StillPeopleConfig:
         0.7, "still_people: a reported region not found alone at a full pass (it touches a "
         "neighbour's warm pixels) is kept while its box is warm at this share of the "
         "pixels it held", minimum=0.0, maximum=10.0)
-    keep_unconfirmed: bool = parameter(
-        False, "still_people: keep_fill applies before min_time too (a region found alone "
-        "once and warm in place since counts as in place)")
     memory: float = parameter(
         300.0, "still_people: person samples (height, warmth) remembered, with "
         "exponential forgetting", minimum=1.0, maximum=1e6)
@@ -194,8 +191,8 @@ class StillPeople:
             best = max(found, key=lambda reg: iou(old.box, reg.box), default=None)
             if best is not None and iou(best.box, old.box) >= c.match_iou:
                 best.since = min(best.since, old.since)
-            elif (c.keep_unconfirmed or stamp - old.since >= c.min_time) and \
-                    self._still_warm(frame, background, radius, old):
+            elif stamp - old.since >= c.min_time and self._still_warm(frame, background,
+                                                                      radius, old):
                 kept.append(old)    # confirmed, now touching a neighbour's warm pixels
         self._regions = found + kept
 
