@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
             f"Ignore region for the counter: {list(COUNTER_REGION)}. No ground truth: the "
             "figures are those of the issue (about 7 people, 4-6 visible at a time). "
             "Peers see the masked run's detections and report only the boxes they matched; "
-            "people who stand still are not detected, so peers drop them.\n\n"
+            "people who stop after walking are not detected, so peers drop them.\n\n"
             f"{table}\n\n![tracks on frames {', '.join(map(str, STRIP_FRAMES))}]"
             "(images/real_thermal_frames.png)\n", encoding="utf-8")
     return 0

@@ -105,7 +105,10 @@ Where the paper is silent, and what we add (each switchable):
 * Objects with fewer than ``min_object_pixels`` support pixels are dropped as noise; an
   object whose window has no support for more than ``max_missed`` frames is dropped until
   the next full-frame pass finds it again (a person who stands still has no temporal change
-  and is, as in the paper, not detected).
+  and is, as in the paper, not detected by the support).
+* **Still people** (``still_people.enabled``, on): a warm region of a detected person's
+  shape, size and warmth that stays in place for ``still_people.min_time`` is reported too
+  (:mod:`mk_tracker.detection.still_people`; docs/benchmark_real_thermal.md).
 * Centroids are continuous (pixel ``(c, r)`` has centre ``(c + 0.5, r + 0.5)``), not the
   floor in the definition of Sec. 2.
 * Frames: NaN/inf pixels are held at their last valid value (:mod:`mk_tracker.detection.thermal_image`);
@@ -167,6 +170,7 @@ from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate
 from mk_tracker.detection.keep_apart import KeepApart
 from mk_tracker.detection.object_extent import ObjectExtent
 from mk_tracker.detection.person_size import PersonHeightModel
+from mk_tracker.detection.still_people import StillPeople
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
                                                    link_groups, merge_linked)
 from mk_tracker.stamps import checked_stamp
@@ -209,6 +213,12 @@ class _Track:
     missed: int = 0
     size: tuple[float, float] = (math.inf, math.inf)   # box size at its last full pass
     passes: int = 0      # full passes that found it as an object of its own (keep_apart)
+
+
+def _still_detection(box: tuple, score: float, pixels: int) -> ThermalDetection:
+    """A detection of ``still_people`` (no Kalman filter of its own: ``object_id`` -1)."""
+    return ThermalDetection(box=box, centroid=(box[0] + box[2] / 2.0, box[1] + box[3] / 2.0),
+                            score=score, pixel_count=pixels)
 
 
 def _overlap(a: tuple, b: tuple) -> bool:
@@ -275,6 +285,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._group_seen = False        # a tracking pass saw a footprint of several people
         self._oversize_seen = False     # extent.bound: a tracking pass met a group
         self._extents: dict = {}        # body_extent: object id -> its person's extent
+        self._still = StillPeople(c.still_people, c.person_aspect)
 
     def reset(self) -> None:
         """Forget every frame and object (counters are kept)."""
@@ -344,15 +355,24 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
                 self.last_mode = "warming_up"
                 return []
             self.last_mode = "startup"
-            return self._whole_bodies(self._learn_sizes(self._full_pass()))
+            return self._finish(self._full_pass(), True)
         self._since_full += 1
         if self._since_full >= c.reconfigure_period or (
                 (self._group_seen or self._oversize_seen)
                 and self._since_full >= c.group_recheck_frames):
             self.last_mode = "reconfiguration"
-            return self._whole_bodies(self._learn_sizes(self._full_pass()))
+            return self._finish(self._full_pass(), True)
         self.last_mode = "tracking"
-        return self._whole_bodies(self._learn_sizes(self._tracking_pass()))
+        return self._finish(self._tracking_pass(), False)
+
+    def _finish(self, detections: list[ThermalDetection], full_pass: bool
+                ) -> list[ThermalDetection]:
+        """Sizes learnt, whole bodies joined, still people added (``still_people``)."""
+        found = self._whole_bodies(self._learn_sizes(detections))
+        if not self.config.still_people.enabled:
+            return found
+        return self._still.step(self._newest(), self._raw_radius(), found, self._last_stamp,
+                                full_pass, _still_detection)
 
     # -- normalisation ---------------------------------------------------------------------
     def _gain_compensated(self, frame: np.ndarray, enc: str, stamp: float) -> np.ndarray:
