@@ -568,3 +568,33 @@ def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
               "group.member_min_height": overlay["tracker"]["group"]["member_min_height"]}
     for name, value in values.items():
         validate_value(specs[name], value)
+
+
+def test_background_detections_overlay_sets_the_protocols_choice_and_nothing_else():
+    """config/tracker_background_detections.yaml (issue #13) changes exactly the two settings
+    the leave-one-sequence-out protocol of benchmarks/background_tracker_profile.py prefers
+    for the background detector's boxes, to valid values, and nothing else."""
+    import yaml
+
+    from mk_tracker.parameters import parameter_specs, validate_value
+    from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig
+
+    files = [CONFIG_DIR / "tracker.yaml", CONFIG_DIR / "tracker_background_detections.yaml"]
+    base = load_pipeline_config(files[:1], include_defaults=False)
+    both = load_pipeline_config(files, include_defaults=False)
+    assert both.tracker.group.member_min_height == 0.3
+    assert both.tracker.max_reported_coast_time == 0.0
+    assert base.tracker.group.member_min_height == 0.0
+    assert base.tracker.max_reported_coast_time > 0.0
+    restored = dataclasses.replace(
+        both.tracker, max_reported_coast_time=base.tracker.max_reported_coast_time,
+        group=dataclasses.replace(both.tracker.group,
+                                  member_min_height=base.tracker.group.member_min_height))
+    assert restored == base.tracker and both.detection_wait == base.detection_wait
+    overlay = yaml.safe_load(files[1].read_text())["/**/tracker_node"]["ros__parameters"]
+    specs = {s.name: s for s in parameter_specs(MultiObjectTrackerConfig())}
+    assert set(overlay) == {"tracker"}
+    values = {"max_reported_coast_time": overlay["tracker"]["max_reported_coast_time"],
+              "group.member_min_height": overlay["tracker"]["group"]["member_min_height"]}
+    for name, value in values.items():
+        validate_value(specs[name], value)
