@@ -17,7 +17,10 @@ reported.  Each grid setting (:data:`GRID`) runs on every sequence; for each hel
 sequence the setting with the best mean F1 over the *other* sequences is reported on it
 (the primary figures).  Time is the detector's CPU time per 640x480 frame (median over the
 frames, thread time).  Peers: plain OpenCV MOG2 connected components (issue #13's recipe)
-as a detector, and SORT and norfair fed by it and by our detector.  With
+as a detector, and SORT and norfair fed by it and by our detector.  Our tracker runs on our
+detector's boxes with config/tracker_background_detections.yaml (what ``mk_tracker process``
+gives ``--detections background``; benchmarks/background_tracker_profile.py chose it) and,
+for comparison, with the tracker's defaults alone.  With
 ``--low-fps-checks``: the real 6.25-fps checks (every 4th frame of the TUD clips, offsets
 0-3), each with the setting chosen by the fold that held out its source clip.
 """
@@ -125,14 +128,13 @@ def _scored(detect, frames, truth) -> dict:
 
 
 def tracking_scores(bag: Path, out: Path, source: str, background: dict | None = None,
-                    tracker: dict | None = None) -> dict:
+                    tracker: dict | None = None, profile: str = "own") -> dict:
     """MOTA / IDF1 / recall / precision of ``mk_tracker process`` on ``bag`` with detections
     from ``source``, the detector's ``background.*`` and the tracker's ``tracker.*``
-    parameters changed as given (nested dicts)."""
-    # the same tracker parameters for every source (public detections would get the
-    # external profile by default)
+    parameters changed as given (nested dicts), with the tracker profile ``profile``
+    (``--tracker-profile``)."""
     args = ["process", str(bag), "--out", str(out), "--detections", source, "--quiet",
-            "--no-video", "--tracker-profile", "own"]
+            "--no-video", "--tracker-profile", profile]
     nodes = {}
     if background:
         nodes["/**/detector_node"] = {"ros__parameters": {"background": background}}
@@ -224,10 +226,15 @@ def chain_rows(name: str, bag: Path, frames, fps: float, public: bool, held: dic
     """Tracking scores of the RGB-only chain on one sequence: our detector (the setting
     ``held`` and the shipped defaults) -> this tracker, the public detections -> this
     tracker (``public``), and plain MOG2 / our detector -> SORT and norfair."""
+    # our tracker on the background detector's boxes with the parameters a user gets
+    # (--tracker-profile auto: config/tracker_background_detections.yaml), and with the
+    # shipped defaults alone (own) for comparison; the public detections with the defaults
     rows = [("background, setting held out -> ours",
-             tracking_scores(bag, tmp / f"{name}-held", "background", held)),
+             tracking_scores(bag, tmp / f"{name}-held", "background", held, profile="auto")),
             ("background, shipped defaults -> ours",
-             tracking_scores(bag, tmp / f"{name}-bg", "background"))]
+             tracking_scores(bag, tmp / f"{name}-bg", "background", profile="auto")),
+            ("background, shipped defaults -> ours, tracker defaults (no profile)",
+             tracking_scores(bag, tmp / f"{name}-own", "background"))]
     if public:
         rows.append(("public detections -> ours",
                      tracking_scores(bag, tmp / f"{name}-pub", "topic:/detections")))

@@ -42,6 +42,11 @@ between neighbours) or came back after a gap.  The peers' FP / FN / IDSW are spl
     nice -n 10 .venv/bin/python benchmarks/diagnose_mot_loss.py [--sequences TUD-Campus ...] \
         [--set lifecycle.min_hits=2 ...]
 
+``--detections background`` replaces each frame's detections by those of the project's
+background-subtraction detector (shipped defaults, run once over the clip at the clip's
+stamps): the RGB-only chain of ``bench_background_detector.py`` (issue #13), whose chain
+``mk_tracker process --detections background`` runs the same detector and tracker.
+
 A real clip at a lower frame rate is named ``CLIP/STEP+OFFSET``: ``TUD-Stadtmitte/4+2`` keeps
 every 4th frame from frame 2 (0-based) at 25 / 4 = 6.25 fps, the copy of
 ``bench_multi_object.py --low-fps-checks`` (``tud_frames(folder, step, offset)``).
@@ -232,6 +237,16 @@ def peer_hypotheses(frames, fps) -> dict:
     return {name: bmo.run_tracker(peer, frames)[0] for name, peer in peers.items()}
 
 
+def background_frames(frames):
+    """``frames`` with each frame's detections replaced by the background detector's (its
+    shipped defaults, fed the frames in order at their stamps)."""
+    from mk_tracker.detection.background_detector import BackgroundDetector
+    det = BackgroundDetector()
+    return [(image, stamp, [(*d.box, d.score) for d in det.process(image, stamp,
+                                                                    encoding="bgr8")], gt)
+            for image, stamp, _dets, gt in frames]
+
+
 def report(name, frames, config, fps=25.0) -> list[str]:
     hyp, states = run_ours(config, frames)
     n_gt, fp, fn, sw = diagnose_ours(frames, hyp, states)
@@ -272,12 +287,16 @@ def main(argv=None) -> int:
     parser.add_argument("--real-detection-noise", action="store_true",
                         help="generated detections as bench_multi_object.py "
                              "--real-detection-noise")
+    parser.add_argument("--detections", choices=("public", "background"), default="public",
+                        help="the clips' own detections, or the background-subtraction "
+                             "detector's (shipped defaults)")
     args = parser.parse_args(argv)
     motion = bmo.REAL_MOTION if args.real_motion else None
     box_error = bmo.REAL_DETECTION_NOISE if args.real_detection_noise else None
     changes = setting_changes(args.set)
     config = updated(MultiObjectTrackerConfig(), changes)
-    print(f"# Our errors by cause, next to the peers'\n\nsetting: defaults"
+    print(f"# Our errors by cause, next to the peers'\n\ndetections: {args.detections}; "
+          f"setting: defaults"
           f"{' + ' + str(changes) if changes else ''}\n")
     for name in args.sequences:
         if name.startswith("TUD"):
@@ -294,6 +313,8 @@ def main(argv=None) -> int:
         else:
             frames, fps = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0, motion=motion,
                                          box_error=box_error)
+        if args.detections == "background":
+            frames = background_frames(frames)
         print("\n".join(report(name, frames, config, fps)), flush=True)
     return 0
 

@@ -7,6 +7,8 @@
     ros2 launch mk_tracker mk_tracker.launch.py thermal_only:=true  # no RGB camera
     ros2 launch mk_tracker mk_tracker.launch.py public_detections:=true \
         detections_topic:=/detector/detections      # another detector's boxes, scored in [0, 1]
+    ros2 launch mk_tracker mk_tracker.launch.py background_detections:=true \
+        detector_params:=rgb_only.yaml thermal_image_topic:=/image_raw   # RGB only
 
 * ``detector_node`` reads thermal images and publishes ``vision_msgs/Detection2DArray``;
   ``tracker_node`` reads RGB images plus those detections and publishes the tracks.
@@ -22,6 +24,12 @@
   [0, 1]): ``config/tracker_public_detections.yaml`` is loaded after ``tracker_params``,
   the leave-one-sequence-out protocol's values for such detections (issue #16; what
   ``mk_tracker process`` applies by itself to such a detection topic).
+* ``background_detections:=true`` (the detector runs ``method: background``, background
+  subtraction on a static RGB camera, given in ``detector_params``, its input remapped to
+  the RGB topic): ``config/tracker_background_detections.yaml`` is loaded after
+  ``tracker_params`` (and after the public overlay), the leave-one-sequence-out protocol's
+  values for that detector's boxes (issue #13; what ``mk_tracker process`` applies by itself
+  to ``--detections background``).
 * Topics are remapped from the nodes' names (``thermal/image_raw``, ``image_raw``,
   ``thermal/detections``, ``tracks``; they are not parameters) to the launch arguments.
 * With ``bag:=PATH`` the bag is played with ``ros2 bag play --clock`` (add
@@ -154,6 +162,11 @@ def generate_launch_description():
                               description="the detections come from another detector, "
                               "scored in [0, 1]: load config/tracker_public_detections.yaml "
                               "after tracker_params"),
+        DeclareLaunchArgument("background_detections", default_value="false",
+                              description="the detections come from the detector's "
+                              "background subtraction (method: background): load "
+                              "config/tracker_background_detections.yaml after "
+                              "tracker_params"),
         DeclareLaunchArgument("fastdds_shm", default_value="true",
                               description="give every process config/fastdds_shm.xml (Fast "
                               "DDS shared memory) unless a profiles file is already set"),
@@ -182,11 +195,15 @@ def generate_launch_description():
         "'", PathJoinSubstitution([config_dir, "tracker_public_detections.yaml"]), "' if '",
         LaunchConfiguration("public_detections"), "'.lower() == 'true' else '",
         LaunchConfiguration("tracker_params"), "'"])
+    background_overlay = PythonExpression([
+        "'", PathJoinSubstitution([config_dir, "tracker_background_detections.yaml"]),
+        "' if '", LaunchConfiguration("background_detections"), "'.lower() == 'true' else '",
+        LaunchConfiguration("tracker_params"), "'"])
     tracker = Node(
         package=PACKAGE, executable="tracker_node", name="tracker_node", output="screen",
         namespace=namespace,
         parameters=[LaunchConfiguration("tracker_params"), tracker_overlay,
-                    {"use_sim_time": use_sim_time}],
+                    background_overlay, {"use_sim_time": use_sim_time}],
         remappings=[(src, _tracker_topic(arg)) for src, arg in TRACKER_REMAPS.items()])
     player = ExecuteProcess(
         cmd=["ros2", "bag", "play", LaunchConfiguration("bag"), "--rate",

@@ -189,14 +189,27 @@ def detector_pauses(config: Any, frames: int, warmup_s: float, full_pass_s: floa
 def write_params_file(path: Path, homography: Any, method: str = "kernel_covariance"
                       ) -> None:
     """One parameters file for both nodes and the offline pipeline: the detector's
-    ``method`` (``background`` for the RGB-only system), the scene's homography (thermal ->
-    RGB) and reliable detection delivery; everything else stays default."""
+    ``method`` (``background`` for the RGB-only system, with the tracker's values for that
+    detector's boxes, config/tracker_background_detections.yaml, as ``mk_tracker process``
+    gives them), the scene's homography (thermal -> RGB) and reliable detection delivery;
+    everything else stays default."""
     h = ", ".join(repr(float(v)) for v in np.asarray(homography, dtype=float).reshape(9))
+    extra = ""
+    if method == "background":
+        import yaml
+
+        from mk_tracker.tools.pipeline_config import (BACKGROUND_DETECTIONS_PARAMS_FILE,
+                                                      CONFIG_DIR)
+        overlay = CONFIG_DIR / BACKGROUND_DETECTIONS_PARAMS_FILE
+        if overlay.is_file():
+            tree = yaml.safe_load(overlay.read_text())["/**/tracker_node"]["ros__parameters"]
+            extra = "".join("      " + line + "\n" for line in
+                            yaml.safe_dump(tree["tracker"], sort_keys=True).splitlines())
     path.write_text(
         f"detector_node:\n  ros__parameters:\n    method: {method}\n"
         "tracker_node:\n  ros__parameters:\n"
         "    detections_qos:\n      reliability: reliable\n"
-        f"    tracker:\n      homography: [{h}]\n", encoding="utf-8")
+        f"    tracker:\n      homography: [{h}]\n{extra}", encoding="utf-8")
 
 
 def make_demo_scene(name: str, seed: int, people: int | None, frames: int,

@@ -20,7 +20,8 @@ without detections (single-target runs); ``auto`` picks thermal if the bag has t
 images, else a detection topic (``/thermal/detections``, ``/detections``), else none.
 Detections of another detector (a topic other than ``/thermal/detections``) scored in
 [0, 1] are tracked with ``config/tracker_public_detections.yaml`` on top of
-``config/tracker.yaml`` (``--tracker-profile``,
+``config/tracker.yaml``, the background detector's boxes with
+``config/tracker_background_detections.yaml`` (``--tracker-profile``,
 :func:`~mk_tracker.tools.pipeline_config.tracker_profile`).
 
 Single target (the protocol of Chu et al. 2013, Table I): ``--init x,y,w,h`` starts a track
@@ -117,7 +118,7 @@ class PipelineOptions:
     storage: str = "mcap"
     progress: bool = True
     use_scene_homography: bool = True
-    tracker_profile: str = "auto"             # auto | own | external (tracker_profile())
+    tracker_profile: str = "auto"             # auto | own | external | background
 
     @property
     def single_target(self) -> bool:
@@ -516,11 +517,8 @@ def process_bag(bag: str | Path, out: str | Path, config: PipelineConfig | None 
         unit_scores = (options.tracker_profile != "auto" or not source.startswith("topic:")
                        or _scores_in_unit_range(reader, source[len("topic:"):]))
         r.tracker_profile = tracker_profile(options.tracker_profile, source, unit_scores)
-        if r.tracker_profile == "external":
-            if config.tracker_external is None:
-                raise PipelineError("--tracker-profile external needs the package's "
-                                    "config/tracker_public_detections.yaml")
-            run.tracker_config = config.tracker_external
+        if r.tracker_profile != "own":
+            run.tracker_config = config.tracker_for(r.tracker_profile)
         if source == "thermal":
             run.detector = build_detector(config.method, config.detector, config.threshold,
                                           config.ignore_regions, config.background)
@@ -665,9 +663,12 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tracker-profile", choices=TRACKER_PROFILES, default="auto",
                         help="tracker parameters: own = config/tracker.yaml (the project's "
                              "detectors); external = plus config/tracker_public_detections"
-                             ".yaml (another detector's boxes scored in [0, 1]); auto "
-                             "(default): external for --detections topic:NAME other than "
-                             "/thermal/detections whose scores lie in [0, 1]")
+                             ".yaml (another detector's boxes scored in [0, 1]); background "
+                             "= plus config/tracker_background_detections.yaml (the "
+                             "background-subtraction detector's boxes); auto (default): "
+                             "background for --detections background, external for "
+                             "--detections topic:NAME other than /thermal/detections whose "
+                             "scores lie in [0, 1], else own")
     parser.add_argument("--image-topic", default=IMAGE_TOPIC)
     parser.add_argument("--thermal-topic", default=THERMAL_TOPIC)
     parser.add_argument("--ground-truth-topic", default=GROUND_TRUTH_TOPIC)

@@ -4,7 +4,9 @@
   ``config/tracker.yaml``, then each ``--params-file`` (later files win), validated by
   building the detector and the tracker once.  Beside it, the tracker's parameters for
   detections from another detector (:data:`EXTERNAL_DETECTIONS_PARAMS_FILE` between the
-  defaults and the ``--params-file`` files): the tracker profile ``external``.
+  defaults and the ``--params-file`` files): the tracker profile ``external``; and for the
+  project's background-subtraction detector (:data:`BACKGROUND_DETECTIONS_PARAMS_FILE`, in
+  the same place): the profile ``background``.
 * :func:`read_node_parameters` -- a node's dotted parameters from parameter files (sections
   ``node``, ``/node`` and ``/**``), without rclpy.
 * :func:`split_parameters` -- prefixed parameters (``tracker.*``, ``detector.*``,
@@ -39,7 +41,11 @@ DEFAULT_PARAMS_FILES = ("detector.yaml", "tracker.yaml")
 #: the leave-one-sequence-out protocol's values where they differ from the defaults, which
 #: are kept for the project's own detectors; docs/benchmark_multi_object.md)
 EXTERNAL_DETECTIONS_PARAMS_FILE = "tracker_public_detections.yaml"
-TRACKER_PROFILES = ("auto", "own", "external")
+#: the tracker overlay for the background-subtraction detector's boxes (issue #13: the
+#: leave-one-sequence-out choice of benchmarks/background_tracker_profile.py on that
+#: detector's boxes, docs/background_tracker_profile.md)
+BACKGROUND_DETECTIONS_PARAMS_FILE = "tracker_background_detections.yaml"
+TRACKER_PROFILES = ("auto", "own", "external", "background")
 #: node-level parameters the pipeline uses, with the nodes' defaults (a test keeps these
 #: equal to TrackerNodeConfig / DetectorNodeConfig, which live in rclpy modules)
 TRACKER_NODE_DEFAULTS = {"thermal_frame_id": "thermal_camera", "detection_buffer": 5,
@@ -136,23 +142,42 @@ class PipelineConfig:
     #: the tracker with :data:`EXTERNAL_DETECTIONS_PARAMS_FILE` after the defaults and
     #: before the given files (None when the package's config/ is not there)
     tracker_external: MultiObjectTrackerConfig | None = None
+    #: the same with :data:`BACKGROUND_DETECTIONS_PARAMS_FILE`
+    tracker_background: MultiObjectTrackerConfig | None = None
+
+    def tracker_for(self, profile: str) -> MultiObjectTrackerConfig:
+        """The tracker parameters of a profile of :func:`tracker_profile` (``own``,
+        ``external`` or ``background``); PipelineError when its overlay file is missing."""
+        if profile == "own":
+            return self.tracker
+        config, name = {"external": (self.tracker_external, EXTERNAL_DETECTIONS_PARAMS_FILE),
+                        "background": (self.tracker_background,
+                                       BACKGROUND_DETECTIONS_PARAMS_FILE)}[profile]
+        if config is None:
+            raise PipelineError(f"--tracker-profile {profile} needs the package's "
+                                f"config/{name}")
+        return config
 
 
 def tracker_profile(option: str, source: str, unit_scores: bool = True) -> str:
-    """``"own"`` or ``"external"``: which tracker parameters a run uses.
+    """``"own"``, ``"external"`` or ``"background"``: which tracker parameters a run uses.
 
     ``auto`` gives ``external`` for detections read from a bag topic other than the
     project's own detector output (``/thermal/detections``), e.g. the public detections
     of a MOTChallenge import, when their scores lie in [0, 1] (``unit_scores``: the
     overlay's score floor and the leave-one-sequence-out choice of its values assume that
-    scale; on TUD-Campus's raw 0-133 scores it makes MOTA 0.45 -> 0.26), and ``own`` for
-    the project's detectors (thermal, background), for no detections and for other scales.
+    scale; on TUD-Campus's raw 0-133 scores it makes MOTA 0.45 -> 0.26), ``background``
+    for the background-subtraction detector run on the tracked image (the RGB-only
+    system, what a video gets), and ``own`` for the thermal detector, for no detections and
+    for other scales.
     """
     if option not in TRACKER_PROFILES:
         raise PipelineError(f"--tracker-profile must be one of {', '.join(TRACKER_PROFILES)}, "
                             f"got {option!r}")
     if option != "auto":
         return option
+    if source == "background":
+        return "background"
     external = source.startswith("topic:") and source != "topic:/thermal/detections"
     return "external" if external and unit_scores else "own"
 
@@ -174,19 +199,21 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
          "background": BackgroundDetectorConfig()})
     trk_cfgs, trk_rest = split_parameters(read_node_parameters(files, "tracker_node"),
                                           {"tracker": MultiObjectTrackerConfig()})
-    tracker_external = None
-    overlay = CONFIG_DIR / EXTERNAL_DETECTIONS_PARAMS_FILE
-    if include_defaults and overlay.is_file():
-        # the overlay sits between the defaults and the given files: a value of a given
-        # file wins over it
-        mine = set(read_node_parameters(files[given:], "tracker_node"))
-        extra = {k.partition(".")[2]: v
-                 for k, v in read_node_parameters([overlay], "tracker_node").items()
-                 if k.startswith("tracker.") and k not in mine}
-        try:
-            tracker_external = updated(trk_cfgs["tracker"], extra)
-        except ParameterError as exc:
-            raise PipelineError(f"{overlay}: {exc}") from exc
+    overlays = {}
+    for name in (EXTERNAL_DETECTIONS_PARAMS_FILE, BACKGROUND_DETECTIONS_PARAMS_FILE):
+        overlay = CONFIG_DIR / name
+        overlays[name] = None
+        if include_defaults and overlay.is_file():
+            # the overlay sits between the defaults and the given files: a value of a given
+            # file wins over it
+            mine = set(read_node_parameters(files[given:], "tracker_node"))
+            extra = {k.partition(".")[2]: v
+                     for k, v in read_node_parameters([overlay], "tracker_node").items()
+                     if k.startswith("tracker.") and k not in mine}
+            try:
+                overlays[name] = updated(trk_cfgs["tracker"], extra)
+            except ParameterError as exc:
+                raise PipelineError(f"{overlay}: {exc}") from exc
     try:
         buffer = int(trk_rest.get("detection_buffer", TRACKER_NODE_DEFAULTS["detection_buffer"]))
     except (TypeError, ValueError) as exc:
@@ -211,7 +238,8 @@ def load_pipeline_config(params_files: Sequence[str | Path] = (), *,
         detection_buffer=buffer,
         detection_wait=wait,
         class_id=str(trk_rest.get("class_id", TRACKER_NODE_DEFAULTS["class_id"])),
-        tracker_external=tracker_external)
+        tracker_external=overlays[EXTERNAL_DETECTIONS_PARAMS_FILE],
+        tracker_background=overlays[BACKGROUND_DETECTIONS_PARAMS_FILE])
     try:
         build_detector(config.method, config.detector, config.threshold,
                        config.ignore_regions, config.background)

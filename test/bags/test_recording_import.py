@@ -194,6 +194,8 @@ def test_process_runs_on_a_video_in_one_step(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert rc == 0, summary
     assert summary["detection_source"] == "background" and summary["frames"] == 40
+    # ... and tracked with the tracker parameters chosen for that detector's boxes
+    assert summary["tracker_profile"] == "background"
     assert summary["detections"] > 0
     assert len(_messages(out / "input_bag", "/image_raw")) == 40
     # the same output folder again: refused, nothing overwritten

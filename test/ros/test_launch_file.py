@@ -201,13 +201,33 @@ def test_public_detections_loads_the_overlay_after_the_tracker_parameters(launch
                 if not isinstance(entry, dict)]
 
     config = "<share of mk_tracker>/config"
-    assert files(tracker) == [f"{config}/tracker.yaml", f"{config}/tracker.yaml"]
+    assert files(tracker) == [f"{config}/tracker.yaml"] * 3
     assert files(tracker, public_detections="True", tracker_params="mine.yaml") == [
-        "mine.yaml", f"{config}/tracker_public_detections.yaml"]
-    assert files(tracker, tracker_params="mine.yaml") == ["mine.yaml", "mine.yaml"]
+        "mine.yaml", f"{config}/tracker_public_detections.yaml", "mine.yaml"]
+    assert files(tracker, tracker_params="mine.yaml") == ["mine.yaml"] * 3
     # the overlay file is the one the offline pipeline uses, and it exists
     from mk_tracker.tools.pipeline_config import CONFIG_DIR, EXTERNAL_DETECTIONS_PARAMS_FILE
     assert (CONFIG_DIR / EXTERNAL_DETECTIONS_PARAMS_FILE).is_file()
     assert files(tracker, public_detections="true")[1].endswith(EXTERNAL_DETECTIONS_PARAMS_FILE)
     # the detector's parameters do not change
     assert files(detector, public_detections="true") == [f"{config}/detector.yaml"]
+
+
+def test_background_detections_loads_its_overlay_after_the_tracker_parameters(launch_module):
+    detector, tracker, declared = _nodes_and_arguments(launch_module)
+    assert declared["background_detections"]["default_value"] == "false"
+
+    def files(node, **changes):
+        values = _arguments(declared, **changes)
+        return [_render(entry, values) for entry in node.kwargs["parameters"]
+                if not isinstance(entry, dict)]
+
+    config = "<share of mk_tracker>/config"
+    assert files(tracker, background_detections="true", tracker_params="mine.yaml") == [
+        "mine.yaml", "mine.yaml", f"{config}/tracker_background_detections.yaml"]
+    # the overlay file is the one the offline pipeline uses, and it exists
+    from mk_tracker.tools.pipeline_config import BACKGROUND_DETECTIONS_PARAMS_FILE, CONFIG_DIR
+    assert (CONFIG_DIR / BACKGROUND_DETECTIONS_PARAMS_FILE).is_file()
+    assert files(tracker, background_detections="True")[2].endswith(
+        BACKGROUND_DETECTIONS_PARAMS_FILE)
+    assert files(detector, background_detections="true") == [f"{config}/detector.yaml"]

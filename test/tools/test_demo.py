@@ -230,6 +230,15 @@ def test_rgb_only_pieces_write_no_thermal_topic_and_the_background_method(tmp_pa
     assert _count_messages(tmp_path / "rgb", "/image_raw") == 6
     write_params_file(tmp_path / "p.yaml", np.eye(3), method="background")
     assert "    method: background\n" in (tmp_path / "p.yaml").read_text()
+    # the tracker gets the values for the background detector's boxes, as mk_tracker
+    # process gives them; the thermal demo keeps the tracker's defaults
+    from mk_tracker.tools.pipeline_config import load_pipeline_config
+    rgb = load_pipeline_config([tmp_path / "p.yaml"], include_defaults=False).tracker
+    assert rgb == load_pipeline_config().tracker_background      # identity homography
+    write_params_file(tmp_path / "t.yaml", np.eye(3))
+    thermal = load_pipeline_config([tmp_path / "t.yaml"], include_defaults=False).tracker
+    assert rgb.group.member_min_height > thermal.group.member_min_height
+    assert rgb.max_reported_coast_time < thermal.max_reported_coast_time
     with pytest.raises(DemoError, match="640x480"):
         make_demo_scene("static_camera", 5, None, 6, None, 320, 240)
     with pytest.raises(DemoError, match="crowd is 25 fps"):

@@ -22,7 +22,7 @@ from mk_tracker.messages.message_types import bag_message_types
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag
 from mk_tracker.tools.pipeline_config import (CONFIG_DIR, DETECTOR_NODE_DEFAULTS,
                                               TRACKER_NODE_DEFAULTS, PipelineError,
-                                              load_pipeline_config)
+                                              load_pipeline_config, tracker_profile)
 from mk_tracker.synthetic.scene_bag import build_preset, read_scene_info, write_scene_bag
 from mk_tracker.drawing.video_output import count_video_frames
 
@@ -202,15 +202,60 @@ def test_another_detectors_boxes_use_the_external_tracker_profile(scene_bag, tmp
     assert len(result.mot_rows) == len(runs["own"].mot_rows)
 
 
+def test_background_detections_use_the_background_tracker_profile(scene_bag, tmp_path):
+    """The background detector's boxes are tracked with
+    config/tracker_background_detections.yaml on top of the defaults (auto); ``own`` keeps
+    the defaults; the thermal detector and no detections keep them under auto."""
+    import yaml
+    overlay = yaml.safe_load((CONFIG_DIR / "tracker_background_detections.yaml").read_text())
+    values = overlay["/**/tracker_node"]["ros__parameters"]["tracker"]
+    config = load_pipeline_config()
+    member = values["group"]["member_min_height"]
+    assert config.tracker_background.group.member_min_height == member
+    assert config.tracker.group.member_min_height != member     # the shipped default differs
+    assert (config.tracker_background.max_reported_coast_time
+            == values["max_reported_coast_time"])
+    assert config.tracker_for("own") is config.tracker
+    assert config.tracker_for("background") is config.tracker_background
+
+    assert tracker_profile("auto", "background") == "background"
+    assert tracker_profile("own", "background") == "own"
+    for source in ("thermal", "none", "topic:/thermal/detections"):
+        assert tracker_profile("auto", source) == "own"
+
+    runs = {}
+    for profile in ("auto", "own"):
+        runs[profile] = process_bag(scene_bag, tmp_path / profile, config=config,
+                                    options=PipelineOptions(progress=False, write_video=False,
+                                                            detections="background",
+                                                            tracker_profile=profile))
+    assert runs["auto"].tracker_profile == "background"
+    summary = json.loads((tmp_path / "auto" / "summary.json").read_text())
+    assert summary["tracker_profile"] == "background"
+    assert runs["own"].tracker_profile == "own"
+
+
+def test_a_missing_profile_overlay_is_refused():
+    config = dataclasses.replace(load_pipeline_config(), tracker_background=None)
+    with pytest.raises(PipelineError, match="tracker_background_detections.yaml"):
+        config.tracker_for("background")
+
+
 def test_a_given_parameters_file_wins_over_the_external_profile(tmp_path):
     params = tmp_path / "mine.yaml"
     params.write_text("tracker_node:\n  ros__parameters:\n    tracker:\n"
-                      "      lifecycle:\n        min_hits: 5\n")
+                      "      lifecycle:\n        min_hits: 5\n"
+                      "      group:\n        member_min_height: 0.5\n")
     config = load_pipeline_config([params])
     assert config.tracker.lifecycle.min_hits == 5
     assert config.tracker_external.lifecycle.min_hits == 5
     # the overlay's other values still apply
     assert config.tracker_external.min_detection_score > config.tracker.min_detection_score
+    # the same for the background detector's overlay
+    assert config.tracker_background.group.member_min_height == 0.5
+    assert config.tracker_background.lifecycle.min_hits == 5
+    assert (config.tracker_background.max_reported_coast_time
+            < config.tracker.max_reported_coast_time)
 
 
 def test_a_bad_tracker_profile_is_refused(scene_bag, tmp_path):
@@ -520,6 +565,36 @@ def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
     assert set(overlay) == {"tracker"}
     values = {"min_detection_score": overlay["tracker"]["min_detection_score"],
               "lifecycle.min_hits": overlay["tracker"]["lifecycle"]["min_hits"],
+              "group.member_min_height": overlay["tracker"]["group"]["member_min_height"]}
+    for name, value in values.items():
+        validate_value(specs[name], value)
+
+
+def test_background_detections_overlay_sets_the_protocols_choice_and_nothing_else():
+    """config/tracker_background_detections.yaml (issue #13) changes exactly the two settings
+    the leave-one-sequence-out protocol of benchmarks/background_tracker_profile.py prefers
+    for the background detector's boxes, to valid values, and nothing else."""
+    import yaml
+
+    from mk_tracker.parameters import parameter_specs, validate_value
+    from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig
+
+    files = [CONFIG_DIR / "tracker.yaml", CONFIG_DIR / "tracker_background_detections.yaml"]
+    base = load_pipeline_config(files[:1], include_defaults=False)
+    both = load_pipeline_config(files, include_defaults=False)
+    assert both.tracker.group.member_min_height == 0.3
+    assert both.tracker.max_reported_coast_time == 0.0
+    assert base.tracker.group.member_min_height == 0.0
+    assert base.tracker.max_reported_coast_time > 0.0
+    restored = dataclasses.replace(
+        both.tracker, max_reported_coast_time=base.tracker.max_reported_coast_time,
+        group=dataclasses.replace(both.tracker.group,
+                                  member_min_height=base.tracker.group.member_min_height))
+    assert restored == base.tracker and both.detection_wait == base.detection_wait
+    overlay = yaml.safe_load(files[1].read_text())["/**/tracker_node"]["ros__parameters"]
+    specs = {s.name: s for s in parameter_specs(MultiObjectTrackerConfig())}
+    assert set(overlay) == {"tracker"}
+    values = {"max_reported_coast_time": overlay["tracker"]["max_reported_coast_time"],
               "group.member_min_height": overlay["tracker"]["group"]["member_min_height"]}
     for name, value in values.items():
         validate_value(specs[name], value)
