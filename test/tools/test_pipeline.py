@@ -536,65 +536,56 @@ def test_detection_wait_pairs_late_detections_with_their_own_frame(scene_bag, tm
     assert not_waited != reference     # every frame got the detections of the frame before
 
 
-def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
-    """config/tracker_public_detections.yaml (issue #16) changes exactly the three settings
-    the leave-one-sequence-out protocol prefers for [0, 1]-scored detections, to valid
-    values, and leaves every other shipped value as it is."""
+def _dotted(config, name: str):
+    for part in name.split("."):
+        config = getattr(config, part)
+    return config
+
+
+def _flattened(tree: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            out.update(_flattened(value, f"{prefix}{key}."))
+        else:
+            out[prefix + key] = value
+    return out
+
+
+def _assert_overlay_changes_only(overlay_name: str, expected: dict) -> None:
+    """``config/<overlay_name>`` over config/tracker.yaml sets exactly ``expected`` (dotted
+    tracker parameter names), to valid values that differ from the shipped ones, and
+    leaves every other shipped value as it is."""
     import yaml
 
-    from mk_tracker.parameters import parameter_specs, validate_value
-    from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig
+    from mk_tracker.parameters import updated
 
-    files = [CONFIG_DIR / "tracker.yaml", CONFIG_DIR / "tracker_public_detections.yaml"]
+    files = [CONFIG_DIR / "tracker.yaml", CONFIG_DIR / overlay_name]
     base = load_pipeline_config(files[:1], include_defaults=False)
     both = load_pipeline_config(files, include_defaults=False)
-    assert both.tracker.min_detection_score == 0.2
-    assert both.tracker.lifecycle.min_hits == 2
-    assert both.tracker.group.member_min_height == 0.8
-    assert base.tracker.min_detection_score != 0.2 and base.tracker.lifecycle.min_hits != 2
-    assert base.tracker.group.member_min_height == 0.0
-    restored = dataclasses.replace(
-        both.tracker, min_detection_score=base.tracker.min_detection_score,
-        lifecycle=dataclasses.replace(both.tracker.lifecycle,
-                                      min_hits=base.tracker.lifecycle.min_hits),
-        group=dataclasses.replace(both.tracker.group,
-                                  member_min_height=base.tracker.group.member_min_height))
+    for name, value in expected.items():
+        assert _dotted(both.tracker, name) == value, name
+        assert _dotted(base.tracker, name) != value, name
+    # putting the shipped values back (validated by `updated`) gives the shipped config
+    restored = updated(both.tracker, {name: _dotted(base.tracker, name) for name in expected})
     assert restored == base.tracker and both.detection_wait == base.detection_wait
     overlay = yaml.safe_load(files[1].read_text())["/**/tracker_node"]["ros__parameters"]
-    specs = {s.name: s for s in parameter_specs(MultiObjectTrackerConfig())}
     assert set(overlay) == {"tracker"}
-    values = {"min_detection_score": overlay["tracker"]["min_detection_score"],
-              "lifecycle.min_hits": overlay["tracker"]["lifecycle"]["min_hits"],
-              "group.member_min_height": overlay["tracker"]["group"]["member_min_height"]}
-    for name, value in values.items():
-        validate_value(specs[name], value)
+    assert _flattened(overlay["tracker"]) == expected
+    updated(base.tracker, expected)          # every value is in its parameter's range
+
+
+def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
+    """config/tracker_public_detections.yaml (issue #16): the three settings the
+    leave-one-sequence-out protocol prefers for [0, 1]-scored detections."""
+    _assert_overlay_changes_only("tracker_public_detections.yaml", {
+        "min_detection_score": 0.2, "lifecycle.min_hits": 2,
+        "group.member_min_height": 0.8})
 
 
 def test_background_detections_overlay_sets_the_protocols_choice_and_nothing_else():
-    """config/tracker_background_detections.yaml (issue #13) changes exactly the two settings
-    the leave-one-sequence-out protocol of benchmarks/background_tracker_profile.py prefers
-    for the background detector's boxes, to valid values, and nothing else."""
-    import yaml
-
-    from mk_tracker.parameters import parameter_specs, validate_value
-    from mk_tracker.tracking.tracker_config import MultiObjectTrackerConfig
-
-    files = [CONFIG_DIR / "tracker.yaml", CONFIG_DIR / "tracker_background_detections.yaml"]
-    base = load_pipeline_config(files[:1], include_defaults=False)
-    both = load_pipeline_config(files, include_defaults=False)
-    assert both.tracker.group.member_min_height == 0.3
-    assert both.tracker.max_reported_coast_time == 0.0
-    assert base.tracker.group.member_min_height == 0.0
-    assert base.tracker.max_reported_coast_time > 0.0
-    restored = dataclasses.replace(
-        both.tracker, max_reported_coast_time=base.tracker.max_reported_coast_time,
-        group=dataclasses.replace(both.tracker.group,
-                                  member_min_height=base.tracker.group.member_min_height))
-    assert restored == base.tracker and both.detection_wait == base.detection_wait
-    overlay = yaml.safe_load(files[1].read_text())["/**/tracker_node"]["ros__parameters"]
-    specs = {s.name: s for s in parameter_specs(MultiObjectTrackerConfig())}
-    assert set(overlay) == {"tracker"}
-    values = {"max_reported_coast_time": overlay["tracker"]["max_reported_coast_time"],
-              "group.member_min_height": overlay["tracker"]["group"]["member_min_height"]}
-    for name, value in values.items():
-        validate_value(specs[name], value)
+    """config/tracker_background_detections.yaml (issue #13): the two settings the
+    leave-one-sequence-out protocol of benchmarks/background_tracker_profile.py prefers
+    for the background detector's boxes."""
+    _assert_overlay_changes_only("tracker_background_detections.yaml", {
+        "max_reported_coast_time": 0.0, "group.member_min_height": 0.3})
