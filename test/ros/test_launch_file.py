@@ -191,14 +191,19 @@ def test_thermal_only_feeds_the_thermal_camera_to_the_tracker_alone(launch_modul
         assert topics(tracker, thermal_only=mode)["thermal/detections"] == "thermal/detections"
 
 
+def _parameter_files(declared, node, **changes):
+    """The parameter files ``node`` loads, in order, with the launch arguments changed."""
+    values = _arguments(declared, **changes)
+    return [_render(entry, values) for entry in node.kwargs["parameters"]
+            if not isinstance(entry, dict)]
+
+
 def test_public_detections_loads_the_overlay_after_the_tracker_parameters(launch_module):
     detector, tracker, declared = _nodes_and_arguments(launch_module)
     assert declared["public_detections"]["default_value"] == "false"
 
     def files(node, **changes):
-        values = _arguments(declared, **changes)
-        return [_render(entry, values) for entry in node.kwargs["parameters"]
-                if not isinstance(entry, dict)]
+        return _parameter_files(declared, node, **changes)
 
     config = "<share of mk_tracker>/config"
     assert files(tracker) == [f"{config}/tracker.yaml"] * 3
@@ -218,9 +223,7 @@ def test_background_detections_loads_its_overlay_after_the_tracker_parameters(la
     assert declared["background_detections"]["default_value"] == "false"
 
     def files(node, **changes):
-        values = _arguments(declared, **changes)
-        return [_render(entry, values) for entry in node.kwargs["parameters"]
-                if not isinstance(entry, dict)]
+        return _parameter_files(declared, node, **changes)
 
     config = "<share of mk_tracker>/config"
     assert files(tracker, background_detections="true", tracker_params="mine.yaml") == [
