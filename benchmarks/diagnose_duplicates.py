@@ -65,7 +65,7 @@ class RecordingTracker(MultiObjectTracker):
         self.frame = 0
 
     def _update_track(self, t, stamp, image, det_box, det, refined, width, height, blockers,
-                      hold=False, group=False):
+                      hold=False, group=False, **kwargs):
         if group:
             mode = "G"
         elif det_box is not None:
@@ -76,7 +76,7 @@ class RecordingTracker(MultiObjectTracker):
             mode = "C"
         self.modes[t.id] = mode
         return super()._update_track(t, stamp, image, det_box, det, refined, width, height,
-                                     blockers, hold=hold, group=group)
+                                     blockers, hold=hold, group=group, **kwargs)
 
     def _new_track(self, box, stamp, score, state, kalman=None, lifecycle=None):
         others = [u.box for u in self.tracks if u.state in OUTPUT_STATES]
