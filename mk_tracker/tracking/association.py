@@ -52,12 +52,6 @@ class AssociationConfig:
     min_iou: float = parameter(
         0.0, "Pairs with less overlap than this are not matched (0 = distance gate only)",
         minimum=0.0, maximum=1.0)
-    gate_iou: float = parameter(
-        0.0, "Pairs overlapping by at least this IoU are possible whatever their "
-        "Mahalanobis distance (SORT's and ByteTrack's gate is the overlap alone; SORT's "
-        "IoU_min is 0.3): a filter made confident by many detections otherwise rejects its "
-        "own person's detection whose box changed shape (BU-TIV-lab frame 144: IoU 0.76, "
-        "d2 16.1); 0 = the distance gate only", minimum=0.0, maximum=1.0)
 
 
 @dataclass(frozen=True)
@@ -131,10 +125,7 @@ def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,
         if e.shape != cost.shape:
             raise AssociationError(f"extra cost {e.shape} does not match {cost.shape}")
         cost = cost + e
-    outside = m > config.gate
-    if config.gate_iou > 0.0:
-        outside &= ious < config.gate_iou       # overlapping enough: inside whatever d2
-    forbidden = outside | (ious < config.min_iou)
+    forbidden = (m > config.gate) | (ious < config.min_iou)
     cost[forbidden] = np.inf
     return cost
 

@@ -25,10 +25,6 @@ to the old one.  The recovery round (step 4b' of
   ``s0`` the floor and ``v`` a walking speed in box heights per second
   (``recovery.floor``, ``recovery.speed``); it replaces OC-SORT's IoU with the last
   observation by a radius that grows with the time the track went undetected;
-  ``recovery.min_iou`` > 0 admits OC-SORT's IoU test as well (either suffices): when the
-  detector's box of two people is split into one of each, the person's detection lies
-  inside the track's last detected box with its centre half a box away, outside the
-  radius (BU-TIV-lab frame 145, docs/benchmark_real_thermal.md);
 * for a track slower than ``lifecycle.still_speed`` (a person standing still, whom the
   kernel covariance detector no longer sees) that time is capped at
   ``recovery.still_max_age``: the person has not walked away, and with the full time the
@@ -63,7 +59,6 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from mk_tracker.boxes import iou_matrix
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig
 from mk_tracker.parameters import parameter
 from mk_tracker.tracking.association import assign
@@ -106,12 +101,6 @@ class RecoveryConfig:
         "with the velocity of its last two detections), correct (the ordinary Kalman "
         "correction of the drifted estimate)",
         choices=("still", "observations", "correct"))
-    min_iou: float = parameter(
-        0.0, "Also possible, whatever the distance, is a detection whose box overlaps the "
-        "track's last detected box by at least this IoU (OC-SORT's own recovery test, Cao "
-        "et al. 2023, Sec. 4.3, threshold 0.3): a detection of one person inside the last "
-        "detected box of two (the detector's group box split again) has its centre far "
-        "from that box's centre; 0 = the distance gate only", minimum=0.0, maximum=1.0)
     skip_still: bool = parameter(
         False, "Leave tracks slower than lifecycle.still_speed out of the round: a person "
         "standing still has not drifted, and the radius that grows with the time since the "
@@ -146,10 +135,7 @@ def recovery_cost(detected_boxes: np.ndarray, elapsed: Sequence[float],
         d2 = last_detection_distance2(centres, b[:2] + b[2:] / 2.0, float(b[3]),
                                       float(ages[i]), config.floor, config.speed)
         ratio = dets[:, 3] / max(float(b[3]), 1e-9)
-        near = d2 <= config.gate
-        if config.min_iou > 0.0:
-            near |= iou_matrix(b[None], dets)[0] >= config.min_iou
-        ok = near & (ratio >= 1.0 / config.max_size_ratio) & \
+        ok = (d2 <= config.gate) & (ratio >= 1.0 / config.max_size_ratio) & \
             (ratio <= config.max_size_ratio)
         cost[i, ok] = d2[ok]
     return cost

@@ -56,21 +56,6 @@ def test_min_iou_forbids_pairs():
     assert math.isinf(association_cost(t, d, np.zeros((1, 1)), cfg)[0, 0])
 
 
-
-def test_gate_iou_opens_the_distance_gate_to_overlapping_pairs_only():
-    t = np.array([[0, 0, 10, 10]], float)
-    d = np.array([[5, 0, 10, 10], [8, 0, 10, 10]], float)   # IoU 1/3 and 20/180 = 1/9
-    maha = np.array([[50.0, 50.0]])                          # both outside the gate (13.8)
-    assert np.all(np.isinf(association_cost(t, d, maha, AssociationConfig())))
-    cfg = AssociationConfig(overlap_weight=0.25, gate_iou=0.3)
-    cost = association_cost(t, d, maha, cfg)
-    # the distance term saturates at 1 for the admitted pair
-    assert cost[0, 0] == pytest.approx(0.25 * (2.0 / 3.0) + 0.75)
-    assert math.isinf(cost[0, 1])
-    # min_iou still forbids whatever gate_iou admits
-    both = AssociationConfig(gate_iou=0.3, min_iou=0.5)
-    assert math.isinf(association_cost(t, d, maha, both)[0, 0])
-
 def test_hungarian_beats_greedy():
     # greedy takes (0,0)=1 then (1,1)=10 (total 11); optimum is (0,1)+(1,0) = 3
     a = assign(np.array([[1.0, 2.0], [1.0, 10.0]]), max_cost=100.0)

@@ -39,22 +39,6 @@ def test_cost_is_the_distance_from_the_last_detection_normalised_by_its_spread()
     assert recovery_cost(last, [0.5], dets[2:], wider)[0, 0] == pytest.approx(400.0 / 90.0)
 
 
-
-def test_min_iou_admits_a_detection_inside_the_last_detected_box_of_two():
-    # the last detection was a box of two people, 120 x 60; the next is the left one,
-    # 50 x 60: its centre is 35 px off, d2 = 1225 / (3600 * 0.05^2) = 136 > 13.8 right after
-    # the detection, but it overlaps the last box at IoU 3000 / 7200 = 0.42
-    last = np.array([[100.0, 100.0, 120.0, 60.0]])
-    left = np.array([[100.0, 100.0, 50.0, 60.0]])
-    assert recovery_cost(last, [0.0], left, ON)[0, 0] == math.inf
-    with_iou = RecoveryConfig(enabled=True, min_similarity=0.0, min_iou=0.3)
-    assert recovery_cost(last, [0.0], left, with_iou)[0, 0] == pytest.approx(1225.0 / 9.0)
-    assert recovery_cost(last, [0.0], left, RecoveryConfig(
-        enabled=True, min_similarity=0.0, min_iou=0.5))[0, 0] == math.inf
-    # the height ratio still applies
-    tall = np.array([[100.0, 100.0, 120.0, 100.0]])
-    assert recovery_cost(last, [0.0], tall, with_iou)[0, 0] == math.inf
-
 def test_cost_checks_its_shapes_and_is_off_without_spread():
     with pytest.raises(ValueError, match="elapsed"):
         recovery_cost(np.zeros((2, 4)) + 10.0, [0.1], np.zeros((1, 4)) + 10.0, ON)
