@@ -73,6 +73,7 @@ GRID: dict[str, tuple] = {
     "split_ratio": (1.3, 1.6),
     "column_trim": (0.0, 0.2),
     "counts_fps": (0.0, 25.0),
+    "size_clamp_rows": (False,),
 }
 #: Real low-frame-rate CHECKS (``--low-fps-checks``), not folds: every ``LOW_FPS_STEP``-th
 #: frame of the TUD clips (25 fps -> 6.25 fps, 4x the motion per frame), each offset a run
@@ -315,7 +316,13 @@ def main(argv=None) -> int:
     parser.add_argument("--low-fps-checks", action="store_true",
                         help="also the real 6.25-fps checks (every 4th frame of the TUD "
                         "clips, offsets 0-3)")
+    parser.add_argument("--grid", nargs="*", default=[], metavar="KEY=V1,V2",
+                        help="GRID dimensions replaced (or added) for this run, values as "
+                        "YAML, e.g. size_clamp_rows=false,true min_height_ratio=0.8")
     args = parser.parse_args(argv)
+    for item in args.grid:
+        key, values = item.split("=", 1)
+        GRID[key] = tuple(yaml.safe_load(v) for v in values.split(","))
     grid = settings()
     lines = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -406,6 +413,7 @@ def main(argv=None) -> int:
         args.out.write_text("# Background-subtraction detector (issue #13)\n\nProduced by:\n\n"
                             "```\n.venv/bin/python benchmarks/bench_background_detector.py "
                             + ("--low-fps-checks " if args.low_fps_checks else "")
+                            + ("--grid " + " ".join(args.grid) + " " if args.grid else "")
                             + "--out docs/benchmark_background_detector.md\n```\n\n"
                             + __doc__.split("\n\n", 2)[2] + "\n" + table + "\n")
     return 0

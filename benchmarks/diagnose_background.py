@@ -31,6 +31,7 @@ instead (every 4th frame of the TUD clips, offsets 0-3, ``datasets.subsampled``)
     nice -n 10 .venv/bin/python benchmarks/diagnose_background.py
     nice -n 10 .venv/bin/python benchmarks/diagnose_background.py --set bootstrap_frames=0
     nice -n 10 .venv/bin/python benchmarks/diagnose_background.py --low-fps --set counts_fps=25
+    nice -n 10 .venv/bin/python benchmarks/diagnose_background.py --real-only --rows
 """
 
 from __future__ import annotations
@@ -123,8 +124,10 @@ def diagnose(frames, truth, fps, config, early: int, fg_share: float):
     false = {r: Counter() for r in ("start-up", "later")}
     missed = {r: Counter() for r in ("start-up", "later")}
     people = Counter()
+    rows = []           # (matched, cause, above / inside / below, box h, expected h, person h)
     for k, img in enumerate(frames):
         det.mask = None
+        seen = det.heights.rows
         boxes = [d.box for d in det.process(img, k / fps, encoding="bgr8")]
         scale = min(1.0, config.max_width / float(img.shape[1]))
         gt = truth[k]
@@ -135,12 +138,46 @@ def diagnose(frames, truth, fps, config, early: int, fg_share: float):
         bad = [(false_cause(b, gt, first), b) for j, b in enumerate(boxes)
                if j not in hit_box]
         false[span].update(c for c, _ in bad)
+        if seen is not None:
+            causes = dict(enumerate(false_cause(b, gt, first) if j not in hit_box
+                                    else "(matched)" for j, b in enumerate(boxes)))
+            for j, b in enumerate(boxes):
+                rows.append(_row_record(b, gt, seen, det, causes[j]))
         false[span]["(matched)"] += len(hit_box)
         groups = [b for b in boxes if holds_people(b, gt) >= 2]
         missed[span].update(miss_cause(g, det, scale, bad, groups, fg_share)
                             for i, g in enumerate(gt) if i not in hit_gt)
         missed[span]["(matched)"] += len(hit_gt)
-    return false, missed, people
+    return false, missed, people, rows
+
+
+def _row_record(box, gt, seen, det, cause):
+    """Where ``box``'s bottom row lies against the feet rows of the size samples learnt
+    before this frame (``seen``: their min and max), the height the model expects there,
+    and the height of the person the box lies most inside."""
+    bottom = box[1] + box[3]
+    where = "above" if bottom < seen[0] else "below" if bottom > seen[1] else "inside"
+    expected = det.heights.height_at(bottom, clamp=det.config.size_clamp_rows)
+    host = max(gt, key=lambda g: _inside(box, g), default=None)
+    person = host[3] if host is not None and _inside(box, host) >= 0.5 else float("nan")
+    return cause, where, box[3], float("nan") if expected is None else expected, person
+
+
+def row_lines(name, rows) -> list[str]:
+    """Boxes by cause and by where their bottom row lies against the learnt feet rows."""
+    out = []
+    for cause in ("(matched)",) + FALSE:
+        for where in ("above", "inside", "below"):
+            sel = [r for r in rows if r[0] == cause and r[1] == where]
+            if not sel:
+                continue
+            box_h, exp_h, person_h = (np.array([r[k] for r in sel]) for k in (2, 3, 4))
+            ratio = box_h / person_h
+            out.append(f"| {name} | {cause} | {where} | {len(sel)} | {np.median(box_h):.0f} | "
+                       f"{np.nanmedian(exp_h):.0f} | "
+                       + (f"{np.nanmedian(person_h):.0f} | {np.nanmedian(ratio):.2f}"
+                          if np.isfinite(person_h).any() else "- | -") + " |")
+    return out
 
 
 def _row(counter: Counter, keys) -> str:
@@ -157,6 +194,9 @@ def main(argv=None) -> int:
                         help="the real 6.25-fps checks instead of the benchmark's sequences")
     parser.add_argument("--fg", type=float, default=0.15)
     parser.add_argument("--real-only", action="store_true")
+    parser.add_argument("--rows", action="store_true",
+                        help="also every box by where its bottom row lies against the feet "
+                        "rows the height model was fitted on")
     args = parser.parse_args(argv)
     changes = {k: yaml.safe_load(v) for k, v in (s.split("=", 1) for s in args.set)}
     config = BackgroundDetectorConfig(**changes)
@@ -167,16 +207,26 @@ def main(argv=None) -> int:
     print("| sequence | frames | people | false boxes: matched | " + " | ".join(FALSE)
           + " || misses: matched | " + " | ".join(MISSED) + " |")
     print("|---|---|---|---|" + "---|" * len(FALSE) + "---|" + "---|" * len(MISSED))
+    row_table = []
     for name, _bag, frames, truth, fps, real in sequences:
         if args.real_only and not real:
             continue
         early = args.early if args.early is not None else int(round(fps))
-        false, missed, people = diagnose(frames, truth, fps, config, early, args.fg)
+        false, missed, people, rows = diagnose(frames, truth, fps, config, early, args.fg)
+        row_table += row_lines(name, rows)
         for span in ("start-up", "later"):
             n = early if span == "start-up" else len(frames) - early
             print(f"| {name} | {span} ({n}) | {people[span]} | "
                   f"{false[span]['(matched)']} | {_row(false[span], FALSE)} || "
                   f"{missed[span]['(matched)']} | {_row(missed[span], MISSED)} |", flush=True)
+    if args.rows:
+        print("\nBoxes after the first size samples, by where their bottom row lies against "
+              "the feet rows learnt so far (min-max); medians: the box's height, the model's "
+              "expected height at its bottom row, the height of the person it lies in (at "
+              "least half inside) and the box over that person (px, full image)\n")
+        print("| sequence | box | bottom row | boxes | box h | expected h | person h | "
+              "box / person |\n|---|---|---|---|---|---|---|---|")
+        print("\n".join(row_table))
     return 0
 
 

@@ -54,6 +54,12 @@ class PersonHeightModel:
     residual spread (:meth:`relative_residual`: its square root over the mean height) is
     above ``max_relative_residual`` or the samples' total weight is below ``min_samples``:
     every split that reads the expected size then acts as if none was learnt.
+
+    **Row range.**  The model also keeps the lowest and highest feet row of its samples
+    (:attr:`rows`).  ``height_at(y, clamp=True)`` evaluates the line at the nearest row of
+    that range: no extrapolation.  Above the rows where people were seen the line predicts
+    ever smaller people (a head's bottom edge, above every feet row, would be "a small
+    person"); clamped, it gets the height of the highest row seen.
     """
 
     def __init__(self, memory: float, max_relative_residual: float = math.inf,
@@ -62,6 +68,7 @@ class PersonHeightModel:
         self.max_relative_residual = float(max_relative_residual)
         self.min_samples = float(min_samples)
         self.sums = np.zeros(6)          # n, y, h, yy, yh, hh
+        self.rows: tuple[float, float] | None = None   # lowest, highest sample row
 
     @property
     def samples(self) -> float:
@@ -72,6 +79,9 @@ class PersonHeightModel:
         self.sums *= self.decay
         self.sums += (1.0, y_bottom, height, y_bottom * y_bottom, y_bottom * height,
                       height * height)
+        y = float(y_bottom)
+        self.rows = (y, y) if self.rows is None else (min(self.rows[0], y),
+                                                       max(self.rows[1], y))
 
     def _line(self) -> tuple[float, float, float, float] | None:
         """``(mean y, mean h, slope, residual variance)`` of the weighted fit; None with
@@ -120,13 +130,16 @@ class PersonHeightModel:
         infinite: as before the check existed), else only while :meth:`valid`."""
         return math.isinf(self.max_relative_residual) or self.valid()
 
-    def height_at(self, y_bottom: float) -> float | None:
+    def height_at(self, y_bottom: float, clamp: bool = False) -> float | None:
         """Expected height of a person whose feet are at row ``y_bottom``; None with fewer
-        than about 3 samples, or while the fit is not :meth:`valid`."""
+        than about 3 samples, or while the fit is not :meth:`valid`.  ``clamp``: at the
+        nearest row of the samples' range (:attr:`rows`) instead of extrapolating."""
         line = self._line()
         if line is None or not self.valid():
             return None
         mean_y, mean_h, b, _ = line
+        if clamp and self.rows is not None:
+            y_bottom = min(max(y_bottom, self.rows[0]), self.rows[1])
         return float(mean_h + b * (y_bottom - mean_y))
 
 

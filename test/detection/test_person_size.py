@@ -55,6 +55,18 @@ def test_height_model_learns_a_line_and_forgets():
     assert model.height_at(300.0) == pytest.approx(120.0)
 
 
+def test_clamped_height_model_does_not_extrapolate_beyond_its_sample_rows():
+    model = PersonHeightModel(memory=1e9)
+    for y in (200.0, 250.0, 300.0):
+        model.add(y, 0.5 * y)
+    assert model.rows == (200.0, 300.0)
+    # a head's bottom edge above every feet row: the line says "a 25 px person"
+    assert model.height_at(50.0) == pytest.approx(25.0)
+    assert model.height_at(50.0, clamp=True) == pytest.approx(100.0)
+    assert model.height_at(400.0, clamp=True) == pytest.approx(150.0)
+    assert model.height_at(260.0, clamp=True) == pytest.approx(model.height_at(260.0))
+
+
 def _walkers(n_frames, people, shape=(200, 320)):
     """mono8 frames of warm 16x40 people (a 16x30 body under an 8x10 head) walking right
     2 px/frame on a textured background; ``people`` = list of (x0, y0) start corners."""
