@@ -73,7 +73,6 @@ GRID: dict[str, tuple] = {
     "split_ratio": (1.3, 1.6),
     "column_trim": (0.0, 0.2),
     "counts_fps": (0.0, 25.0),
-    "size_clamp_rows": (False,),
 }
 #: Real low-frame-rate CHECKS (``--low-fps-checks``), not folds: every ``LOW_FPS_STEP``-th
 #: frame of the TUD clips (25 fps -> 6.25 fps, 4x the motion per frame), each offset a run
@@ -318,7 +317,7 @@ def main(argv=None) -> int:
                         "clips, offsets 0-3)")
     parser.add_argument("--grid", nargs="*", default=[], metavar="KEY=V1,V2",
                         help="GRID dimensions replaced (or added) for this run, values as "
-                        "YAML, e.g. size_clamp_rows=false,true min_height_ratio=0.8")
+                        "YAML, e.g. min_height_ratio=0.5,0.8 column_trim=0.2")
     args = parser.parse_args(argv)
     for item in args.grid:
         key, values = item.split("=", 1)

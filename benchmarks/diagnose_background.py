@@ -157,7 +157,7 @@ def _row_record(box, gt, seen, det, cause):
     and the height of the person the box lies most inside."""
     bottom = box[1] + box[3]
     where = "above" if bottom < seen[0] else "below" if bottom > seen[1] else "inside"
-    expected = det.heights.height_at(bottom, clamp=det.config.size_clamp_rows)
+    expected = det.heights.height_at(bottom)
     host = max(gt, key=lambda g: _inside(box, g), default=None)
     person = host[3] if host is not None and _inside(box, host) >= 0.5 else float("nan")
     return cause, where, box[3], float("nan") if expected is None else expected, person

@@ -31,9 +31,6 @@ This module turns the foreground mask into one box per person:
    ground-plane camera a person's image height is close to linear in the row of the feet.
    A box shorter than ``min_height_ratio`` of the height learnt at its row is a fragment
    or speckle: it is dropped and not learnt (most false boxes on the TUD clips were such).
-   ``size_clamp_rows``: the line is not extrapolated beyond the feet rows of its samples
-   (the height at the nearest row seen instead), so a head whose bottom edge lies above
-   every feet row is not taken for a small person (and learnt as one).
 5. **Joining.**  Two boxes that overlap horizontally and are separated vertically by less
    than ``join_gap`` of the expected height are one person broken apart.
 6. **Splitting groups.**  A component wider than ``split_ratio`` expected person widths is
@@ -163,9 +160,6 @@ class BackgroundDetectorConfig:
     size_memory: float = parameter(
         500.0, "Person-size samples remembered by the per-row height model (exponential "
         "forgetting)", minimum=1.0, maximum=1e6)
-    size_clamp_rows: bool = parameter(
-        False, "Expected person height at a row outside the feet rows of the size samples: "
-        "that of the nearest row seen (true) or the fitted line extrapolated (false)")
     counts_fps: float = parameter(
         25.0, "Frame rate at which bootstrap_frames and startup_frames are counted: at "
         "another frame rate (measured from the stamps) they are converted to the same "
@@ -431,7 +425,7 @@ class BackgroundDetector:
 
     def _expected_height(self, y_bottom: float, scale: float) -> float | None:
         """Expected person height (working scale) with feet at ``y_bottom`` (working scale)."""
-        h = self.heights.height_at(y_bottom / scale, clamp=self.config.size_clamp_rows)
+        h = self.heights.height_at(y_bottom / scale)
         if h is None:
             return None
         return max(h, self.config.min_person_height) * scale

@@ -56,10 +56,9 @@ class PersonHeightModel:
     every split that reads the expected size then acts as if none was learnt.
 
     **Row range.**  The model also keeps the lowest and highest feet row of its samples
-    (:attr:`rows`).  ``height_at(y, clamp=True)`` evaluates the line at the nearest row of
-    that range: no extrapolation.  Above the rows where people were seen the line predicts
-    ever smaller people (a head's bottom edge, above every feet row, would be "a small
-    person"); clamped, it gets the height of the highest row seen.
+    (:attr:`rows`, for benchmarks/diagnose_background.py --rows).  Evaluating the line only
+    within that range (no extrapolation) lost held out in the background detector and was
+    deleted (commit c3cd90a has it; docs/benchmark_background_detector.md).
     """
 
     def __init__(self, memory: float, max_relative_residual: float = math.inf,
@@ -130,16 +129,13 @@ class PersonHeightModel:
         infinite: as before the check existed), else only while :meth:`valid`."""
         return math.isinf(self.max_relative_residual) or self.valid()
 
-    def height_at(self, y_bottom: float, clamp: bool = False) -> float | None:
+    def height_at(self, y_bottom: float) -> float | None:
         """Expected height of a person whose feet are at row ``y_bottom``; None with fewer
-        than about 3 samples, or while the fit is not :meth:`valid`.  ``clamp``: at the
-        nearest row of the samples' range (:attr:`rows`) instead of extrapolating."""
+        than about 3 samples, or while the fit is not :meth:`valid`."""
         line = self._line()
         if line is None or not self.valid():
             return None
         mean_y, mean_h, b, _ = line
-        if clamp and self.rows is not None:
-            y_bottom = min(max(y_bottom, self.rows[0]), self.rows[1])
         return float(mean_h + b * (y_bottom - mean_y))
 
 
