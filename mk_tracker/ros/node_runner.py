@@ -9,6 +9,7 @@
   seconds of wall time) is due.
 * :func:`log_shutdown` logs the node's statistics at shutdown, also after Ctrl-C when the
   context (and with it /rosout) is already gone.
+* :func:`shutdown_once` shuts rclpy down, also when a signal raced it to it.
 * :func:`logged_warm_up` runs one of :mod:`mk_tracker.warm_up`'s functions while a node
   starts, with a log line before and after; a failure is a warning, never the node's end.
 
@@ -199,6 +200,22 @@ class _StartGuard:
                 signal.signal(sig, handler)
 
 
+def shutdown_once() -> None:
+    """``rclpy.try_shutdown()``, also when a signal shuts the context down meanwhile.
+
+    ``try_shutdown`` checks that the context is up and then shuts it down; rclpy's signal
+    handler (SIGINT / SIGTERM) shuts the context down from its own thread, and when it does
+    so between the check and the shutdown, ``try_shutdown`` raises ``RCLError: failed to
+    shutdown: rcl_shutdown already called`` (a fresh-clone CI run: a Ctrl-C during a node's
+    start).  The context is then down, which is all that was asked for; an ``RCLError``
+    while the context is still up is a real error."""
+    try:
+        rclpy.try_shutdown()
+    except _rclpy_impl.RCLError:
+        if rclpy.ok():
+            raise
+
+
 def half_built_llvm_object(unraisable: Any) -> bool:
     """Whether a ``sys.unraisablehook`` report is the teardown of an llvmlite object whose
     constructor an interrupt cut short: an ``AttributeError`` about ``_as_parameter_`` (the
@@ -252,7 +269,7 @@ def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,
         node = node_class()
     except (ParameterError, ImportError) as exc:
         print(f"{name}: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
+        shutdown_once()
         return 1
     except (Exception, StartupInterrupted, KeyboardInterrupt) as exc:
         # an RCLError while the context is up is a real error; after a shutdown (rclpy's
@@ -260,12 +277,12 @@ def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,
         # Any other error is the node's own, unless an interrupt caused it.
         after_shutdown = isinstance(exc, _rclpy_impl.RCLError) and not rclpy.ok()
         if not (after_shutdown or caused_by_interrupt(exc)):
-            rclpy.try_shutdown()
+            shutdown_once()
             raise
         if not getattr(exc, "logged", False):
             print(f"[{name}] interrupted while starting; stopping", file=sys.stderr,
                   flush=True)
-        rclpy.try_shutdown()
+        shutdown_once()
         return 0
     finally:
         guard.started()
@@ -285,5 +302,5 @@ def _run(node_class: Callable[[], Node], name: str, args: Sequence[str] | None,
             raise
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        shutdown_once()
     return 0

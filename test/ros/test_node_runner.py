@@ -419,3 +419,31 @@ def test_a_node_process_whose_start_was_interrupted_skips_the_finalizers(tmp_pat
         assert "[runner_exit_node] interrupted while starting; stopping" in done.stderr
     else:
         assert "some.value: out of range" in done.stderr
+
+
+def test_shutdown_once_accepts_a_signal_that_shut_the_context_down_first(monkeypatch):
+    """rclpy's signal thread can shut the context down between try_shutdown's check and its
+    shutdown (RCLError "rcl_shutdown already called", a fresh-clone CI run): that is the
+    stop that was asked for.  The same error while the context is still up is raised."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation as impl
+
+    from mk_tracker.ros import node_runner
+
+    def raced():                    # the signal thread wins the race, then rcl complains
+        rclpy.shutdown()
+        raise impl.RCLError("failed to shutdown: rcl_shutdown already called")
+
+    rclpy.init()
+    try:
+        monkeypatch.setattr(node_runner.rclpy, "try_shutdown", raced)
+        node_runner.shutdown_once()
+        assert not rclpy.ok()
+        rclpy.init()
+        monkeypatch.setattr(node_runner.rclpy, "try_shutdown",
+                            lambda: (_ for _ in ()).throw(impl.RCLError("a real failure")))
+        with pytest.raises(impl.RCLError, match="a real failure"):
+            node_runner.shutdown_once()
+        assert rclpy.ok()
+    finally:
+        monkeypatch.undo()
+        rclpy.try_shutdown()
