@@ -46,7 +46,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from mk_tracker.bags.datasets import read_mot_sequence, subsampled  # noqa: E402
 from mk_tracker.boxes import iou_matrix  # noqa: E402
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig  # noqa: E402
-from mk_tracker.tracking.track import LifecycleConfig, measurement_sigma  # noqa: E402
+from mk_tracker.tracking.track import (LifecycleConfig, adapted_noise_ratio,  # noqa: E402
+                                      measurement_sigma)
 
 #: What the tables say (static text: figures of this script's command and of
 #: bench_multi_object.py's grids, whose notes give the commands).
@@ -123,6 +124,7 @@ def nis_samples(series: dict, fps: float, *, sigma_u: float, process_noise: floa
     out = []
     for track in series.values():
         kf, last_k, height, updates = None, None, None, 0
+        ratio = lifecycle.measurement_noise ** 2     # adaptive_noise_weight's estimate
         for k, box in track:
             if box is None:
                 continue
@@ -134,7 +136,11 @@ def nis_samples(series: dict, fps: float, *, sigma_u: float, process_noise: floa
                 continue
             kf.sigma_u = process_noise * height if process_noise > 0 else sigma_u
             kf.predict((k - last_k) / fps)
-            sw = measurement_sigma(h, 1.0, lifecycle)
+            if lifecycle.adaptive_noise_weight > 0:     # as Track.adapt_noise: before use
+                ratio = adapted_noise_ratio(ratio, np.subtract(centre, kf.center),
+                                            kf.covariance, h, 1.0,
+                                            lifecycle.adaptive_noise_weight)
+            sw = measurement_sigma(h, 1.0, lifecycle, ratio)
             if updates >= burn_in:
                 out.append((kf.innovation_distance(centre, sw), h))
             kf.update(centre, sw)
@@ -234,6 +240,10 @@ def main(argv=None) -> int:
     parser.add_argument("--measurement-noise", type=float, nargs="+",
                         default=[LifecycleConfig().measurement_noise],
                         help="centroid measurement std(s) as a fraction of the box height")
+    parser.add_argument("--adaptive-noise-weight", type=float, nargs="+", default=[0.0],
+                        help="lifecycle.adaptive_noise_weight value(s): each identity's "
+                             "measurement std estimated from its own innovations as the "
+                             "tracker does (0 = the fixed model)")
     parser.add_argument("--burn-in", type=int, default=3)
     parser.add_argument("--calibrate", type=float, nargs="*", default=None, metavar="NOISE",
                         help="find the relative process noise of mean NIS 2 per frame rate "
@@ -258,15 +268,17 @@ def main(argv=None) -> int:
                 f"mean NIS, h {lo:g}-{hi:g} px (n)" if hi < 1e8 else f"h >= {lo:g} px (n)"
                 for lo, hi in zip(HEIGHT_BINS[:-1], HEIGHT_BINS[1:])) + " |")
     lines = [head, "|" + "---|" * (9 + len(HEIGHT_BINS) - 1)]
-    for mn in args.measurement_noise:
-        lifecycle = LifecycleConfig(measurement_noise=mn)
+    for mn, adapt in [(m, a) for a in args.adaptive_noise_weight
+                      for m in args.measurement_noise]:
+        lifecycle = LifecycleConfig(measurement_noise=mn, adaptive_noise_weight=adapt)
+        noise = f"{mn:g}" + (f", adaptive {adapt:g}" if adapt > 0 else "")
         for rel in args.process_noise:
             model = f"{rel:g} H/s^1.5" if rel > 0 else f"{args.sigma_u:g} px/s^1.5"
             for seq, label, fps, truth, det in inputs:
                 for kind, series in (("truth", truth), ("detections", det)):
                     s = nis_samples(series, fps, sigma_u=args.sigma_u, process_noise=rel,
                                     lifecycle=lifecycle, kalman=kalman, burn_in=args.burn_in)
-                    row = (f"| {seq} | {label} | {kind} | {model} | {mn:g} | {summary(s)} | "
+                    row = (f"| {seq} | {label} | {kind} | {model} | {noise} | {summary(s)} | "
                            f"{by_height(s)} |")
                     lines.append(row)
                     print(row, flush=True)

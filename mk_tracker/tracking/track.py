@@ -149,6 +149,28 @@ def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig
     return base / q
 
 
+def adapted_noise_ratio(ratio: float, innovation: np.ndarray, covariance: np.ndarray,
+                        box_height: float, quality: float, weight: float) -> float:
+    """One step of covariance matching of the centroid measurement noise.
+
+    ``E[nu nu^T] = H P H^T + R`` (Mehra 1972), so ``(|nu|^2 - tr(H P H^T)) / 2`` estimates
+    the measurement variance of this observation (``covariance`` is the predicted P, before
+    the update); times ``quality^2`` (the variance of a perfect match, as
+    :func:`measurement_sigma` divides the std by the quality) and over ``h^2`` it is a sample
+    of the variance in box heights^2, blended in with ``weight`` (a fading memory, Sage and
+    Husa 1969).  A single sample may be negative (the estimator is unbiased);
+    :func:`measurement_sigma` never goes below the fixed model.  ``ratio`` unchanged for a
+    non-positive or non-finite height.
+    """
+    h = float(box_height)
+    if not (h > 0.0 and math.isfinite(h)):
+        return ratio
+    nu = np.asarray(innovation, dtype=np.float64)
+    p = np.asarray(covariance, dtype=np.float64)
+    sample = quality * quality * (float(nu @ nu) - float(p[0, 0] + p[1, 1])) / (2.0 * h * h)
+    return (1.0 - weight) * ratio + weight * sample
+
+
 def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bool,
                hits: int, tentative_misses: int, unseen_time: float, lost_time: float,
                config: LifecycleConfig, undetected_time: float = 0.0,
@@ -312,23 +334,15 @@ class Track:
                                                                self.config, self.noise_ratio))
 
     def adapt_noise(self, center: np.ndarray, box_height: float, quality: float) -> None:
-        """Covariance matching of the measurement noise from one innovation (before the
-        update): ``E[nu nu^T] = H P H^T + R``, so ``(|nu|^2 - tr(H P H^T)) / 2`` estimates
-        the measurement variance of this observation; times ``q^2`` (a perfect match's) and
-        over ``h^2`` it is a sample of :attr:`noise_ratio`, blended in with weight
-        ``adaptive_noise_weight`` (a fading memory, Sage and Husa 1969).  Single samples may
-        be negative (an unbiased estimator); :func:`measurement_sigma` floors the result at
-        the fixed model.  No-op when the weight is 0."""
+        """Blend this detection's innovation (before the update) into :attr:`noise_ratio`
+        (:func:`adapted_noise_ratio`); no-op when ``adaptive_noise_weight`` is 0."""
         d = self.config.adaptive_noise_weight
-        h = float(box_height)
-        if d <= 0.0 or not (h > 0.0 and math.isfinite(h)):
-            return
-        q = min(max(quality if math.isfinite(quality) else 0.0, self.config.quality_floor),
-                1.0)
-        nu = np.asarray(center, dtype=np.float64) - self.kf.center
-        p = self.kf.covariance
-        sample = q * q * (float(nu @ nu) - float(p[0, 0] + p[1, 1])) / (2.0 * h * h)
-        self.noise_ratio = (1.0 - d) * self.noise_ratio + d * sample
+        if d > 0.0:
+            q = min(max(quality if math.isfinite(quality) else 0.0,
+                        self.config.quality_floor), 1.0)
+            self.noise_ratio = adapted_noise_ratio(
+                self.noise_ratio, np.asarray(center, dtype=np.float64) - self.kf.center,
+                self.kf.covariance, box_height, q, d)
 
     def correct(self, box: np.ndarray, quality: float, use_size: bool = True,
                 size_weight: float = 1.0, adapt: bool = False) -> None:
