@@ -46,8 +46,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from mk_tracker.bags.datasets import read_mot_sequence, subsampled  # noqa: E402
 from mk_tracker.boxes import iou_matrix  # noqa: E402
 from mk_tracker.kalman import ConstantVelocityKalman, KalmanConfig  # noqa: E402
-from mk_tracker.tracking.track import (LifecycleConfig, adapted_noise_ratio,  # noqa: E402
-                                      measurement_sigma)
+from mk_tracker.tracking.track import LifecycleConfig, measurement_sigma  # noqa: E402
 
 #: What the tables say (static text: figures of this script's command and of
 #: bench_multi_object.py's grids, whose notes give the commands).
@@ -129,15 +128,34 @@ def identity_series(per_frame: list[dict], present: list[dict]) -> dict:
             for i, ks in frames.items()}
 
 
+def adapted_noise_ratio(ratio: float, innovation: np.ndarray, covariance: np.ndarray,
+                        box_height: float, weight: float) -> float:
+    """One step of covariance matching of the centroid measurement noise (the deleted
+    tracker option ``lifecycle.adaptive_noise_weight``, commit 8a4bbcf).
+
+    ``E[nu nu^T] = H P H^T + R`` (Mehra 1972), so ``(|nu|^2 - tr(H P H^T)) / 2`` estimates
+    the measurement variance of this observation (``covariance``: the predicted P); over
+    ``h^2`` it is a sample of the variance in box heights^2, blended in with ``weight`` (a
+    fading memory, Sage and Husa 1969).  A single sample may be negative (unbiased); the
+    caller floors the std at the fixed model.
+    """
+    nu = np.asarray(innovation, dtype=np.float64)
+    sample = (float(nu @ nu) - float(covariance[0, 0] + covariance[1, 1])) / (
+        2.0 * box_height * box_height)
+    return (1.0 - weight) * ratio + weight * sample
+
+
 def nis_samples(series: dict, fps: float, *, sigma_u: float, process_noise: float,
-                lifecycle: LifecycleConfig, kalman: KalmanConfig, burn_in: int
-                ) -> list[tuple[float, float]]:
+                lifecycle: LifecycleConfig, kalman: KalmanConfig, burn_in: int,
+                adaptive_weight: float = 0.0) -> list[tuple[float, float]]:
     """``(NIS, box height)`` of each prediction met by a measurement, after ``burn_in``
-    updates of its identity."""
+    updates of its identity.  ``adaptive_weight`` > 0: each identity's measurement std is
+    ``max(measurement_noise, sqrt(r)) * h`` with ``r`` from :func:`adapted_noise_ratio`,
+    updated by each innovation before it is used."""
     out = []
     for track in series.values():
         kf, last_k, height, updates = None, None, None, 0
-        ratio = lifecycle.measurement_noise ** 2     # adaptive_noise_weight's estimate
+        ratio = lifecycle.measurement_noise ** 2     # the adaptive estimate
         for k, box in track:
             if box is None:
                 continue
@@ -149,11 +167,11 @@ def nis_samples(series: dict, fps: float, *, sigma_u: float, process_noise: floa
                 continue
             kf.sigma_u = process_noise * height if process_noise > 0 else sigma_u
             kf.predict((k - last_k) / fps)
-            if lifecycle.adaptive_noise_weight > 0:     # as Track.adapt_noise: before use
+            sw = measurement_sigma(h, 1.0, lifecycle)
+            if adaptive_weight > 0 and h > 0:
                 ratio = adapted_noise_ratio(ratio, np.subtract(centre, kf.center),
-                                            kf.covariance, h, 1.0,
-                                            lifecycle.adaptive_noise_weight)
-            sw = measurement_sigma(h, 1.0, lifecycle, ratio)
+                                            kf.covariance, h, adaptive_weight)
+                sw = max(sw, float(np.sqrt(max(ratio, 0.0))) * h)
             if updates >= burn_in:
                 out.append((kf.innovation_distance(centre, sw), h))
             kf.update(centre, sw)
@@ -254,9 +272,9 @@ def main(argv=None) -> int:
                         default=[LifecycleConfig().measurement_noise],
                         help="centroid measurement std(s) as a fraction of the box height")
     parser.add_argument("--adaptive-noise-weight", type=float, nargs="+", default=[0.0],
-                        help="lifecycle.adaptive_noise_weight value(s): each identity's "
-                             "measurement std estimated from its own innovations as the "
-                             "tracker does (0 = the fixed model)")
+                        help="fading-memory weight(s) of a per-identity measurement std "
+                             "estimated from its own innovations (covariance matching, the "
+                             "deleted lifecycle.adaptive_noise_weight; 0 = the fixed model)")
     parser.add_argument("--burn-in", type=int, default=3)
     parser.add_argument("--calibrate", type=float, nargs="*", default=None, metavar="NOISE",
                         help="find the relative process noise of mean NIS 2 per frame rate "
@@ -283,14 +301,15 @@ def main(argv=None) -> int:
     lines = [head, "|" + "---|" * (9 + len(HEIGHT_BINS) - 1)]
     for mn, adapt in [(m, a) for a in args.adaptive_noise_weight
                       for m in args.measurement_noise]:
-        lifecycle = LifecycleConfig(measurement_noise=mn, adaptive_noise_weight=adapt)
+        lifecycle = LifecycleConfig(measurement_noise=mn)
         noise = f"{mn:g}" + (f", adaptive {adapt:g}" if adapt > 0 else "")
         for rel in args.process_noise:
             model = f"{rel:g} H/s^1.5" if rel > 0 else f"{args.sigma_u:g} px/s^1.5"
             for seq, label, fps, truth, det in inputs:
                 for kind, series in (("truth", truth), ("detections", det)):
                     s = nis_samples(series, fps, sigma_u=args.sigma_u, process_noise=rel,
-                                    lifecycle=lifecycle, kalman=kalman, burn_in=args.burn_in)
+                                    lifecycle=lifecycle, kalman=kalman, burn_in=args.burn_in,
+                                    adaptive_weight=adapt)
                     row = (f"| {seq} | {label} | {kind} | {model} | {noise} | {summary(s)} | "
                            f"{by_height(s)} |")
                     lines.append(row)

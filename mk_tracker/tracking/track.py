@@ -121,54 +121,18 @@ class LifecycleConfig:
         "re-update, Cao et al. 2023, Sec. 4.1), instead of correcting the drifted "
         "prediction.  Off by default: the leave-one-sequence-out grid of "
         "benchmarks/bench_multi_object.py chose it for one held-out sequence of four")
-    adaptive_noise_weight: float = parameter(
-        0.0, "Weight d of each detection's innovation in a per-track estimate of the centroid "
-        "measurement variance (covariance matching, the fading-memory estimator of Sage and "
-        "Husa 1969 / Mehra 1972): r <- (1 - d) r + d q^2 (|nu|^2 - tr(H P H^T)) / (2 h^2), "
-        "in box heights^2, starting at measurement_noise^2; the measurement std is then "
-        "max(measurement_noise, sqrt(r)) * h (never below the fixed model).  0 = off (the "
-        "fixed measurement_noise); see docs/kalman_consistency.md", minimum=0.0, maximum=1.0)
 
 
-def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig,
-                      noise_ratio: float = 0.0) -> float:
+def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig) -> float:
     """Std (px) of a centroid measurement (4.1) whose match quality is ``quality`` in [0, 1].
 
     ``sigma_w = max(measurement_noise * h, min_noise_px) / max(quality, quality_floor)``: a
     similarity of 0.5 doubles the std, so the gain (4.5) trusts that measurement less.
-    ``noise_ratio``: a track's own estimate of the measurement variance in box heights^2
-    (``adaptive_noise_weight``); it raises the std above ``measurement_noise * h``, never
-    lowers it.
     """
     q = quality if math.isfinite(quality) else 0.0
     q = min(max(q, config.quality_floor), 1.0)
-    relative = config.measurement_noise
-    if noise_ratio > relative * relative:
-        relative = math.sqrt(noise_ratio)
-    base = max(relative * float(box_height), config.min_noise_px)
+    base = max(config.measurement_noise * float(box_height), config.min_noise_px)
     return base / q
-
-
-def adapted_noise_ratio(ratio: float, innovation: np.ndarray, covariance: np.ndarray,
-                        box_height: float, quality: float, weight: float) -> float:
-    """One step of covariance matching of the centroid measurement noise.
-
-    ``E[nu nu^T] = H P H^T + R`` (Mehra 1972), so ``(|nu|^2 - tr(H P H^T)) / 2`` estimates
-    the measurement variance of this observation (``covariance`` is the predicted P, before
-    the update); times ``quality^2`` (the variance of a perfect match, as
-    :func:`measurement_sigma` divides the std by the quality) and over ``h^2`` it is a sample
-    of the variance in box heights^2, blended in with ``weight`` (a fading memory, Sage and
-    Husa 1969).  A single sample may be negative (the estimator is unbiased);
-    :func:`measurement_sigma` never goes below the fixed model.  ``ratio`` unchanged for a
-    non-positive or non-finite height.
-    """
-    h = float(box_height)
-    if not (h > 0.0 and math.isfinite(h)):
-        return ratio
-    nu = np.asarray(innovation, dtype=np.float64)
-    p = np.asarray(covariance, dtype=np.float64)
-    sample = quality * quality * (float(nu @ nu) - float(p[0, 0] + p[1, 1])) / (2.0 * h * h)
-    return (1.0 - weight) * ratio + weight * sample
 
 
 def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bool,
@@ -281,9 +245,6 @@ class Track:
         # the observation-centric re-update
         self.seen_filter: ConstantVelocityKalman | None = None
         self.seen_center: np.ndarray | None = None
-        #: the track's estimate of its detections' centroid variance, box heights^2
-        #: (``adaptive_noise_weight``; stays at the fixed model's when that is 0)
-        self.noise_ratio = config.measurement_noise ** 2
 
     # -- geometry -----------------------------------------------------------------------
     @property
@@ -331,34 +292,19 @@ class Track:
     def innovation_covariance(self, box_height: float, quality: float = 1.0) -> np.ndarray:
         """``H P H^T + sigma_w^2 I`` with the quality-dependent measurement std."""
         return self.kf.innovation_covariance(measurement_sigma(box_height, quality,
-                                                               self.config, self.noise_ratio))
-
-    def adapt_noise(self, center: np.ndarray, box_height: float, quality: float) -> None:
-        """Blend this detection's innovation (before the update) into :attr:`noise_ratio`
-        (:func:`adapted_noise_ratio`); no-op when ``adaptive_noise_weight`` is 0."""
-        d = self.config.adaptive_noise_weight
-        if d > 0.0:
-            q = min(max(quality if math.isfinite(quality) else 0.0,
-                        self.config.quality_floor), 1.0)
-            self.noise_ratio = adapted_noise_ratio(
-                self.noise_ratio, np.asarray(center, dtype=np.float64) - self.kf.center,
-                self.kf.covariance, box_height, q, d)
+                                                               self.config))
 
     def correct(self, box: np.ndarray, quality: float, use_size: bool = True,
-                size_weight: float = 1.0, adapt: bool = False) -> None:
+                size_weight: float = 1.0) -> None:
         """Kalman update (4.4)-(4.5) with the centre of ``box``, and size smoothing.
 
         The measurement std and the size-smoothing weight both follow ``quality``;
         ``use_size=False`` updates the centre only; ``size_weight`` scales the size update.
-        ``adapt``: a detection of this track's own, whose innovation updates the track's
-        measurement-noise estimate (:meth:`adapt_noise`) before the correction uses it.
         """
         x, y, w, h = (float(v) for v in box)
         q = min(max(float(quality), 0.0), 1.0) if math.isfinite(quality) else 0.0
-        if adapt:
-            self.adapt_noise(np.array([x + w / 2.0, y + h / 2.0]), h, q)
         self.kf.update((x + w / 2.0, y + h / 2.0),
-                       sigma_w=measurement_sigma(h, q, self.config, self.noise_ratio))
+                       sigma_w=measurement_sigma(h, q, self.config))
         if not use_size:
             return
         alpha = size_weight * self.config.size_smoothing * max(q, self.config.quality_floor)
@@ -390,7 +336,7 @@ class Track:
         target = np.array([x + w / 2.0, y + h / 2.0])
         n = max(int(round(gap / frame_interval)), 2)
         kf = copy.deepcopy(self.seen_filter)
-        sigma = measurement_sigma(h, 1.0, self.config, self.noise_ratio)
+        sigma = measurement_sigma(h, 1.0, self.config)
         step = gap / n
         for k in range(1, n):
             kf.predict(step)

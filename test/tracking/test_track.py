@@ -212,37 +212,3 @@ def test_tracker_reupdates_after_a_gap_only_when_enabled():
     # correction of the standing prediction gives another value.
     assert 18.0 < velocities[1] < 22.0
     assert abs(velocities[1] - velocities[0]) > 0.5
-
-
-def test_measurement_sigma_rises_with_a_track_noise_estimate_never_below_the_model():
-    cfg = LifecycleConfig(measurement_noise=0.02, min_noise_px=1.0, quality_floor=0.1)
-    assert measurement_sigma(100.0, 1.0, cfg, 0.0) == pytest.approx(2.0)
-    assert measurement_sigma(100.0, 1.0, cfg, 0.05 ** 2) == pytest.approx(5.0)
-    assert measurement_sigma(100.0, 0.5, cfg, 0.05 ** 2) == pytest.approx(10.0)
-
-
-def _adaptive_track(weight, jitter):
-    """A track fed a person standing still, detected with +-jitter px alternating in x."""
-    cfg = LifecycleConfig(measurement_noise=0.02, adaptive_noise_weight=weight)
-    t = Track(1, np.array([100.0, 100.0, 40.0, 100.0]), 0.0, score=1.0,
-              kalman=KalmanConfig(), config=cfg)
-    for i in range(1, 60):
-        t.predict(0.04 * i)
-        t.correct(np.array([100.0 + jitter * (-1) ** i, 100.0, 40.0, 100.0]), 1.0,
-                  adapt=True)
-    return t
-
-
-def test_adaptive_noise_learns_a_noisy_detector_and_stays_at_the_model_otherwise():
-    off = _adaptive_track(0.0, 8.0)
-    assert off.noise_ratio == pytest.approx(0.02 ** 2)          # off: the fixed model
-    noisy = _adaptive_track(0.1, 8.0)
-    # 8 px innovations in x on a 100 px box: the variance estimate is of the order of
-    # (8 / 100)^2 / 2, far above the model's 0.02^2 (4e-4)
-    assert noisy.noise_ratio > 5 * 0.02 ** 2
-    assert noisy.innovation_covariance(100.0)[0, 0] > off.innovation_covariance(100.0)[0, 0]
-    # a smoother velocity: the filter trusts the jumping detections less
-    assert abs(noisy.kf.velocity[0]) < abs(off.kf.velocity[0])
-    exact = _adaptive_track(0.1, 0.0)
-    assert measurement_sigma(100.0, 1.0, exact.config, exact.noise_ratio) == \
-        pytest.approx(2.0)                                        # never below the model
