@@ -1079,14 +1079,13 @@ def development_set() -> list[tuple[str, Sequence]]:
 #: (docs/benchmark_single_target.md, "Findings"); they stay off and out of the grid.
 #: The contrast of the peak to a ring around it as the failure test (``failure_test``,
 #: issue #16 item 3, at commit e43c509) lost held out too and was deleted, as did a model
-#: update in confident frames only (``model_update``, at commit 9024b07).
+#: update in confident frames only (``model_update``, at commit 9024b07), and a coasting
+#: velocity that decays to 0 while the track is unseen (``coast_velocity_time_constant``,
+#: an integrated Ornstein-Uhlenbeck prediction, at commit 7a344b0).
 GRID = {
-    "multi_start_radius": (0.5, 1.0),
+    "multi_start_radius": (0.0, 0.5, 1.0),
     "recovery_similarity": (0.0, 0.25, 0.4),
     "max_coast_position_std": (0.0, 1.0),
-    # issue #16: the decaying velocity of an unseen track (0 = constant velocity); the run
-    # with it leaves out multi_start_radius 0 and the unfloored cbwh (chosen by no fold)
-    "coast_velocity_time_constant": (0.0, 0.2, 1.0),
 }
 
 #: the background weighting of the kernel models (issue #16 item 3; Ning et al. 2012's
@@ -1096,6 +1095,7 @@ GRID = {
 #: configuration (``--set`` syntax), the others are ``manual_track`` fields.
 WEIGHTINGS = (
     {"background_weighting": "none"},
+    {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.0},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25},
 )
 

@@ -91,26 +91,12 @@ def _as_point(name: str, value: Sequence[float]) -> np.ndarray:
     return arr
 
 
-def transition_matrix(dt: float, velocity_time_constant: float = 0.0) -> np.ndarray:
-    """State transition matrix A of (2.2) for a step of ``dt`` seconds.
-
-    ``velocity_time_constant`` ``tau > 0`` gives instead the transition of an integrated
-    Ornstein-Uhlenbeck velocity (the velocity relaxes to 0 with time constant ``tau``,
-    ``dv = -v / tau dt + noise``; Bar-Shalom, Li & Kirubarajan, *Estimation with
-    Applications to Tracking and Navigation*, 2001, Sec. 8.2, the Singer model one order
-    down): ``v' = e v`` and ``x' = x + tau (1 - e) v`` with ``e = exp(-dt / tau)``.  It tends
-    to (2.2) as ``tau`` grows; 0 = (2.2).
-    """
+def transition_matrix(dt: float) -> np.ndarray:
+    """State transition matrix A of (2.2) for a step of ``dt`` seconds."""
     dt = _check_dt(dt)
-    tau = _check_std("velocity_time_constant", velocity_time_constant, allow_zero=True)
     a = np.eye(4)
-    if tau > 0.0:
-        decay = math.exp(-dt / tau)
-        a[0, 2] = a[1, 3] = tau * (1.0 - decay)
-        a[2, 2] = a[3, 3] = decay
-    else:
-        a[0, 2] = dt
-        a[1, 3] = dt
+    a[0, 2] = dt
+    a[1, 3] = dt
     return a
 
 
@@ -151,13 +137,12 @@ def _positive_semidefinite(cov: np.ndarray) -> np.ndarray:
 _STEP_MATRICES: dict = {}
 
 
-def _step_matrices(dt: float, sigma_u: float,
-                   velocity_time_constant: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def _step_matrices(dt: float, sigma_u: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`transition_matrix` and :func:`process_noise` of a step, cached."""
-    key = (dt, sigma_u, velocity_time_constant)
+    key = (dt, sigma_u)
     hit = _STEP_MATRICES.get(key)
     if hit is None:
-        a = transition_matrix(dt, velocity_time_constant)
+        a = transition_matrix(dt)
         q = process_noise(dt, sigma_u)
         a.setflags(write=False)
         q.setflags(write=False)
@@ -225,24 +210,20 @@ class ConstantVelocityKalman:
         """Estimated velocity ``(vx, vy)`` in px/s."""
         return self._state[2:].copy()
 
-    def predicted(self, dt: float,
-                  velocity_time_constant: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """``(s(t|t-1), P(t|t-1))`` after ``dt`` seconds, without changing the filter.
 
         (4.2): ``s(t|t-1) = A s(t-1|t-1)``.  (4.3): ``P(t|t-1) = A P(t-1|t-1) A^T + Sigma_u``;
         the paper prints ``F^T`` in (4.3), a typo for ``A^T`` (F is its frame symbol).
-        ``velocity_time_constant > 0`` uses the decaying-velocity ``A`` of
-        :func:`transition_matrix` (``Sigma_u`` stays that of (2.3)).
         """
-        a, q = _step_matrices(dt, self.sigma_u, velocity_time_constant)
+        a, q = _step_matrices(dt, self.sigma_u)
         state = a @ self._state
         cov = a @ self._cov @ a.T + q
         return state, _positive_semidefinite(0.5 * (cov + cov.T))
 
-    def predict(self, dt: float, velocity_time_constant: float = 0.0) -> np.ndarray:
-        """Advance the filter by ``dt`` seconds, (4.2)-(4.3); returns the predicted state
-        (``velocity_time_constant``: :meth:`predicted`)."""
-        self._state, self._cov = self.predicted(dt, velocity_time_constant)
+    def predict(self, dt: float) -> np.ndarray:
+        """Advance the filter by ``dt`` seconds, (4.2)-(4.3); returns the predicted state."""
+        self._state, self._cov = self.predicted(dt)
         return self._state.copy()
 
     def warp(self, linear: np.ndarray, translation: Sequence[float]) -> None:

@@ -16,27 +16,6 @@ def test_transition_matrix_is_2_2():
     np.testing.assert_array_equal(a, expected)
 
 
-def test_decaying_velocity_transition_integrates_the_velocity():
-    # tau = 0.5 s, dt = 0.5 s: e = exp(-1); the velocity keeps e of itself and the position
-    # moves by its integral tau (1 - e) v -- the distance a velocity decaying from v covers
-    a = transition_matrix(0.5, 0.5)
-    e = np.exp(-1.0)
-    expected = np.array([[1, 0, 0.5 * (1 - e), 0], [0, 1, 0, 0.5 * (1 - e)],
-                         [0, 0, e, 0], [0, 0, 0, e]], float)
-    np.testing.assert_allclose(a, expected, rtol=1e-12)
-    # the total travel of a coasting velocity is bounded by tau v, whatever the time
-    kf = ConstantVelocityKalman((0.0, 0.0), initial_velocity=(100.0, 0.0), sigma_u=0.0)
-    for _ in range(100):
-        kf.predict(0.04, 0.2)
-    assert kf.center[0] == pytest.approx(20.0, rel=1e-3) and abs(kf.velocity[0]) < 1e-6
-    # tau = 0 is (2.2), and a long tau tends to it
-    np.testing.assert_array_equal(transition_matrix(0.5, 0.0), transition_matrix(0.5))
-    np.testing.assert_allclose(transition_matrix(0.04, 1e6), transition_matrix(0.04),
-                               atol=1e-7)
-    with pytest.raises(KalmanError):
-        transition_matrix(0.5, -1.0)
-
-
 def test_process_noise_is_2_3():
     q = process_noise(2.0, 3.0)
     # sigma_u^2 = 9; dt^3/3 = 8/3, dt^2/2 = 2, dt = 2

@@ -148,13 +148,6 @@ class ManualTrackConfig:
         "of the predicted centre); 0 = extrapolate until the box leaves the image",
         minimum=0.0, maximum=100.0)
 
-    coast_velocity_time_constant: float = parameter(
-        0.0, "While a track started by hand is unseen, its Kalman prediction lets the "
-        "velocity relax to 0 with this time constant, s (an integrated Ornstein-Uhlenbeck "
-        "velocity instead of the constant velocity of (2.2): a velocity learnt from a few "
-        "frames, or from measurements pulled by a passer-by, is not extrapolated at full "
-        "speed through an occlusion); 0 = constant velocity",
-        minimum=0.0, maximum=100.0)
     multi_start_radius: float = parameter(
         0.5, "Coarse-to-fine search of a track started by hand (replaces "
         "multi_kernel.multi_start_radius): the kernel layout is also scored at a 3x3 grid of "

@@ -224,7 +224,6 @@ class MultiObjectTracker:
                                 kalman=self._manual_kalman, lifecycle=self._manual_lifecycle)
         track.hits = self.config.lifecycle.min_hits
         track.manual = True
-        track.coast_velocity_time_constant = self.config.manual_track.coast_velocity_time_constant
         track.target, track.target_stamp = target, stamp
         if target is not None:
             track.references.append(refiner.start(image_bgr, tuple(float(v) for v in b),

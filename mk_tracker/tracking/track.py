@@ -241,9 +241,6 @@ class Track:
         self.refined_box: np.ndarray | None = None
         self.manual = False                # started by hand: no detector needed
         self.held = False                  # coasting at a held position (no prediction)
-        self.unseen = False                # last frame's measurement did not correct it
-        # tau (s) of the decaying velocity predicted while unseen (0 = constant velocity)
-        self.coast_velocity_time_constant = 0.0
         # filter and centre at the last frame the track was seen (detected or visible), for
         # the observation-centric re-update
         self.seen_filter: ConstantVelocityKalman | None = None
@@ -264,15 +261,10 @@ class Track:
         """Advance the Kalman filter to ``stamp`` ((4.2)-(4.3)); no-op for dt <= 0.
 
         A ``held`` track (a coasting track whose prediction became too uncertain to guide a
-        search, :meth:`hold_if_uncertain`) keeps its position: only its stamp advances.
-        An ``unseen`` track with a :attr:`coast_velocity_time_constant` ``tau > 0`` predicts
-        with a velocity that relaxes to 0 with time constant ``tau``
-        (:func:`mk_tracker.kalman.transition_matrix`): a velocity learnt from a few frames
-        is not extrapolated at full speed through a whole occlusion."""
+        search, :meth:`hold_if_uncertain`) keeps its position: only its stamp advances."""
         dt = float(stamp) - self.stamp
         if dt > 0 and not self.held:
-            tau = self.coast_velocity_time_constant if self.unseen else 0.0
-            self.kf.predict(dt, tau)
+            self.kf.predict(dt)
         self.stamp = float(stamp)
 
     @property
@@ -290,9 +282,7 @@ class Track:
         velocity prediction (4.2) then says less about where the person is than the
         search region around it covers, so extrapolating the old velocity further only
         carries the box away from where the person was last seen.  ``max_std_widths`` 0
-        never holds.  Returns the new ``held``; also records whether the track was
-        ``unseen``."""
-        self.unseen = not seen
+        never holds.  Returns the new ``held``."""
         if seen or max_std_widths <= 0.0:
             self.held = False
         elif not self.held:

@@ -148,34 +148,6 @@ def test_an_unseen_track_holds_its_position_once_its_std_exceeds_the_bound():
     assert not np.array_equal(t.center, centre)
 
 
-def test_an_unseen_track_with_a_velocity_time_constant_slows_down():
-    # learnt 50 px/s to the right, then unseen: with tau = 0.2 s the coasting box travels
-    # at most tau v = 10 px more; with tau = 0 (constant velocity) 50 px in 1 s; a seen
-    # track predicts with constant velocity whatever tau is
-    def walked(tau):
-        t = make_track()
-        t.coast_velocity_time_constant = tau
-        for k in range(1, 26):
-            t.predict(k * 0.04)
-            t.correct(np.array([90.0 + 2.0 * k, 75.0, 20.0, 50.0]), 1.0)
-            t.hold_if_uncertain(True, 0.0)
-        x_seen, v_seen = t.center[0], t.kf.velocity[0]
-        t.predict(1.04)
-        step_seen = t.center[0] - x_seen
-        t.hold_if_uncertain(False, 0.0)                # this frame's search missed
-        for k in range(27, 52):
-            t.predict(k * 0.04)
-            t.hold_if_uncertain(False, 0.0)
-        return v_seen, step_seen, t.center[0] - x_seen
-
-    v, step0, travel0 = walked(0.0)
-    assert v == pytest.approx(50.0, rel=0.1)
-    assert travel0 == pytest.approx(v * 1.04, rel=0.01)
-    _, step, travel = walked(0.2)
-    assert step == pytest.approx(step0)                # seen last frame: (2.2)
-    assert step0 + 3.0 < travel < step0 + 0.2 * v + 0.5
-
-
 def test_a_zero_bound_never_holds():
     t = make_track()
     t.predict(100.0)                                   # std in the thousands of px
