@@ -197,28 +197,54 @@ def kernel_table(max_level: int, scale: float, sigma2: float) -> np.ndarray:
     return np.exp(-(d * d) / (2.0 * _check_sigma2(sigma2)))
 
 
+#: lanes of :func:`_gather_add` (one AVX-512 register of doubles)
+_LANES = 8
+
+
+def _gather_add(table, row, level, out, j):
+    """``out[j + l] += table[|level - row[j + l]|]`` for the ``_LANES`` lanes ``l``: each
+    lane its own look-up and its own addition, so the values are those of a scalar loop.
+    Plain Python; in compiled code it is one vector gather (:func:`_register_gather_add`:
+    numba does not vectorise the look-ups itself, as it cannot rule out that ``out``
+    overlaps ``table``)."""
+    for lane in range(j, j + _LANES):
+        out[lane] += table[abs(level - row[lane])]
+
+
 def _levels_block_covariance(x, table, same, cross, o):
     """(3.5) of one block of integer levels ``x`` ``(F, p)`` into ``o`` ``(p, p)``.
 
     ``same`` and ``cross`` are ``(p, p)`` scratch arrays.  Plain Python, compiled with numba
     (see :func:`compiled_level_kernels`); the batch function and the detector's fused
-    per-block loop both call it, so there is one implementation.
+    per-block loop both call it, so there is one implementation.  The look-ups of a row
+    go ``_LANES`` at a time (:func:`_gather_add`), each entry still summed over the frame
+    pairs in the same order; ``same`` is summed over whole rows, of which only the entries
+    right of the diagonal are read.
     """
     n_frames, p = x.shape
     inv_f = 1.0 / n_frames
     inv_f2 = inv_f * inv_f
     same[:, :] = 0.0
     cross[:, :] = 0.0
+    vector_end = p - p % _LANES
     for a in range(n_frames):
+        xa = x[a]
         for i in range(p):
-            xi = x[a, i]
-            for j in range(i + 1, p):
-                same[i, j] += table[abs(xi - x[a, j])]
+            xi = xa[i]
+            row = same[i]
+            for j in range(0, vector_end, _LANES):
+                _gather_add(table, xa, xi, row, j)
+            for j in range(max(vector_end, i + 1), p):
+                row[j] += table[abs(xi - xa[j])]
         for c in range(a + 1, n_frames):
+            xc = x[c]
             for i in range(p):
-                xi = x[a, i]
-                for j in range(p):
-                    cross[i, j] += table[abs(xi - x[c, j])]
+                xi = xa[i]
+                row = cross[i]
+                for j in range(0, vector_end, _LANES):
+                    _gather_add(table, xc, xi, row, j)
+                for j in range(vector_end, p):
+                    row[j] += table[abs(xi - xc[j])]
     for i in range(p):
         # diagonal: same-frame kernel is 1 for each of the F frames
         o[i, i] = (n_frames * (inv_f - inv_f2)) - (cross[i, i] + cross[i, i]) * inv_f2
@@ -260,6 +286,86 @@ def _levels_variance_loops(levels, table, out):
 _LEVEL_KERNELS: list = []
 
 
+_GATHER_ADD: list = []
+
+
+def _register_gather_add() -> None:
+    """Compiled code's :func:`_gather_add` (a numba ``overload``; Python keeps the plain
+    function): the ``_LANES`` levels of ``row`` loaded as one vector, ``|level - row|`` per
+    lane, one ``llvm.masked.gather`` of the table entries (all lanes on), one vector
+    addition into ``out`` and one store -- an IEEE addition per lane, so the values of the
+    scalar loop.  For C-contiguous ``table`` (float64), ``row`` (int32) and ``out``
+    (float64), with ``j + _LANES <= len(row), len(out)`` (the callers' loops; not
+    checked); other arrays get the scalar loop.  Once per process; needs numba."""
+    if _GATHER_ADD:
+        return
+    from llvmlite import ir
+    from numba.core import cgutils, types
+    from numba.extending import intrinsic, overload
+
+    @intrinsic
+    def vector_gather_add(typingctx, table, row, level, out, j):
+        sig = types.void(table, row, level, out, j)
+
+        def codegen(context, builder, signature, args):
+            tab_a = context.make_array(signature.args[0])(context, builder, args[0])
+            row_a = context.make_array(signature.args[1])(context, builder, args[1])
+            out_a = context.make_array(signature.args[3])(context, builder, args[3])
+            lvl = context.cast(builder, args[2], signature.args[2], types.int32)
+            start = context.cast(builder, args[4], signature.args[4], types.intp)
+            i1, i32, i64, f64 = ir.IntType(1), ir.IntType(32), ir.IntType(64), ir.DoubleType()
+            vi32, vi64 = ir.VectorType(i32, _LANES), ir.VectorType(i64, _LANES)
+            vf64, vptr = ir.VectorType(f64, _LANES), ir.VectorType(f64.as_pointer(), _LANES)
+
+            def splat(value, vtype):
+                one = builder.insert_element(ir.Constant(vtype, None), value,
+                                             ir.Constant(i32, 0))
+                return builder.shuffle_vector(one, ir.Constant(vtype, None),
+                                              ir.Constant(vi32, [0] * _LANES))
+
+            levels = builder.load(builder.bitcast(builder.gep(row_a.data, [start]),
+                                                  vi32.as_pointer()), align=4)
+            diff = builder.sub(splat(lvl, vi32), levels)
+            negative = builder.icmp_signed("<", diff, ir.Constant(vi32, [0] * _LANES))
+            index = builder.sext(builder.select(negative, builder.neg(diff), diff), vi64)
+            addresses = builder.add(splat(builder.ptrtoint(tab_a.data, i64), vi64),
+                                    builder.mul(index, ir.Constant(vi64, [8] * _LANES)))
+            gather = cgutils.get_or_insert_function(
+                builder.module, ir.FunctionType(vf64, [vptr, i32, ir.VectorType(i1, _LANES),
+                                                       vf64]),
+                f"llvm.masked.gather.v{_LANES}f64.v{_LANES}p0f64")
+            values = builder.call(gather, [builder.inttoptr(addresses, vptr),
+                                           ir.Constant(i32, 8),
+                                           ir.Constant(ir.VectorType(i1, _LANES),
+                                                       [1] * _LANES),
+                                           ir.Constant(vf64, None)])
+            target = builder.bitcast(builder.gep(out_a.data, [start]), vf64.as_pointer())
+            builder.store(builder.fadd(builder.load(target, align=8), values), target,
+                          align=8)
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    @overload(_gather_add, inline="always")
+    def _gather_add_compiled(table, row, level, out, j):
+        vector = all(isinstance(arg, types.Array) and arg.ndim == 1 and arg.layout == "C"
+                     and arg.dtype == dtype
+                     for arg, dtype in ((table, types.float64), (row, types.int32),
+                                        (out, types.float64))) and \
+            isinstance(level, types.Integer) and isinstance(j, types.Integer)
+        if vector:
+            def impl(table, row, level, out, j):
+                vector_gather_add(table, row, level, out, j)
+            return impl
+
+        def scalar(table, row, level, out, j):
+            for lane in range(j, j + _LANES):
+                out[lane] += table[abs(level - row[lane])]
+        return scalar
+
+    _GATHER_ADD.append(vector_gather_add)
+
+
 def compiled_level_kernels() -> dict | None:
     """The numba-compiled level kernels (``block_covariance``, ``block_variance``,
     ``covariance``, ``variance``), or ``None`` without numba or with the environment variable
@@ -272,6 +378,7 @@ def compiled_level_kernels() -> dict | None:
         _LEVEL_KERNELS.append(None)
         return None
     global _levels_block_covariance, _levels_block_variance
+    _register_gather_add()
     _levels_block_covariance = numba.njit(cache=True, nogil=True)(_levels_block_covariance)
     _levels_block_variance = numba.njit(cache=True, nogil=True)(_levels_block_variance)
     kernels = {"block_covariance": _levels_block_covariance,
