@@ -254,12 +254,30 @@ def _levels_block_covariance(x, table, same, cross, o):
             o[j, i] = v
 
 
+def _gather_one_minus(table, first, second, out, j):
+    """``out[j + l] += 1 - table[|first[j + l] - second[j + l]|]`` for the ``_LANES`` lanes
+    ``l`` (as :func:`_gather_add`: plain Python; one vector gather in compiled code)."""
+    for lane in range(j, j + _LANES):
+        out[lane] += 1.0 - table[abs(first[lane] - second[lane])]
+
+
 def _levels_block_variance(x, table, out):
     """Diagonal of (3.5) of one block of integer levels ``x`` ``(F, p)`` into ``out`` ``(p,)``:
-    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])``."""
+    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])``.  ``_LANES`` pixels at a
+    time (:func:`_gather_one_minus`), each summed in ``out`` from 0 over the frame pairs in
+    the same order as the scalar loop of the rest."""
     n_frames, p = x.shape
     scale = 2.0 / (n_frames * n_frames)
-    for i in range(p):
+    vector_end = p - p % _LANES
+    for j in range(0, vector_end, _LANES):
+        for i in range(j, j + _LANES):
+            out[i] = 0.0
+        for a in range(n_frames):
+            for c in range(a + 1, n_frames):
+                _gather_one_minus(table, x[a], x[c], out, j)
+        for i in range(j, j + _LANES):
+            out[i] = out[i] * scale
+    for i in range(vector_end, p):
         acc = 0.0
         for a in range(n_frames):
             xa = x[a, i]
@@ -290,11 +308,12 @@ _GATHER_ADD: list = []
 
 
 def _register_gather_add() -> None:
-    """Compiled code's :func:`_gather_add` (a numba ``overload``; Python keeps the plain
-    function): the ``_LANES`` levels of ``row`` loaded as one vector, ``|level - row|`` per
-    lane, one ``llvm.masked.gather`` of the table entries (all lanes on), one vector
-    addition into ``out`` and one store -- an IEEE addition per lane, so the values of the
-    scalar loop.  For C-contiguous ``table`` (float64), ``row`` (int32) and ``out``
+    """Compiled code's :func:`_gather_add` and :func:`_gather_one_minus` (numba
+    overloads; Python keeps the plain functions): the ``_LANES`` levels of ``row``
+    loaded as one vector, ``|level - row|`` (or ``|first - second|``) per lane, one
+    ``llvm.masked.gather`` of the table entries (all lanes on), one vector addition (of
+    ``1 - entry``) into ``out`` and one store -- IEEE operations per lane, so the values of
+    the scalar loop.  For C-contiguous ``table`` (float64), ``row`` (int32) and ``out``
     (float64), with ``j + _LANES <= len(row), len(out)`` (the callers' loops; not
     checked); other arrays get the scalar loop.  Once per process; needs numba."""
     if _GATHER_ADD:
@@ -303,57 +322,101 @@ def _register_gather_add() -> None:
     from numba.core import cgutils, types
     from numba.extending import intrinsic, overload
 
+    def gathered(context, builder, table_type, table, index32):
+        """The table entries at the ``_LANES`` int32 indices ``index32`` (one gather)."""
+        tab_a = context.make_array(table_type)(context, builder, table)
+        i1, i32, i64, f64 = ir.IntType(1), ir.IntType(32), ir.IntType(64), ir.DoubleType()
+        vi32, vi64 = ir.VectorType(i32, _LANES), ir.VectorType(i64, _LANES)
+        vf64, vptr = ir.VectorType(f64, _LANES), ir.VectorType(f64.as_pointer(), _LANES)
+        base = builder.insert_element(ir.Constant(vi64, None),
+                                      builder.ptrtoint(tab_a.data, i64), ir.Constant(i32, 0))
+        base = builder.shuffle_vector(base, ir.Constant(vi64, None),
+                                      ir.Constant(vi32, [0] * _LANES))
+        addresses = builder.add(base, builder.mul(builder.sext(index32, vi64),
+                                                  ir.Constant(vi64, [8] * _LANES)))
+        gather = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(vf64, [vptr, i32, ir.VectorType(i1, _LANES), vf64]),
+            f"llvm.masked.gather.v{_LANES}f64.v{_LANES}p0f64")
+        return builder.call(gather, [builder.inttoptr(addresses, vptr), ir.Constant(i32, 8),
+                                     ir.Constant(ir.VectorType(i1, _LANES), [1] * _LANES),
+                                     ir.Constant(vf64, None)])
+
+    def lanes(context, builder, array_type, array, start, element):
+        """Pointer to ``_LANES`` elements of a C-contiguous 1-D array from ``start``."""
+        data = context.make_array(array_type)(context, builder, array).data
+        return builder.bitcast(builder.gep(data, [start]),
+                               ir.VectorType(element, _LANES).as_pointer())
+
+    def absolute(builder, diff):
+        zero = ir.Constant(diff.type, [0] * _LANES)
+        return builder.select(builder.icmp_signed("<", diff, zero), builder.neg(diff), diff)
+
     @intrinsic
     def vector_gather_add(typingctx, table, row, level, out, j):
         sig = types.void(table, row, level, out, j)
 
         def codegen(context, builder, signature, args):
-            tab_a = context.make_array(signature.args[0])(context, builder, args[0])
-            row_a = context.make_array(signature.args[1])(context, builder, args[1])
-            out_a = context.make_array(signature.args[3])(context, builder, args[3])
-            lvl = context.cast(builder, args[2], signature.args[2], types.int32)
+            i32, f64 = ir.IntType(32), ir.DoubleType()
+            vi32 = ir.VectorType(i32, _LANES)
             start = context.cast(builder, args[4], signature.args[4], types.intp)
-            i1, i32, i64, f64 = ir.IntType(1), ir.IntType(32), ir.IntType(64), ir.DoubleType()
-            vi32, vi64 = ir.VectorType(i32, _LANES), ir.VectorType(i64, _LANES)
-            vf64, vptr = ir.VectorType(f64, _LANES), ir.VectorType(f64.as_pointer(), _LANES)
-
-            def splat(value, vtype):
-                one = builder.insert_element(ir.Constant(vtype, None), value,
-                                             ir.Constant(i32, 0))
-                return builder.shuffle_vector(one, ir.Constant(vtype, None),
-                                              ir.Constant(vi32, [0] * _LANES))
-
-            levels = builder.load(builder.bitcast(builder.gep(row_a.data, [start]),
-                                                  vi32.as_pointer()), align=4)
-            diff = builder.sub(splat(lvl, vi32), levels)
-            negative = builder.icmp_signed("<", diff, ir.Constant(vi32, [0] * _LANES))
-            index = builder.sext(builder.select(negative, builder.neg(diff), diff), vi64)
-            addresses = builder.add(splat(builder.ptrtoint(tab_a.data, i64), vi64),
-                                    builder.mul(index, ir.Constant(vi64, [8] * _LANES)))
-            gather = cgutils.get_or_insert_function(
-                builder.module, ir.FunctionType(vf64, [vptr, i32, ir.VectorType(i1, _LANES),
-                                                       vf64]),
-                f"llvm.masked.gather.v{_LANES}f64.v{_LANES}p0f64")
-            values = builder.call(gather, [builder.inttoptr(addresses, vptr),
-                                           ir.Constant(i32, 8),
-                                           ir.Constant(ir.VectorType(i1, _LANES),
-                                                       [1] * _LANES),
-                                           ir.Constant(vf64, None)])
-            target = builder.bitcast(builder.gep(out_a.data, [start]), vf64.as_pointer())
+            lvl = context.cast(builder, args[2], signature.args[2], types.int32)
+            lvl = builder.insert_element(ir.Constant(vi32, None), lvl, ir.Constant(i32, 0))
+            lvl = builder.shuffle_vector(lvl, ir.Constant(vi32, None),
+                                         ir.Constant(vi32, [0] * _LANES))
+            levels = builder.load(lanes(context, builder, signature.args[1], args[1], start,
+                                        i32), align=4)
+            values = gathered(context, builder, signature.args[0], args[0],
+                              absolute(builder, builder.sub(lvl, levels)))
+            target = lanes(context, builder, signature.args[3], args[3], start, f64)
             builder.store(builder.fadd(builder.load(target, align=8), values), target,
                           align=8)
             return context.get_dummy_value()
 
         return sig, codegen
 
+    @intrinsic
+    def vector_gather_one_minus(typingctx, table, first, second, out, j):
+        sig = types.void(table, first, second, out, j)
+
+        def codegen(context, builder, signature, args):
+            i32, f64 = ir.IntType(32), ir.DoubleType()
+            start = context.cast(builder, args[4], signature.args[4], types.intp)
+            a = builder.load(lanes(context, builder, signature.args[1], args[1], start, i32),
+                             align=4)
+            b = builder.load(lanes(context, builder, signature.args[2], args[2], start, i32),
+                             align=4)
+            values = gathered(context, builder, signature.args[0], args[0],
+                              absolute(builder, builder.sub(a, b)))
+            ones = ir.Constant(ir.VectorType(f64, _LANES), [1.0] * _LANES)
+            target = lanes(context, builder, signature.args[3], args[3], start, f64)
+            builder.store(builder.fadd(builder.load(target, align=8),
+                                       builder.fsub(ones, values)), target, align=8)
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    def vectorisable(table, rows, out, level=None):
+        arrays = [(table, types.float64), (out, types.float64)] + \
+            [(row, types.int32) for row in rows]
+        return all(isinstance(arg, types.Array) and arg.ndim == 1 and arg.layout == "C"
+                   and arg.dtype == dtype for arg, dtype in arrays) and \
+            (level is None or isinstance(level, types.Integer))
+
+    @overload(_gather_one_minus, inline="always")
+    def _gather_one_minus_compiled(table, first, second, out, j):
+        if vectorisable(table, (first, second), out) and isinstance(j, types.Integer):
+            def impl(table, first, second, out, j):
+                vector_gather_one_minus(table, first, second, out, j)
+            return impl
+
+        def scalar(table, first, second, out, j):
+            for lane in range(j, j + _LANES):
+                out[lane] += 1.0 - table[abs(first[lane] - second[lane])]
+        return scalar
+
     @overload(_gather_add, inline="always")
     def _gather_add_compiled(table, row, level, out, j):
-        vector = all(isinstance(arg, types.Array) and arg.ndim == 1 and arg.layout == "C"
-                     and arg.dtype == dtype
-                     for arg, dtype in ((table, types.float64), (row, types.int32),
-                                        (out, types.float64))) and \
-            isinstance(level, types.Integer) and isinstance(j, types.Integer)
-        if vector:
+        if vectorisable(table, (row,), out, level) and isinstance(j, types.Integer):
             def impl(table, row, level, out, j):
                 vector_gather_add(table, row, level, out, j)
             return impl
