@@ -313,8 +313,8 @@ def _register_gather_add() -> None:
     loaded as one vector, ``|level - row|`` (or ``|first - second|``) per lane, one
     ``llvm.masked.gather`` of the table entries (all lanes on), one vector addition (of
     ``1 - entry``) into ``out`` and one store -- IEEE operations per lane, so the values of
-    the scalar loop.  For C-contiguous ``table`` (float64), ``row`` (int32) and ``out``
-    (float64), with ``j + _LANES <= len(row), len(out)`` (the callers' loops; not
+    the scalar loop.  For aligned C-contiguous ``table`` (float64), ``row`` (int32) and
+    ``out`` (float64), with ``j + _LANES <= len(row), len(out)`` (the callers' loops; not
     checked); other arrays get the scalar loop.  Once per process; needs numba."""
     if _GATHER_ADD:
         return
@@ -399,7 +399,7 @@ def _register_gather_add() -> None:
         arrays = [(table, types.float64), (out, types.float64)] + \
             [(row, types.int32) for row in rows]
         return all(isinstance(arg, types.Array) and arg.ndim == 1 and arg.layout == "C"
-                   and arg.dtype == dtype for arg, dtype in arrays) and \
+                   and arg.aligned and arg.dtype == dtype for arg, dtype in arrays) and \
             (level is None or isinstance(level, types.Integer))
 
     @overload(_gather_one_minus, inline="always")
