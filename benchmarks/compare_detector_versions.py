@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     ok_all = True
     print(f"current {cur[0]['package']} vs baseline {base[0]['package']}, {args.rounds} "
           f"rounds, load {os.getloadavg()[0]:.1f}")
-    print("| input | frames | boxes equal (1e-9) | current ms / frame, median (p90) | "
+    print(f"| input | frames | boxes equal ({args.tol:g}) | current ms / frame, median (p90) | "
           "baseline ms / frame, median (p90) | current / baseline |")
     print("|---|---|---|---|---|---|")
     for name in cur[0]:

@@ -13,7 +13,8 @@ builds them) to :class:`mk_tracker.detection.thermal_detector.ThermalDetector` a
 * a cProfile of the current version (top functions by own time) per mode.
 
 The report goes to ``docs/profile_thermal_detector.md`` with the command and the machine
-load.  Not a test: nothing is asserted.  Run it with one thread::
+load (its hand-written sections, from ``## Real LWIR frames`` on, are kept).  Not a
+test: nothing is asserted.  Run it with one thread::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 \\
         .venv/bin/python benchmarks/profile_thermal_detector.py --compare /tmp/base
@@ -36,6 +37,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+#: first heading of the report's hand-written sections, kept when the report is rewritten
+HAND_WRITTEN = "## Real LWIR frames"
 
 
 def measure(people: int, width: int, height: int, frames: int, seed: int,
@@ -212,7 +215,13 @@ def main(argv=None) -> int:
     for mode, body in profiles.items():
         text += [f"## cProfile, {mode}, {args.people[len(args.people) // 2]} people "
                  "(own time; numba functions count as one call)", "", "```", body, "```", ""]
-    Path(args.out).write_text("\n".join(text))
+    out = Path(args.out)
+    kept = ""            # the hand-written sections after the generated part stay
+    if out.exists():
+        previous = out.read_text()
+        start = previous.find("\n" + HAND_WRITTEN)
+        kept = previous[start:] if start >= 0 else ""
+    out.write_text("\n".join(text) + kept)
     print(f"wrote {args.out}")
     return 0
 

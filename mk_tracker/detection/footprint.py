@@ -305,9 +305,20 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
         return 0
     polarity = np.float32(1.0) if 2 * warmer >= valid else np.float32(-1.0)
     ph, pw = state.shape
+    # A span fill: a popped pixel's row run is extended left and right, then the rows
+    # above and below are scanned along the run and one pixel past each end (its
+    # 8-neighbours); a run of new pixels found there is marked 3 (in, not yet extended) and
+    # only its first pixel is pushed.  Every pixel is tested once, and the pixels tested are
+    # those of the plain 8-neighbour fill (the footprint, its 8-neighbours and the seeds),
+    # so ``state`` ends the same.  The marks have a one-pixel border marked visited (2):
+    # no bounds tests; copied into ``state`` at the end.
+    mark = np.zeros((ph + 2, pw + 2), dtype=np.int8)
+    mark[0, :] = 2
+    mark[ph + 1, :] = 2
+    mark[:, 0] = 2
+    mark[:, pw + 1] = 2
     stack_r = np.empty(ph * pw, dtype=np.int32)   # every pixel is pushed at most once
     stack_c = np.empty(ph * pw, dtype=np.int32)
-    top = 0
     count = 0
     sum_c = 0
     sum_r = 0
@@ -318,39 +329,83 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
     for s in range(n_seeds):
         r0 = rows[s] - y0
         c0 = cols[s] - x0
-        if state[r0, c0] != 0:
+        if mark[r0 + 1, c0 + 1] != 0:
             continue
         if not _in_footprint(frame, offset, r0 + y0, c0 + x0, level, polarity, radius,
                              centres, k):
-            state[r0, c0] = 2
+            mark[r0 + 1, c0 + 1] = 2
             continue
-        state[r0, c0] = 1
-        stack_r[0] = r0
-        stack_c[0] = c0
+        mark[r0 + 1, c0 + 1] = 3           # marks in padded coordinates from here on
+        count += 1
+        sum_c += c0
+        sum_r += r0
+        c_min = min(c_min, c0)
+        c_max = max(c_max, c0)
+        r_min = min(r_min, r0)
+        r_max = max(r_max, r0)
+        stack_r[0] = r0 + 1
+        stack_c[0] = c0 + 1
         top = 1
-        while top > 0:               # every pixel on the stack is marked 1: count it here
+        while top > 0:
             top -= 1
             r = stack_r[top]
             c = stack_c[top]
-            count += 1
-            sum_c += c
-            sum_r += r
-            c_min = min(c_min, c)
-            c_max = max(c_max, c)
-            r_min = min(r_min, r)
-            r_max = max(r_max, r)
-            for rr in range(max(r - 1, 0), min(r + 2, ph)):
-                for cc in range(max(c - 1, 0), min(c + 2, pw)):
-                    if state[rr, cc] != 0:
-                        continue
-                    if _in_footprint(frame, offset, rr + y0, cc + x0, level, polarity,
-                                     radius, centres, k):
-                        state[rr, cc] = 1
-                        stack_r[top] = rr
-                        stack_c[top] = cc
-                        top += 1
+            if mark[r, c] != 3:
+                continue                     # its run was extended from another pixel
+            mark[r, c] = 1
+            lx = c
+            rx = c
+            for side in range(2):
+                step = -1 if side == 0 else 1
+                x = c + step
+                while True:
+                    v = mark[r, x]
+                    if v == 3:
+                        mark[r, x] = 1
+                    elif v == 0 and _in_footprint(frame, offset, r - 1 + y0, x - 1 + x0,
+                                                  level, polarity, radius, centres, k):
+                        mark[r, x] = 1
+                        count += 1
+                        sum_c += x - 1
+                        sum_r += r - 1
+                        c_min = min(c_min, x - 1)
+                        c_max = max(c_max, x - 1)
+                        r_min = min(r_min, r - 1)
+                        r_max = max(r_max, r - 1)
                     else:
-                        state[rr, cc] = 2
+                        if v == 0:
+                            mark[r, x] = 2
+                        break
+                    x += step
+                if side == 0:
+                    lx = x + 1
+                else:
+                    rx = x - 1
+            for rr in (r - 1, r + 1):
+                fresh = False                # inside a run of new pixels of row rr
+                for x in range(lx - 1, rx + 2):
+                    if mark[rr, x] != 0:
+                        fresh = False
+                        continue
+                    if _in_footprint(frame, offset, rr - 1 + y0, x - 1 + x0, level,
+                                     polarity, radius, centres, k):
+                        mark[rr, x] = 3
+                        count += 1
+                        sum_c += x - 1
+                        sum_r += rr - 1
+                        c_min = min(c_min, x - 1)
+                        c_max = max(c_max, x - 1)
+                        r_min = min(r_min, rr - 1)
+                        r_max = max(r_max, rr - 1)
+                        if not fresh:
+                            stack_r[top] = rr
+                            stack_c[top] = x
+                            top += 1
+                            fresh = True
+                    else:
+                        mark[rr, x] = 2
+                        fresh = False
+    state[:, :] = mark[1:ph + 1, 1:pw + 1]
     stats[0] = sum_c
     stats[1] = sum_r
     stats[2] = c_min

@@ -197,28 +197,54 @@ def kernel_table(max_level: int, scale: float, sigma2: float) -> np.ndarray:
     return np.exp(-(d * d) / (2.0 * _check_sigma2(sigma2)))
 
 
+#: lanes of :func:`_gather_add` (one AVX-512 register of doubles)
+_LANES = 8
+
+
+def _gather_add(table, row, level, out, j):
+    """``out[j + l] += table[|level - row[j + l]|]`` for the ``_LANES`` lanes ``l``: each
+    lane its own look-up and its own addition, so the values are those of a scalar loop.
+    Plain Python; in compiled code it is one vector gather (:func:`_register_gather_add`:
+    numba does not vectorise the look-ups itself, as it cannot rule out that ``out``
+    overlaps ``table``)."""
+    for lane in range(j, j + _LANES):
+        out[lane] += table[abs(level - row[lane])]
+
+
 def _levels_block_covariance(x, table, same, cross, o):
     """(3.5) of one block of integer levels ``x`` ``(F, p)`` into ``o`` ``(p, p)``.
 
     ``same`` and ``cross`` are ``(p, p)`` scratch arrays.  Plain Python, compiled with numba
     (see :func:`compiled_level_kernels`); the batch function and the detector's fused
-    per-block loop both call it, so there is one implementation.
+    per-block loop both call it, so there is one implementation.  The look-ups of a row
+    go ``_LANES`` at a time (:func:`_gather_add`), each entry still summed over the frame
+    pairs in the same order; ``same`` is summed over whole rows, of which only the entries
+    right of the diagonal are read.
     """
     n_frames, p = x.shape
     inv_f = 1.0 / n_frames
     inv_f2 = inv_f * inv_f
     same[:, :] = 0.0
     cross[:, :] = 0.0
+    vector_end = p - p % _LANES
     for a in range(n_frames):
+        xa = x[a]
         for i in range(p):
-            xi = x[a, i]
-            for j in range(i + 1, p):
-                same[i, j] += table[abs(xi - x[a, j])]
+            xi = xa[i]
+            row = same[i]
+            for j in range(0, vector_end, _LANES):
+                _gather_add(table, xa, xi, row, j)
+            for j in range(max(vector_end, i + 1), p):
+                row[j] += table[abs(xi - xa[j])]
         for c in range(a + 1, n_frames):
+            xc = x[c]
             for i in range(p):
-                xi = x[a, i]
-                for j in range(p):
-                    cross[i, j] += table[abs(xi - x[c, j])]
+                xi = xa[i]
+                row = cross[i]
+                for j in range(0, vector_end, _LANES):
+                    _gather_add(table, xc, xi, row, j)
+                for j in range(vector_end, p):
+                    row[j] += table[abs(xi - xc[j])]
     for i in range(p):
         # diagonal: same-frame kernel is 1 for each of the F frames
         o[i, i] = (n_frames * (inv_f - inv_f2)) - (cross[i, i] + cross[i, i]) * inv_f2
@@ -228,12 +254,30 @@ def _levels_block_covariance(x, table, same, cross, o):
             o[j, i] = v
 
 
+def _gather_one_minus(table, first, second, out, j):
+    """``out[j + l] += 1 - table[|first[j + l] - second[j + l]|]`` for the ``_LANES`` lanes
+    ``l`` (as :func:`_gather_add`: plain Python; one vector gather in compiled code)."""
+    for lane in range(j, j + _LANES):
+        out[lane] += 1.0 - table[abs(first[lane] - second[lane])]
+
+
 def _levels_block_variance(x, table, out):
     """Diagonal of (3.5) of one block of integer levels ``x`` ``(F, p)`` into ``out`` ``(p,)``:
-    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])``."""
+    ``2/F^2 sum_{tau < tau'} (1 - table[|x_tau(j) - x_tau'(j)|])``.  ``_LANES`` pixels at a
+    time (:func:`_gather_one_minus`), each summed in ``out`` from 0 over the frame pairs in
+    the same order as the scalar loop of the rest."""
     n_frames, p = x.shape
     scale = 2.0 / (n_frames * n_frames)
-    for i in range(p):
+    vector_end = p - p % _LANES
+    for j in range(0, vector_end, _LANES):
+        for i in range(j, j + _LANES):
+            out[i] = 0.0
+        for a in range(n_frames):
+            for c in range(a + 1, n_frames):
+                _gather_one_minus(table, x[a], x[c], out, j)
+        for i in range(j, j + _LANES):
+            out[i] = out[i] * scale
+    for i in range(vector_end, p):
         acc = 0.0
         for a in range(n_frames):
             xa = x[a, i]
@@ -260,6 +304,131 @@ def _levels_variance_loops(levels, table, out):
 _LEVEL_KERNELS: list = []
 
 
+_GATHER_ADD: list = []
+
+
+def _register_gather_add() -> None:
+    """Compiled code's :func:`_gather_add` and :func:`_gather_one_minus` (numba
+    overloads; Python keeps the plain functions): the ``_LANES`` levels of ``row``
+    loaded as one vector, ``|level - row|`` (or ``|first - second|``) per lane, one
+    ``llvm.masked.gather`` of the table entries (all lanes on), one vector addition (of
+    ``1 - entry``) into ``out`` and one store -- IEEE operations per lane, so the values of
+    the scalar loop.  For aligned C-contiguous ``table`` (float64), ``row`` (int32) and
+    ``out`` (float64), with ``j + _LANES <= len(row), len(out)`` (the callers' loops; not
+    checked); other arrays get the scalar loop.  Once per process; needs numba."""
+    if _GATHER_ADD:
+        return
+    from llvmlite import ir
+    from numba.core import cgutils, types
+    from numba.extending import intrinsic, overload
+
+    def gathered(context, builder, table_type, table, index32):
+        """The table entries at the ``_LANES`` int32 indices ``index32`` (one gather)."""
+        tab_a = context.make_array(table_type)(context, builder, table)
+        i1, i32, i64, f64 = ir.IntType(1), ir.IntType(32), ir.IntType(64), ir.DoubleType()
+        vi32, vi64 = ir.VectorType(i32, _LANES), ir.VectorType(i64, _LANES)
+        vf64, vptr = ir.VectorType(f64, _LANES), ir.VectorType(f64.as_pointer(), _LANES)
+        base = builder.insert_element(ir.Constant(vi64, None),
+                                      builder.ptrtoint(tab_a.data, i64), ir.Constant(i32, 0))
+        base = builder.shuffle_vector(base, ir.Constant(vi64, None),
+                                      ir.Constant(vi32, [0] * _LANES))
+        addresses = builder.add(base, builder.mul(builder.sext(index32, vi64),
+                                                  ir.Constant(vi64, [8] * _LANES)))
+        gather = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(vf64, [vptr, i32, ir.VectorType(i1, _LANES), vf64]),
+            f"llvm.masked.gather.v{_LANES}f64.v{_LANES}p0f64")
+        return builder.call(gather, [builder.inttoptr(addresses, vptr), ir.Constant(i32, 8),
+                                     ir.Constant(ir.VectorType(i1, _LANES), [1] * _LANES),
+                                     ir.Constant(vf64, None)])
+
+    def lanes(context, builder, array_type, array, start, element):
+        """Pointer to ``_LANES`` elements of a C-contiguous 1-D array from ``start``."""
+        data = context.make_array(array_type)(context, builder, array).data
+        return builder.bitcast(builder.gep(data, [start]),
+                               ir.VectorType(element, _LANES).as_pointer())
+
+    def absolute(builder, diff):
+        zero = ir.Constant(diff.type, [0] * _LANES)
+        return builder.select(builder.icmp_signed("<", diff, zero), builder.neg(diff), diff)
+
+    @intrinsic
+    def vector_gather_add(typingctx, table, row, level, out, j):
+        sig = types.void(table, row, level, out, j)
+
+        def codegen(context, builder, signature, args):
+            i32, f64 = ir.IntType(32), ir.DoubleType()
+            vi32 = ir.VectorType(i32, _LANES)
+            start = context.cast(builder, args[4], signature.args[4], types.intp)
+            lvl = context.cast(builder, args[2], signature.args[2], types.int32)
+            lvl = builder.insert_element(ir.Constant(vi32, None), lvl, ir.Constant(i32, 0))
+            lvl = builder.shuffle_vector(lvl, ir.Constant(vi32, None),
+                                         ir.Constant(vi32, [0] * _LANES))
+            levels = builder.load(lanes(context, builder, signature.args[1], args[1], start,
+                                        i32), align=4)
+            values = gathered(context, builder, signature.args[0], args[0],
+                              absolute(builder, builder.sub(lvl, levels)))
+            target = lanes(context, builder, signature.args[3], args[3], start, f64)
+            builder.store(builder.fadd(builder.load(target, align=8), values), target,
+                          align=8)
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    @intrinsic
+    def vector_gather_one_minus(typingctx, table, first, second, out, j):
+        sig = types.void(table, first, second, out, j)
+
+        def codegen(context, builder, signature, args):
+            i32, f64 = ir.IntType(32), ir.DoubleType()
+            start = context.cast(builder, args[4], signature.args[4], types.intp)
+            a = builder.load(lanes(context, builder, signature.args[1], args[1], start, i32),
+                             align=4)
+            b = builder.load(lanes(context, builder, signature.args[2], args[2], start, i32),
+                             align=4)
+            values = gathered(context, builder, signature.args[0], args[0],
+                              absolute(builder, builder.sub(a, b)))
+            ones = ir.Constant(ir.VectorType(f64, _LANES), [1.0] * _LANES)
+            target = lanes(context, builder, signature.args[3], args[3], start, f64)
+            builder.store(builder.fadd(builder.load(target, align=8),
+                                       builder.fsub(ones, values)), target, align=8)
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    def vectorisable(table, rows, out, level=None):
+        arrays = [(table, types.float64), (out, types.float64)] + \
+            [(row, types.int32) for row in rows]
+        return all(isinstance(arg, types.Array) and arg.ndim == 1 and arg.layout == "C"
+                   and arg.aligned and arg.dtype == dtype for arg, dtype in arrays) and \
+            (level is None or isinstance(level, types.Integer))
+
+    @overload(_gather_one_minus, inline="always")
+    def _gather_one_minus_compiled(table, first, second, out, j):
+        if vectorisable(table, (first, second), out) and isinstance(j, types.Integer):
+            def impl(table, first, second, out, j):
+                vector_gather_one_minus(table, first, second, out, j)
+            return impl
+
+        def scalar(table, first, second, out, j):
+            for lane in range(j, j + _LANES):
+                out[lane] += 1.0 - table[abs(first[lane] - second[lane])]
+        return scalar
+
+    @overload(_gather_add, inline="always")
+    def _gather_add_compiled(table, row, level, out, j):
+        if vectorisable(table, (row,), out, level) and isinstance(j, types.Integer):
+            def impl(table, row, level, out, j):
+                vector_gather_add(table, row, level, out, j)
+            return impl
+
+        def scalar(table, row, level, out, j):
+            for lane in range(j, j + _LANES):
+                out[lane] += table[abs(level - row[lane])]
+        return scalar
+
+    _GATHER_ADD.append(vector_gather_add)
+
+
 def compiled_level_kernels() -> dict | None:
     """The numba-compiled level kernels (``block_covariance``, ``block_variance``,
     ``covariance``, ``variance``), or ``None`` without numba or with the environment variable
@@ -272,6 +441,7 @@ def compiled_level_kernels() -> dict | None:
         _LEVEL_KERNELS.append(None)
         return None
     global _levels_block_covariance, _levels_block_variance
+    _register_gather_add()
     _levels_block_covariance = numba.njit(cache=True, nogil=True)(_levels_block_covariance)
     _levels_block_variance = numba.njit(cache=True, nogil=True)(_levels_block_variance)
     kernels = {"block_covariance": _levels_block_covariance,

@@ -155,3 +155,44 @@ def test_level_table_path_equals_the_exponential_path():
         np.testing.assert_allclose(var[b], np.diag(ref), atol=1e-12)
     with pytest.raises(KernelCovarianceError):
         block_kernel_covariance_levels(levels, table[:100])
+
+
+@pytest.mark.parametrize("n_frames, rho", [(4, 4), (6, 4), (2, 3), (5, 5), (3, 2), (4, 1)])
+def test_vector_gather_covariance_equals_the_plain_python_loops(n_frames, rho):
+    """The compiled (3.5) of a block of levels and its diagonal, whose look-ups are vector
+    gathers (``_gather_add``, ``_gather_one_minus``: 8 lanes, then scalar for the rest of
+    a row), equal bit for bit the same functions run as plain Python (one look-up and one
+    addition at a time), also for rows not a multiple of 8 long and level differences of
+    either sign."""
+    from mk_tracker.detection import kernel_covariance as kc
+    kernels = kc.compiled_level_kernels()
+    if kernels is None:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(n_frames * 10 + rho)
+    p = rho * rho
+    table = kc.kernel_table(300, 1.0 / 255.0, 0.01)
+    same, cross = np.zeros((p, p)), np.zeros((p, p))
+    for trial in range(4):
+        x = rng.integers(0, 256, (n_frames, p)).astype(np.int32)
+        if trial == 1:
+            x[:, : p // 2] = x[0, : p // 2]            # pixels that do not change
+        fast, slow = np.full((p, p), np.nan), np.full((p, p), np.nan)
+        kernels["block_covariance"](x, table, same, cross, fast)
+        kernels["block_covariance"].py_func(x, table, same.copy(), cross.copy(), slow)
+        np.testing.assert_array_equal(fast, slow)
+        assert np.array_equal(fast, fast.T)
+        var_fast, var_slow = np.full(p, np.nan), np.full(p, np.nan)
+        kernels["block_variance"](x, table, var_fast)
+        kernels["block_variance"].py_func(x, table, var_slow)
+        np.testing.assert_array_equal(var_fast, var_slow)
+        np.testing.assert_allclose(var_fast, np.diag(fast), rtol=0, atol=1e-12)
+    # and against the batch function on the same blocks
+    blocks = rng.integers(0, 256, (3, n_frames, p)).astype(np.int32)
+    batch = kc.block_kernel_covariance_levels(blocks, table)
+    batch_var = kc.block_variance_levels(blocks, table)
+    for b in range(3):
+        one, var = np.empty((p, p)), np.empty(p)
+        kernels["block_covariance"].py_func(blocks[b], table, same, cross, one)
+        kernels["block_variance"].py_func(blocks[b], table, var)
+        np.testing.assert_array_equal(batch[b], one)
+        np.testing.assert_array_equal(batch_var[b], var)
