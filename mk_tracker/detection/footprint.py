@@ -291,7 +291,7 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
     Voronoi cell of ``centres[k]`` (``k < 0``: no cell).  Same arithmetic as the numpy path.
     Marks the object's pixels 1 (others visited 2) and returns their number (0: none);
     ``stats`` (int64, 6) receives their patch-coordinate sums and extremes
-    ``(sum_c, sum_r, c_min, c_max, r_min, r_max)``, gathered as they are marked."""
+    ``(sum_c, sum_r, c_min, c_max, r_min, r_max)``."""
     n_seeds = rows.shape[0]
     valid = 0
     warmer = 0
@@ -319,13 +319,6 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
     mark[:, pw + 1] = 2
     stack_r = np.empty(ph * pw, dtype=np.int32)   # every pixel is pushed at most once
     stack_c = np.empty(ph * pw, dtype=np.int32)
-    count = 0
-    sum_c = 0
-    sum_r = 0
-    c_min = pw
-    c_max = -1
-    r_min = ph
-    r_max = -1
     for s in range(n_seeds):
         r0 = rows[s] - y0
         c0 = cols[s] - x0
@@ -336,13 +329,6 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
             mark[r0 + 1, c0 + 1] = 2
             continue
         mark[r0 + 1, c0 + 1] = 3           # marks in padded coordinates from here on
-        count += 1
-        sum_c += c0
-        sum_r += r0
-        c_min = min(c_min, c0)
-        c_max = max(c_max, c0)
-        r_min = min(r_min, r0)
-        r_max = max(r_max, r0)
         stack_r[0] = r0 + 1
         stack_c[0] = c0 + 1
         top = 1
@@ -365,13 +351,6 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
                     elif v == 0 and _in_footprint(frame, offset, r - 1 + y0, x - 1 + x0,
                                                   level, polarity, radius, centres, k):
                         mark[r, x] = 1
-                        count += 1
-                        sum_c += x - 1
-                        sum_r += r - 1
-                        c_min = min(c_min, x - 1)
-                        c_max = max(c_max, x - 1)
-                        r_min = min(r_min, r - 1)
-                        r_max = max(r_max, r - 1)
                     else:
                         if v == 0:
                             mark[r, x] = 2
@@ -390,13 +369,6 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
                     if _in_footprint(frame, offset, rr - 1 + y0, x - 1 + x0, level,
                                      polarity, radius, centres, k):
                         mark[rr, x] = 3
-                        count += 1
-                        sum_c += x - 1
-                        sum_r += rr - 1
-                        c_min = min(c_min, x - 1)
-                        c_max = max(c_max, x - 1)
-                        r_min = min(r_min, rr - 1)
-                        r_max = max(r_max, rr - 1)
                         if not fresh:
                             stack_r[top] = rr
                             stack_c[top] = x
@@ -405,7 +377,26 @@ def _footprint_loops(frame, offset, y0, x0, level, radius, rows, cols, centres, 
                     else:
                         mark[rr, x] = 2
                         fresh = False
-    state[:, :] = mark[1:ph + 1, 1:pw + 1]
+    # the object's pixels (marked 1 once the fill ends), counted in one pass over the patch
+    count = 0
+    sum_c = 0
+    sum_r = 0
+    c_min = pw
+    c_max = -1
+    r_min = ph
+    r_max = -1
+    for r in range(ph):
+        for c in range(pw):
+            v = mark[r + 1, c + 1]
+            state[r, c] = v
+            if v == 1:
+                count += 1
+                sum_c += c
+                sum_r += r
+                c_min = min(c_min, c)
+                c_max = max(c_max, c)
+                r_min = min(r_min, r)
+                r_max = max(r_max, r)
     stats[0] = sum_c
     stats[1] = sum_r
     stats[2] = c_min
