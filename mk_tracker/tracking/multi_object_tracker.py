@@ -707,9 +707,7 @@ class MultiObjectTracker:
                 if cfg.observation_centric_reupdate and not t.manual and not group \
                         and was is not TrackState.TENTATIVE:
                     t.reupdate_from_last_seen(det_box, stamp, self._frame_interval)
-                # a group member's place is no detection of its own: its quality (score
-                # times group.quality_factor) keeps setting its std
-                t.correct(det_box, _quality(det.score), detection=not group)
+                t.correct(det_box, _quality(det.score))
                 if refined is not None and iou(refined[0], det_box) >= \
                         self.config.refine_consistency_iou:
                     t.correct(refined[0], quality * self.config.fused_quality_factor,

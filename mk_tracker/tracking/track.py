@@ -114,15 +114,6 @@ class LifecycleConfig:
     quality_floor: float = parameter(
         0.1, "Lowest match quality used to scale the noise: std = noise / max(q, floor)",
         minimum=1e-3, maximum=1.0)
-    detection_noise: str = parameter(
-        "score", "How an assigned detection's score sets the std of its centroid measurement "
-        "(the Kalman R only; the size smoothing and the multiple-kernel refinement's "
-        "measurements keep following the quality as before): score (std / max(score, "
-        "quality_floor), the match quality of every other measurement), constant (the std of "
-        "a perfect match whatever the score, as SORT and ByteTrack) or nsa (variance times "
-        "1 - score, StrongSORT's NSA Kalman filter, Du et al. 2023, never below "
-        "min_noise_px).  Off (score) by default: see docs/benchmark_multi_object.md",
-        choices=("score", "constant", "nsa"))
     observation_centric_reupdate: bool = parameter(
         False, "When a detection comes back to a track that coasted unseen for more than "
         "one frame, re-run its Kalman filter from the last seen state through virtual "
@@ -142,29 +133,6 @@ def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig
     q = min(max(q, config.quality_floor), 1.0)
     base = max(config.measurement_noise * float(box_height), config.min_noise_px)
     return base / q
-
-
-def detection_sigma(box_height: float, score: float, config: LifecycleConfig) -> float:
-    """Std (px) of the centroid measurement of an assigned detection whose score is ``score``
-    in [0, 1], by ``config.detection_noise``.
-
-    ``score``: :func:`measurement_sigma` with the score as the quality.  ``constant``: the
-    std of a perfect match (``max(measurement_noise * h, min_noise_px)``).  ``nsa``: the
-    noise scale adaptive form of Du et al. 2023 (StrongSORT, Sec. 3.2), ``R_k = (1 - c_k) R``,
-    i.e. ``sigma_w = max(measurement_noise * h * sqrt(1 - score), min_noise_px)``: a
-    confident detection is trusted more than the model's std, never below ``min_noise_px``.
-    A non-finite score counts as 0.
-    """
-    mode = config.detection_noise
-    if mode == "score":
-        return measurement_sigma(box_height, score, config)
-    q = min(max(score, 0.0), 1.0) if math.isfinite(score) else 0.0
-    base = config.measurement_noise * float(box_height)
-    if mode == "nsa":
-        base *= math.sqrt(1.0 - q)
-    elif mode != "constant":
-        raise ValueError(f"unknown detection_noise {mode!r}")
-    return max(base, config.min_noise_px)
 
 
 def next_state(state: TrackState, *, detected: bool, visible: bool, in_image: bool,
@@ -327,20 +295,16 @@ class Track:
                                                                self.config))
 
     def correct(self, box: np.ndarray, quality: float, use_size: bool = True,
-                size_weight: float = 1.0, detection: bool = False) -> None:
+                size_weight: float = 1.0) -> None:
         """Kalman update (4.4)-(4.5) with the centre of ``box``, and size smoothing.
 
         The measurement std and the size-smoothing weight both follow ``quality``;
-        ``detection``: ``box`` is an assigned detection and ``quality`` its score, whose
-        std is :func:`detection_sigma` (``detection_noise``) instead; the size smoothing
-        follows ``quality`` either way.  ``use_size=False`` updates the centre only;
-        ``size_weight`` scales the size update.
+        ``use_size=False`` updates the centre only; ``size_weight`` scales the size update.
         """
         x, y, w, h = (float(v) for v in box)
         q = min(max(float(quality), 0.0), 1.0) if math.isfinite(quality) else 0.0
-        sigma = detection_sigma(h, q, self.config) if detection else \
-            measurement_sigma(h, q, self.config)
-        self.kf.update((x + w / 2.0, y + h / 2.0), sigma_w=sigma)
+        self.kf.update((x + w / 2.0, y + h / 2.0),
+                       sigma_w=measurement_sigma(h, q, self.config))
         if not use_size:
             return
         alpha = size_weight * self.config.size_smoothing * max(q, self.config.quality_floor)

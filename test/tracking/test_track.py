@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from mk_tracker.kalman import KalmanConfig
-from mk_tracker.tracking.track import (LifecycleConfig, Track, TrackState, detection_sigma,
-                                       measurement_sigma, next_state)
+from mk_tracker.tracking.track import (LifecycleConfig, Track, TrackState, measurement_sigma,
+                              next_state)
 
 CFG = LifecycleConfig(min_hits=3, max_tentative_misses=1, max_coast_time=1.0,
                       max_lost_time=4.0)
@@ -52,46 +52,6 @@ def test_measurement_sigma_follows_quality():
     assert measurement_sigma(100.0, 0.0, cfg) == pytest.approx(40.0)
     assert measurement_sigma(10.0, 1.0, cfg) == pytest.approx(1.0)      # floor in px
     assert measurement_sigma(100.0, float("nan"), cfg) == pytest.approx(40.0)
-
-
-def test_detection_sigma_by_detection_noise():
-    score = LifecycleConfig(measurement_noise=0.04, min_noise_px=1.0, quality_floor=0.1)
-    constant = LifecycleConfig(measurement_noise=0.04, min_noise_px=1.0,
-                               detection_noise="constant")
-    nsa = LifecycleConfig(measurement_noise=0.04, min_noise_px=1.0, detection_noise="nsa")
-    # score: the same std as any measurement of that quality
-    assert detection_sigma(100.0, 0.25, score) == pytest.approx(16.0)
-    # constant: the score does not matter
-    for s in (0.0, 0.25, 1.0, float("nan")):
-        assert detection_sigma(100.0, s, constant) == pytest.approx(4.0)
-    # nsa: variance times 1 - score, never below min_noise_px
-    assert detection_sigma(100.0, 0.75, nsa) == pytest.approx(2.0)
-    assert detection_sigma(100.0, 0.0, nsa) == pytest.approx(4.0)
-    assert detection_sigma(100.0, 1.0, nsa) == pytest.approx(1.0)
-    assert detection_sigma(100.0, float("nan"), nsa) == pytest.approx(4.0)
-
-
-def test_detection_noise_changes_only_the_detection_update():
-    def track(mode):
-        return Track(1, np.array([100.0, 100.0, 20.0, 50.0]), 0.0, score=1.0,
-                     kalman=KalmanConfig(),
-                     config=LifecycleConfig(size_smoothing=0.3, measurement_noise=0.04,
-                                            detection_noise=mode))
-    meas = np.array([110.0, 100.0, 30.0, 70.0])
-    by_score, constant = track("score"), track("constant")
-    for t in (by_score, constant):
-        t.predict(1 / 30)
-        t.correct(meas, 0.2, detection=True)
-    # a low-scored detection moves the constant-noise filter further towards it ...
-    assert constant.center[0] > by_score.center[0]
-    # ... and the size smoothing still follows the score in both
-    np.testing.assert_allclose(constant.size, by_score.size)
-    # a measurement that is not a detection keeps the quality-scaled std
-    a, b = track("score"), track("constant")
-    for t in (a, b):
-        t.predict(1 / 30)
-        t.correct(meas, 0.2)
-    np.testing.assert_allclose(a.kf.state, b.kf.state)
 
 
 def make_track():
