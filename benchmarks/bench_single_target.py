@@ -1085,7 +1085,7 @@ def development_set() -> list[tuple[str, Sequence]]:
 #: measurement below ``occlusion_similarity`` with its noise inflated by the colour
 #: likelihood ratio (``graded_measurement``, at commit b717bb5).
 GRID = {
-    "multi_start_radius": (0.0, 0.5, 1.0),
+    "multi_start_radius": (0.5, 1.0),
     "recovery_similarity": (0.0, 0.25, 0.4),
     "max_coast_position_std": (0.0, 1.0),
 }
@@ -1097,22 +1097,34 @@ GRID = {
 #: configuration (``--set`` syntax), the others are ``manual_track`` fields.
 WEIGHTINGS = (
     {"background_weighting": "none"},
-    {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.0},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25},
+)
+
+#: the graded measurement of a hand-started track (``manual_track.graded_measurement``,
+#: mk_tracker.tracking.graded_measurement), each choice crossed with :data:`GRID` and
+#: :data:`WEIGHTINGS`: off (accept/reject at ``occlusion_similarity``), and on with the
+#: colour likelihood's sharpness lambda 5 (K-L cost; Perez et al.'s 20 on d^2 / 4) or 20
+GRADED = (
+    {},
+    {"graded_measurement": True, "graded_likelihood_sharpness": 5.0},
+    {"graded_measurement": True, "graded_likelihood_sharpness": 20.0},
 )
 
 
 def _label_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
     return v if isinstance(v, str) else f"{v:g}"
 
 
 def grid_configs() -> list[tuple[str, dict]]:
     keys = list(GRID)
     out = []
-    for weighting in WEIGHTINGS:
+    for graded, weighting in product(GRADED, WEIGHTINGS):
         for values in product(*(GRID[k] for k in keys)):
             setting = dict(zip(keys, values))
             setting.update(weighting)
+            setting.update(graded)
             label = ", ".join(f"{k}={_label_value(v)}" for k, v in setting.items())
             out.append((label, setting))
     return out
