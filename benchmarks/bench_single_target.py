@@ -1103,11 +1103,16 @@ WEIGHTINGS = (
 #: the graded measurement of a hand-started track (``manual_track.graded_measurement``,
 #: mk_tracker.tracking.graded_measurement), each choice crossed with :data:`GRID` and
 #: :data:`WEIGHTINGS`: off (accept/reject at ``occlusion_similarity``), and on with the
-#: colour likelihood's sharpness lambda 5 (K-L cost; Perez et al.'s 20 on d^2 / 4) or 20
+#: colour likelihood's sharpness lambda 5 (K-L cost; Perez et al.'s 20 on d^2 / 4), without
+#: and with a chi-square validation gate (2 dof, 95% / 99%) on the graded results
+#: (``graded_validation_gate``; lambda 20 lost every fold in the run at commit b717bb5)
 GRADED = (
     {},
     {"graded_measurement": True, "graded_likelihood_sharpness": 5.0},
-    {"graded_measurement": True, "graded_likelihood_sharpness": 20.0},
+    {"graded_measurement": True, "graded_likelihood_sharpness": 5.0,
+     "graded_validation_gate": 5.99},
+    {"graded_measurement": True, "graded_likelihood_sharpness": 5.0,
+     "graded_validation_gate": 9.21},
 )
 
 

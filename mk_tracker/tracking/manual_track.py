@@ -166,6 +166,13 @@ class ManualTrackConfig:
         "(Perez et al. 2002 use exp(-20 d^2) on the squared Bhattacharyya distance; the K-L "
         "cost J is about 4 d^2 for nearby histograms, hence 5); 0 = no inflation below the "
         "level", minimum=0.0, maximum=1000.0)
+    graded_validation_gate: float = parameter(
+        0.0, "Validation gate of the graded measurement (Bar-Shalom & Fortmann 1988): a "
+        "search result below occlusion_similarity is used only if the squared Mahalanobis "
+        "distance of its centre to the prediction, under the prediction's covariance plus "
+        "the un-inflated measurement noise of a match at occlusion_similarity, is at most "
+        "this (chi-square, 2 dof: 5.99 = 95%, 9.21 = 99%); results at or above the level "
+        "are not gated; 0 = no gate", minimum=0.0, maximum=1000.0)
 
     multi_start_radius: float = parameter(
         0.5, "Coarse-to-fine search of a track started by hand (replaces "

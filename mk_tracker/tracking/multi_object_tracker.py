@@ -86,7 +86,7 @@ from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectT
 from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
                                                reacquisition_matches, reference_similarity)
 from mk_tracker.tracking.recovery import recover_into, restart_filter
-from mk_tracker.tracking.graded_measurement import graded_noise_scale
+from mk_tracker.tracking.graded_measurement import graded_noise_scale, within_validation_gate
 from mk_tracker.tracking.image_border import clip_to_image, overlaps_image, whole_person_box
 from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
                                               manual_track_lifecycle,
@@ -556,7 +556,8 @@ class MultiObjectTracker:
         occlusion level (``manual_track.graded_measurement``,
         :mod:`mk_tracker.tracking.graded_measurement`): the Kalman update with the centre of
         the result and the std of a match at the level inflated by the colour likelihood
-        ratio; the track stays unseen.  False (no update) when off or below the floor."""
+        ratio; the track stays unseen.  False (no update) when off, below the floor, or outside
+        the validation gate (``graded_validation_gate``)."""
         m = self.config.manual_track
         if not m.graded_measurement:
             return False
@@ -567,6 +568,10 @@ class MultiObjectTracker:
         lo, hi = m.refinement_similarity_range
         level = t.config.occlusion_similarity
         quality = min(max((level - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
+        box = np.asarray(refined[0], dtype=np.float64)    # gated with the un-inflated noise
+        if not within_validation_gate(box[:2] + box[2:] / 2.0 - t.center, t.innovation_covariance(
+                box[3], quality * m.undetected_quality_factor), m.graded_validation_gate):
+            return False
         t.correct(refined[0], quality * m.undetected_quality_factor, use_size=False,
                   noise_scale=scale)
         return True
