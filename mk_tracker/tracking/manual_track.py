@@ -148,32 +148,6 @@ class ManualTrackConfig:
         "of the predicted centre); 0 = extrapolate until the box leaves the image",
         minimum=0.0, maximum=100.0)
 
-    graded_measurement: bool = parameter(
-        False, "Graded measurement of a track started by hand: a search result whose "
-        "visibility statistic s is below occlusion_similarity but at least "
-        "graded_measurement_floor still corrects the Kalman filter (centre only; the track "
-        "stays occluded), with the std of a match at occlusion_similarity inflated by "
-        "(occlusion_similarity / s)^(graded_likelihood_sharpness / 2): the measurement's "
-        "information scaled by its colour likelihood exp(-lambda J) relative to a match at "
-        "the level (J = -ln s, the K-L cost of (3)/(7)); false = accept/reject at "
-        "occlusion_similarity (mk_tracker.tracking.graded_measurement)")
-    graded_measurement_floor: float = parameter(
-        0.2, "Visibility statistic below which a search result of a track started by hand "
-        "is rejected even as a graded measurement (0.2 = the low end of "
-        "refinement_similarity_range, quality 0)", minimum=0.0, maximum=1.0)
-    graded_likelihood_sharpness: float = parameter(
-        5.0, "lambda of the colour likelihood exp(-lambda J) of the graded measurement "
-        "(Perez et al. 2002 use exp(-20 d^2) on the squared Bhattacharyya distance; the K-L "
-        "cost J is about 4 d^2 for nearby histograms, hence 5); 0 = no inflation below the "
-        "level", minimum=0.0, maximum=1000.0)
-    graded_validation_gate: float = parameter(
-        0.0, "Validation gate of the graded measurement (Bar-Shalom & Fortmann 1988): a "
-        "search result below occlusion_similarity is used only if the squared Mahalanobis "
-        "distance of its centre to the prediction, under the prediction's covariance plus "
-        "the un-inflated measurement noise of a match at occlusion_similarity, is at most "
-        "this (chi-square, 2 dof: 5.99 = 95%, 9.21 = 99%); results at or above the level "
-        "are not gated; 0 = no gate", minimum=0.0, maximum=1000.0)
-
     multi_start_radius: float = parameter(
         0.5, "Coarse-to-fine search of a track started by hand (replaces "
         "multi_kernel.multi_start_radius): the kernel layout is also scored at a 3x3 grid of "

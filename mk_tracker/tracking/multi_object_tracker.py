@@ -86,7 +86,6 @@ from mk_tracker.tracking.tracker_config import IDENTITY_HOMOGRAPHY, MultiObjectT
 from mk_tracker.tracking.reacquisition import (nearer_of_both, reacquire_check,
                                                reacquisition_matches, reference_similarity)
 from mk_tracker.tracking.recovery import recover_into, restart_filter
-from mk_tracker.tracking.graded_measurement import graded_noise_scale, within_validation_gate
 from mk_tracker.tracking.image_border import clip_to_image, overlaps_image, whole_person_box
 from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman,
                                               manual_track_lifecycle,
@@ -551,31 +550,6 @@ class MultiObjectTracker:
                     t.target, found = moved, alt
         return found
 
-    def _graded(self, t: Track, refined: tuple[np.ndarray, float, bool]) -> bool:
-        """A graded measurement of a track started by hand whose search result is below its
-        occlusion level (``manual_track.graded_measurement``,
-        :mod:`mk_tracker.tracking.graded_measurement`): the Kalman update with the centre of
-        the result and the std of a match at the level inflated by the colour likelihood
-        ratio; the track stays unseen.  False (no update) when off, below the floor, or outside
-        the validation gate (``graded_validation_gate``)."""
-        m = self.config.manual_track
-        if not m.graded_measurement:
-            return False
-        scale = graded_noise_scale(refined[1], t.config.occlusion_similarity,
-                                   m.graded_measurement_floor, m.graded_likelihood_sharpness)
-        if scale is None:
-            return False
-        lo, hi = m.refinement_similarity_range
-        level = t.config.occlusion_similarity
-        quality = min(max((level - lo) / max(hi - lo, 1e-9), 0.0), 1.0)
-        box = np.asarray(refined[0], dtype=np.float64)    # gated with the un-inflated noise
-        if not within_validation_gate(box[:2] + box[2:] / 2.0 - t.center, t.innovation_covariance(
-                box[3], quality * m.undetected_quality_factor), m.graded_validation_gate):
-            return False
-        t.correct(refined[0], quality * m.undetected_quality_factor, use_size=False,
-                  noise_scale=scale)
-        return True
-
     def _count(self, result: FrameResult) -> None:
         self.totals["dropped_stale"] += result.dropped_stale
         self.totals["skipped_bad_detections"] += result.skipped_bad_detections
@@ -714,7 +688,6 @@ class MultiObjectTracker:
         was = t.state
         sim = refined[1] if refined is not None else None
         visible = refined is not None and refined[2]
-        graded = False
         # a track started by hand maps its refinement to quality by its own settings
         measurement = self.config.manual_track if t.manual else self.config
         lo, hi = measurement.refinement_similarity_range
@@ -755,14 +728,12 @@ class MultiObjectTracker:
                 t.correct(refined[0], quality * measurement.undetected_quality_factor,
                           size_weight=cfg.refinement_size_weight)
                 t.last_seen = stamp
-            elif t.manual and sim is not None and self._graded(t, refined):
-                graded = True
             t.score = sim if sim is not None else 0.0
         if cfg.observation_centric_reupdate and not t.manual and \
                 (det_box is not None or visible):
             t.remember_seen()
         if t.manual:
-            t.hold_if_uncertain(det_box is not None or visible or graded,
+            t.hold_if_uncertain(det_box is not None or visible,
                                 self.config.manual_track.max_coast_position_std)
         new = next_state(was, detected=det_box is not None, visible=visible,
                          in_image=self._inside(t, width, height), hits=t.hits,
