@@ -1094,12 +1094,17 @@ GRID = {
 #: the background weighting of the kernel models (issue #16 item 3; Ning et al. 2012's
 #: corrected background-weighted histogram, mk_tracker.tracking.background_weighting), each
 #: choice crossed with :data:`GRID`: today's plain models, and ``cbwh`` with the weights of
-#: the paper (floor 0) or floored at 0.25.  A key with a dot is a path of the whole tracker's
+#: the paper (floor 0) or floored at 0.25; the plain and the floored cbwh models also with
+#: the distractor-aware weighting of Possegger et al. 2015 (DAT's learning rate 0.1,
+#: mk_tracker.tracking.distractor_model).  A key with a dot is a path of the whole tracker's
 #: configuration (``--set`` syntax), the others are ``manual_track`` fields.
 WEIGHTINGS = (
     {"background_weighting": "none"},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.0},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25},
+    {"background_weighting": "none", "distractor_rate": 0.1},
+    {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25,
+     "distractor_rate": 0.1},
 )
 
 
