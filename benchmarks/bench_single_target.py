@@ -1084,7 +1084,9 @@ def development_set() -> list[tuple[str, Sequence]]:
 #: an integrated Ornstein-Uhlenbeck prediction, at commit 7a344b0), and a graded
 #: measurement below ``occlusion_similarity`` with its noise inflated by the colour
 #: likelihood ratio (``graded_measurement``, at commit b717bb5), also with a chi-square
-#: validation gate on its below-level results (``graded_validation_gate``, at commit a6c869e).
+#: validation gate on its below-level results (``graded_validation_gate``, at commit a6c869e),
+#: and distractor-aware kernel models (Possegger et al. 2015's DAT, ``distractor_rate``, at
+#: commit ace72c3).
 GRID = {
     "multi_start_radius": (0.0, 0.5, 1.0),
     "recovery_similarity": (0.0, 0.25, 0.4),
@@ -1094,17 +1096,12 @@ GRID = {
 #: the background weighting of the kernel models (issue #16 item 3; Ning et al. 2012's
 #: corrected background-weighted histogram, mk_tracker.tracking.background_weighting), each
 #: choice crossed with :data:`GRID`: today's plain models, and ``cbwh`` with the weights of
-#: the paper (floor 0) or floored at 0.25; the plain and the floored cbwh models also with
-#: the distractor-aware weighting of Possegger et al. 2015 (DAT's learning rate 0.1,
-#: mk_tracker.tracking.distractor_model).  A key with a dot is a path of the whole tracker's
+#: the paper (floor 0) or floored at 0.25.  A key with a dot is a path of the whole tracker's
 #: configuration (``--set`` syntax), the others are ``manual_track`` fields.
 WEIGHTINGS = (
     {"background_weighting": "none"},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.0},
     {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25},
-    {"background_weighting": "none", "distractor_rate": 0.1},
-    {"background_weighting": "cbwh", "multi_kernel.background_weight_floor": 0.25,
-     "distractor_rate": 0.1},
 )
 
 

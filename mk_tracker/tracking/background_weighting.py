@@ -67,7 +67,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mk_tracker.tracking.distractor_model import distractor_weights
 from mk_tracker.tracking.kernel_histograms import smoothed
 
 __all__ = ["BACKGROUND_WEIGHTINGS", "BackgroundModel", "ring_region", "ring_histogram",
@@ -85,9 +84,6 @@ class BackgroundModel:
     ``plain`` the unweighted kernel models ``q_i`` ``(N, m)``; ``histogram`` the ring's
     ``o`` ``(m,)``; ``weights`` ``v`` ``(m,)``; ``offsets`` ``J0_i`` ``(N,)``, the cost of the
     weighted models on the plain ones; ``updates`` how often ``o`` was re-computed.
-    ``ring`` False: no ring weighting (``o`` all zero, ``v`` 1; the model is kept for the
-    distractor weighting alone); ``distractors`` the per-kernel distractor histograms
-    ``d_i`` ``(N, m)`` of :mod:`mk_tracker.tracking.distractor_model` (None = none).
     """
 
     plain: np.ndarray
@@ -95,8 +91,6 @@ class BackgroundModel:
     weights: np.ndarray
     offsets: np.ndarray
     updates: int = 0
-    ring: bool = True
-    distractors: np.ndarray | None = None
 
 
 def ring_region(box: tuple[float, float, float, float], ring: float, width: int,
@@ -149,12 +143,10 @@ def background_weights(o: np.ndarray, floor: float = 0.0) -> np.ndarray:
 
 
 def weighted_models(plain: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``q'_iu = v_u q_iu / sum_u v_u q_iu`` per row (``v`` ``(m,)``, or ``(N, m)``: one
-    weight vector per kernel); a row with no weighted mass (an empty model) is returned
-    unchanged."""
+    """``q'_iu = v_u q_iu / sum_u v_u q_iu`` per row; a row with no weighted mass (an empty
+    model) is returned unchanged."""
     q = np.asarray(plain, dtype=np.float64)
-    v = np.asarray(v, dtype=np.float64)
-    out = q * (v[None, :] if v.ndim == 1 else v)
+    out = q * np.asarray(v, dtype=np.float64)[None, :]
     totals = out.sum(axis=1)
     ok = totals > 0
     out[ok] /= totals[ok, None]
@@ -201,14 +193,9 @@ def background_model(plain: np.ndarray, o: np.ndarray, floor: float, epsilon: fl
 
 
 def reweighted(background: BackgroundModel, floor: float, epsilon: float) -> np.ndarray:
-    """Derive ``v``, ``J0`` and the weighted models again from ``background.histogram``,
-    ``background.plain`` and ``background.distractors`` (after any changed); returns the
-    weighted models ``q'_iu ~ r_iu v_u q_iu`` (``r`` the distractor weights,
-    :func:`~mk_tracker.tracking.distractor_model.distractor_weights`, 1 without)."""
+    """Derive ``v``, ``J0`` and the weighted models again from ``background.histogram`` and
+    ``background.plain`` (after either changed); returns the weighted models."""
     background.weights = background_weights(background.histogram, floor)
-    v = background.weights
-    if background.distractors is not None:
-        v = v[None, :] * distractor_weights(background.plain, background.distractors)
-    q = weighted_models(background.plain, v)
+    q = weighted_models(background.plain, background.weights)
     background.offsets = self_costs(q, background.plain, epsilon)
     return q

@@ -203,12 +203,6 @@ class ManualTrackConfig:
         "leave-one-clip-out protocol of bench_single_target.py over none, the plain "
         "models: a look-alike passer-by no longer takes the track), or none",
         choices=BACKGROUND_WEIGHTINGS)
-    distractor_rate: float = parameter(
-        0.0, "Distractor-aware kernel models of a track started by hand (replaces "
-        "multi_kernel.distractor_rate; Possegger et al. 2015, "
-        "mk_tracker.tracking.distractor_model): colours of nearby look-alike regions count "
-        "less in the model, learnt at this rate; 0 = off",
-        minimum=0.0, maximum=1.0)
 
     border_person_aspect: float = parameter(
         0.41, "The image border as an occluder (mk_tracker.tracking.image_border; not in the "
@@ -257,8 +251,7 @@ def manual_track_multi_kernel(config: "MultiObjectTrackerConfig") -> MultiKernel
                    failure_sigmas=m.failure_sigmas,
                    learnt_measure=m.learnt_measure,
                    similarity_spread_prior=m.similarity_spread_prior,
-                   background_weighting=m.background_weighting,
-                   distractor_rate=m.distractor_rate)
+                   background_weighting=m.background_weighting)
 
 
 def columns_cover(res: Any, floor: float) -> bool:

@@ -99,8 +99,6 @@ from mk_tracker.tracking.image_border import complete_models, inside_fractions, 
 from mk_tracker.tracking.background_weighting import (BackgroundModel, background_model,
                                                       corrected_costs, histogram_overlap,
                                                       reweighted, ring_histogram, ring_region)
-from mk_tracker.tracking.distractor_model import (blend_distractors, distractor_offsets,
-                                                  distractor_sum)
 from mk_tracker.tracking.redetection import (grid_start, redetect, relative_similarities,
                                              update_reference)
 from mk_tracker.tracking.scale_estimation import ScaleStep, gated_step, scale_step
@@ -354,7 +352,7 @@ class MultiKernelTracker:
         ``background_update_similarity``; the weights, weighted models and offsets follow."""
         cfg = self.config
         bg = state.background
-        if bg is None or not bg.ring or cfg.background_update_similarity <= 0:
+        if bg is None or cfg.background_update_similarity <= 0:
             return
         o = self._ring_histogram(image, state.box, self._stride(state.half_axes))
         if o is None or not o.sum() > 0:
@@ -363,28 +361,6 @@ class MultiKernelTracker:
             bg.histogram = o
             bg.updates += 1
             state.models = reweighted(bg, cfg.background_weight_floor, cfg.histogram_epsilon)
-
-    def _update_distractors(self, search: SearchRegion, state: TargetState,
-                            located: float) -> None:
-        """DAT's distractor model (:mod:`mk_tracker.tracking.distractor_model`): the layouts
-        of the distractor grid around the located kernels are evaluated in one batch; those
-        whose mean decision similarity is at least ``distractor_similarity * located`` add
-        their candidate histograms to the distractor histograms, blended at
-        ``distractor_rate``; the weighted models and offsets follow."""
-        cfg = self.config
-        bg = state.background
-        if bg is None or cfg.distractor_rate <= 0:
-            return
-        n_k = state.num_kernels
-        offsets = distractor_offsets(state.box[2], cfg.distractor_distance)
-        n_o = len(offsets)
-        centres = (state.centres[None, :, :] + offsets[:, None, :]).reshape(-1, 2)
-        ev = self._evaluate(search, np.tile(state.half_axes, (n_o, 1)), centres,
-                            np.tile(state.models, (n_o, 1)))
-        sims = self.decision_similarities(ev, state, n_o)
-        observed, _ = distractor_sum(ev.p, sims, n_k, cfg.distractor_similarity * located)
-        bg.distractors = blend_distractors(bg.distractors, observed, cfg.distractor_rate)
-        state.models = reweighted(bg, cfg.background_weight_floor, cfg.histogram_epsilon)
 
     # -- public API ------------------------------------------------------------------------
     def start(self, image_bgr: np.ndarray, box: BoxLike, outside: bool = False) -> TargetState:
@@ -441,10 +417,6 @@ class MultiKernelTracker:
                 raise TrackingInputError("the background ring holds NaN or infinite pixels")
             background, models = background_model(models, o, cfg.background_weight_floor,
                                                    cfg.histogram_epsilon)
-        elif cfg.distractor_rate > 0:   # the distractor weighting alone: no ring (v = 1)
-            background, models = background_model(models, np.zeros(self.n_bins), 0.0,
-                                                   cfg.histogram_epsilon)
-            background.ring = False
         return TargetState(centres=centres, base_half_axes=axes, scale=1.0, models=models,
                            base_lx=lx, base_ly=ly, pairs=pairs, similarity=1.0, seen=seen,
                            background=background)
@@ -493,8 +465,6 @@ class MultiKernelTracker:
         # the region also covers the grid of starts: multi_start_radius box widths in x and,
         # in the same pixels, in y
         reach = cfg.multi_start_radius * start_box[2]
-        if cfg.distractor_rate > 0:     # and the distractor layouts around it
-            reach = max(reach, (cfg.distractor_distance - cfg.search_margin) * start_box[2])
         region = _region(start_box, cfg.search_margin, width, height, extra_px=reach)
         if region is None:
             return self._lost(state, x, axes, "outside_image")
@@ -568,7 +538,6 @@ class MultiKernelTracker:
             else:
                 state.scale_step = gated_step(scale_sim, state.scale)
             self._update_background(image, state)
-            self._update_distractors(search, state, float(first.mean()))
         axes = state.half_axes
         box = kernels_bounding_box(state.centres, axes)
         return RefinementResult(box=box, center=(box[0] + box[2] / 2, box[1] + box[3] / 2),

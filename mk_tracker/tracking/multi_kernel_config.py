@@ -194,22 +194,6 @@ class MultiKernelConfig:
         "target is seen and replaces it when its Bhattacharyya coefficient with the old one "
         "is below this (the background changed enough, Ning et al.); 0 = first frame only",
         minimum=0.0, maximum=1.0)
-    distractor_rate: float = parameter(
-        0.0, "Distractor-aware models (Possegger et al. 2015, DAT; not in Chu et al.; "
-        "mk_tracker.tracking.distractor_model): in every frame the target is seen, the "
-        "per-kernel distractor histograms are blended at this rate towards the summed "
-        "histograms of the layouts distractor_distance box widths from the result that "
-        "score at least distractor_similarity times its similarity, and each model bin is "
-        "weighted by q / (q + d); 0 = off", minimum=0.0, maximum=1.0)
-    distractor_distance: float = parameter(
-        1.0, "Spacing of the 3 x 3 grid (centre left out) of distractor layouts around the "
-        "located target, box widths (the same pixels in y); 1 = the nearest position at "
-        "which a second person of the same size does not overlap the target",
-        minimum=0.25, maximum=5.0)
-    distractor_similarity: float = parameter(
-        0.75, "A layout of the distractor grid is a distractor when its mean decision "
-        "similarity is at least this fraction of the located target's (DAT: local maxima "
-        "of the object vote near the target's)", minimum=0.0, maximum=1.0)
     recovery_scan_cells: int = parameter(
         8, "Sampling of the back-projection scan: about this many samples across the box "
         "width (stride ceil(w / this) px)", minimum=2, maximum=64)
