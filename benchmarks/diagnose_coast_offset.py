@@ -17,6 +17,9 @@ or a group-member update):
 * ``prediction drift``: the pure prediction (4.2) is off too: the constant-velocity
   extrapolation from the last detection's filter went elsewhere.
 
+Also counted: how many of them lie on a person whom another of our tracks matches in that
+frame (a stale second box beside a tracked person).
+
 For the last two it also says which other predictions from the last detection would have
 been on the person (IoU >= 0.5 with the person's size at that centre): ``hold`` (the last
 detected centre, velocity 0), ``observed velocity k`` (the last detected centre moved on
@@ -29,6 +32,8 @@ the same interval).
         --sequences TUD-Stadtmitte TUD-Stadtmitte/4+0 ... --set NAME=VALUE ...
 
 Sequence names as in ``diagnose_mot_loss.py`` (``CLIP/STEP+OFFSET`` for a lower rate).
+``--alternatives`` also counts, over all reported coasting boxes, how many other coasting
+predictions would have put on a person (:func:`alternatives`).
 """
 
 from __future__ import annotations
@@ -61,6 +66,13 @@ from mk_tracker.tracking.multi_object_tracker import (FrameDetection,  # noqa: E
 from setting_values import setting_changes  # noqa: E402
 
 MOMENTUM_LAGS = (1, 3)
+NEIGHBOUR = "before coasting: last detection on a neighbour"
+NOBODY = "before coasting: last detection on nobody (IoU < 0.5 with every person)"
+SIZE = "size (centre right, size wrong)"
+PULLED = "refinement pulled (pure prediction on)"
+OTHER = "other (pure prediction on, no refinement)"
+DRIFT = "prediction drift (pure prediction off too)"
+CAUSES = (NOBODY, NEIGHBOUR, DRIFT, SIZE, PULLED, OTHER)
 
 
 def _iou1(a, b) -> float:
@@ -96,7 +108,9 @@ def run(config, frames):
                 own = t.detected_stamp == stamp        # not a group member's update
                 snap[t.id] = {"kf": copy.deepcopy(t.kf), "stamp": stamp, "frame": k,
                               "box": np.array(t.detected_box if own else t.box, float),
-                              "group": not own}
+                              "group": not own,
+                              "earlier": snap[t.id]["earlier"] + [snap[t.id]]
+                              if t.id in snap else []}
                 refined_since[t.id] = 0
                 if own:
                     history.setdefault(t.id, []).append((k, stamp, _centre(t.detected_box)))
@@ -116,6 +130,51 @@ def run(config, frames):
                         "history": list(history.get(t.id, [])), "stamp": stamp,
                         "velocity": np.array(t.kf.velocity, float)}
     return hyp, coast
+
+
+def alternatives(frames, coast) -> Counter:
+    """Over every reported coasting box (matched or not): how many would lie on some person
+    (IoU >= 0.5 with the box's own size) if the coasting centre came from another
+    prediction from the track's last detection(s).  ``actual`` is the tracker's;
+    ``rewind k`` predicts from the filter k detections before the last (the last k-1
+    discarded); ``decay tau`` moves the last detection's filter by tau (1 - exp(-dt/tau)) v
+    (an Ornstein-Uhlenbeck velocity); ``observed velocity k``: the last detected centre's
+    filter moved with the velocity between the last detection and the one k before it;
+    ``no vertical velocity``: the filter's horizontal velocity only."""
+    n = Counter()
+    for (f, _), c in coast.items():
+        people = np.array([g.box for g in frames[f - 1][3]], float).reshape(-1, 4)
+        if not len(people):
+            continue
+        w, h = c["box"][2:]
+
+        def on(centre):
+            box = center_to_xywh(float(centre[0]), float(centre[1]), w, h)
+            return bool(iou_matrix(np.array([box]), people)[0].max() >= 0.5)
+
+        s = c["snap"]
+        dt = c["stamp"] - s["stamp"]
+        c0, v = np.array(s["kf"].center), np.array(s["kf"].velocity)
+        n["boxes"] += 1
+        n["actual"] += on(_centre(c["box"]))
+        chain = s["earlier"] + [s]
+        for back in (2, 3, 5):
+            old = chain[-back] if len(chain) >= back else chain[0]
+            kf = copy.deepcopy(old["kf"])
+            if c["stamp"] > old["stamp"]:
+                kf.predict(c["stamp"] - old["stamp"])
+            n[f"rewind {back - 1}"] += on(kf.center)
+        for tau in (0.25, 0.5, 1.0):
+            n[f"decay tau {tau}"] += on(c0 + v * tau * (1.0 - np.exp(-dt / tau)))
+        hist = c["history"]
+        for lag in MOMENTUM_LAGS:
+            if len(hist) > lag:
+                (_, t0, p0), (_, t1, p1) = hist[-1 - lag], hist[-1]
+                n[f"observed velocity {lag}"] += on(c0 + (p1 - p0) / max(t1 - t0, 1e-9) * dt)
+            else:
+                n[f"observed velocity {lag}"] += on(c0 + v * dt)
+        n["no vertical velocity"] += on(c0 + np.array([v[0], 0.0]) * dt)
+    return n
 
 
 def _gt_centre(frames, frame_index, pid):
@@ -147,19 +206,19 @@ def diagnose(frames, hyp, coast):
         dious = [_iou1(s["box"], g.box) for g in dgts]
         dtop = int(np.argmax(dious)) if dious else None
         if dtop is None or dious[dtop] < 0.5:
-            cause = ("before coasting: last detection on nobody (IoU < 0.5 with every "
-                     "person)")
+            cause = NOBODY
         elif dgts[dtop].id != person.id:
-            cause = "before coasting: last detection on a neighbour"
+            cause = NEIGHBOUR
         elif _on(_centre(c["box"]), person.box):
-            cause = "size (centre right, size wrong)"
+            cause = SIZE
         elif _on(c["pred"], person.box):
-            cause = ("refinement pulled (pure prediction on)" if c["refined"]
-                     else "other (pure prediction on, no refinement)")
+            cause = PULLED if c["refined"] else OTHER
         else:
-            cause = "prediction drift (pure prediction off too)"
+            cause = DRIFT
         causes[cause] += 1
-        if cause.startswith(("refinement", "prediction", "other")):
+        if (f, person.id) in match:
+            also["on a person matched by another of our tracks (any cause)"] += 1
+        if cause in (PULLED, OTHER, DRIFT):
             last = _centre(s["box"])
             also["hold (last detected centre) on"] += _on(last, person.box)
             hist = c["history"]
@@ -195,6 +254,9 @@ def main(argv=None) -> int:
     parser.add_argument("--sequences", nargs="+", default=["TUD-Stadtmitte"])
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     parser.add_argument("--list", action="store_true", help="print every case")
+    parser.add_argument("--alternatives", action="store_true",
+                        help="also count the reported coasting boxes other predictions "
+                             "would have put on a person (alternatives())")
     args = parser.parse_args(argv)
     changes = setting_changes(args.set)
     config = updated(MultiObjectTrackerConfig(), changes)
@@ -205,14 +267,19 @@ def main(argv=None) -> int:
         hyp, coast = run(config, frames)
         causes, also, vel_err, lines = diagnose(frames, hyp, coast)
         print(f"## {name}: {sum(causes.values())} off-person coasting false positives\n")
-        for cause, n in causes.most_common():
-            print(f"* {cause}: {n}")
+        for cause in CAUSES:
+            print(f"* {cause}: {causes[cause]}")
         n = also.pop("cases", 0)
         for what, v in sorted(also.items()):
-            print(f"  - of the {n} centre-off cases, {what}: {v}")
+            print(f"  - {what}: {v}" if what.startswith("on a person")
+                  else f"  - of the {n} centre-off cases, {what}: {v}")
         if vel_err:
             print(f"  - |Kalman velocity - true velocity| (box heights / s): median "
                   f"{np.median(vel_err):.2f}, p90 {np.percentile(vel_err, 90):.2f}")
+        if args.alternatives:
+            alt = alternatives(frames, coast)
+            print(f"  reported coasting boxes on a person (IoU >= 0.5), of {alt.pop('boxes')}: "
+                  + ", ".join(f"{k} {v}" for k, v in alt.items()))
         if args.list:
             for row in lines:
                 print("   ", row)
