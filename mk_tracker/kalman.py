@@ -111,43 +111,6 @@ def process_noise(dt: float, sigma_u: float) -> np.ndarray:
     return np.array([[a, 0.0, b, 0.0], [0.0, a, 0.0, b], [b, 0.0, c, 0.0], [0.0, b, 0.0, c]])
 
 
-def damped_step_matrices(dt: float, sigma_u: float, time_constant: float
-                         ) -> tuple[np.ndarray, np.ndarray]:
-    """Transition matrix and process noise of a step of ``dt`` seconds when the velocity is
-    an Ornstein-Uhlenbeck process with ``time_constant`` tau (Singer 1970, "Estimating
-    optimal tracking filter performance for manned maneuvering targets", IEEE Trans. AES
-    6(4); its acceleration model integrated once): ``dv = -v / tau dt + sigma_u dW``.
-
-    Per axis, with ``e = exp(-dt / tau)``: the centre moves by ``tau (1 - e) v`` and the
-    velocity becomes ``e v``; the noise (q = sigma_u^2) is ``Var v = q tau / 2 (1 - e^2)``,
-    ``Cov(x, v) = q tau^2 / 2 (1 - e)^2``, ``Var x = q tau^3 / 2 (2 dt / tau - 3 + 4 e -
-    e^2)``.  As tau grows these become (2.2) and (2.3) of the constant-velocity model,
-    which is returned for ``time_constant`` 0 (no damping).  For ``u = dt / tau`` below
-    0.1 the bracket of ``Var x`` is summed as its series ``sum_k>=3 (-u)^k (4 - 2^k) /
-    k!`` (= 2 u^3 / 3 - u^4 / 2 + ...), whose closed form would cancel to rounding noise.
-    """
-    dt = _check_dt(dt)
-    tau = _check_std("time_constant", time_constant, allow_zero=True)
-    if tau == 0.0:
-        return transition_matrix(dt), process_noise(dt, sigma_u)
-    q = _check_std("sigma_u", sigma_u, allow_zero=True) ** 2
-    u = dt / tau
-    e = math.exp(-u)
-    a = np.eye(4)
-    a[0, 2] = a[1, 3] = -tau * math.expm1(-u)
-    a[2, 2] = a[3, 3] = e
-    vv = -q * tau / 2.0 * math.expm1(-2.0 * u)
-    xv = q * tau ** 2 / 2.0 * math.expm1(-u) ** 2
-    if u < 0.1:
-        bracket = sum((-u) ** k * (4.0 - 2.0 ** k) / math.factorial(k) for k in range(3, 12))
-    else:
-        bracket = 2.0 * u - 3.0 + 4.0 * e - e * e
-    xx = max(q * tau ** 3 / 2.0 * bracket, 0.0)
-    noise = np.array([[xx, 0.0, xv, 0.0], [0.0, xx, 0.0, xv],
-                      [xv, 0.0, vv, 0.0], [0.0, xv, 0.0, vv]])
-    return a, noise
-
-
 def _positive_semidefinite(cov: np.ndarray) -> np.ndarray:
     """``cov`` itself when no variance is negative, else its nearest positive semi-definite
     matrix (negative eigenvalues set to 0).
@@ -247,27 +210,20 @@ class ConstantVelocityKalman:
         """Estimated velocity ``(vx, vy)`` in px/s."""
         return self._state[2:].copy()
 
-    def predicted(self, dt: float, velocity_time_constant: float = 0.0
-                  ) -> tuple[np.ndarray, np.ndarray]:
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """``(s(t|t-1), P(t|t-1))`` after ``dt`` seconds, without changing the filter.
 
         (4.2): ``s(t|t-1) = A s(t-1|t-1)``.  (4.3): ``P(t|t-1) = A P(t-1|t-1) A^T + Sigma_u``;
         the paper prints ``F^T`` in (4.3), a typo for ``A^T`` (F is its frame symbol).
-        ``velocity_time_constant`` > 0 replaces A and Sigma_u by those of a velocity that
-        decays with that time constant (:func:`damped_step_matrices`).
         """
-        if velocity_time_constant > 0.0:
-            a, q = damped_step_matrices(dt, self.sigma_u, velocity_time_constant)
-        else:
-            a, q = _step_matrices(dt, self.sigma_u)
+        a, q = _step_matrices(dt, self.sigma_u)
         state = a @ self._state
         cov = a @ self._cov @ a.T + q
         return state, _positive_semidefinite(0.5 * (cov + cov.T))
 
-    def predict(self, dt: float, velocity_time_constant: float = 0.0) -> np.ndarray:
-        """Advance the filter by ``dt`` seconds, (4.2)-(4.3) (or the damped model of
-        :func:`damped_step_matrices`); returns the predicted state."""
-        self._state, self._cov = self.predicted(dt, velocity_time_constant)
+    def predict(self, dt: float) -> np.ndarray:
+        """Advance the filter by ``dt`` seconds, (4.2)-(4.3); returns the predicted state."""
+        self._state, self._cov = self.predicted(dt)
         return self._state.copy()
 
     def warp(self, linear: np.ndarray, translation: Sequence[float]) -> None:

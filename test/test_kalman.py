@@ -412,38 +412,3 @@ def test_kalman_warp_refuses_bad_input_and_leaves_the_filter(lin, shift):
         kf.warp(lin, shift)
     np.testing.assert_array_equal(kf.state, before[0])
     np.testing.assert_array_equal(kf.covariance, before[1])
-
-
-def test_damped_step_follows_the_ornstein_uhlenbeck_velocity():
-    from mk_tracker.kalman import damped_step_matrices
-    dt, tau, sigma = 0.4, 0.5, 3.0
-    a, q = damped_step_matrices(dt, sigma, tau)
-    e = math.exp(-dt / tau)
-    assert a[0, 2] == pytest.approx(tau * (1 - e)) and a[2, 2] == pytest.approx(e)
-    assert q[2, 2] == pytest.approx(9.0 * tau / 2 * (1 - e * e))
-    assert q[0, 2] == pytest.approx(9.0 * tau ** 2 / 2 * (1 - e) ** 2)
-    # the centre's variance of the integrated velocity, by summing many small steps
-    n = 4000
-    h = dt / n
-    p = np.zeros((4, 4))
-    for _ in range(n):
-        ah, qh = damped_step_matrices(h, sigma, tau)
-        p = ah @ p @ ah.T + qh
-    np.testing.assert_allclose(p, q, rtol=2e-3, atol=1e-9)
-
-
-def test_damped_step_tends_to_constant_velocity():
-    from mk_tracker.kalman import damped_step_matrices
-    a, q = damped_step_matrices(0.04, 30.0, 1e4)
-    np.testing.assert_allclose(a, transition_matrix(0.04), rtol=1e-5)
-    np.testing.assert_allclose(q, process_noise(0.04, 30.0), rtol=1e-4)
-    a0, q0 = damped_step_matrices(0.04, 30.0, 0.0)
-    np.testing.assert_array_equal(a0, transition_matrix(0.04))
-
-
-def test_damped_prediction_stops_short_of_constant_velocity():
-    kf = ConstantVelocityKalman((0.0, 0.0), initial_velocity=(10.0, -5.0))
-    kf.predict(1.0, velocity_time_constant=0.5)
-    # centre moves by tau (1 - e^-2) v, velocity decays by e^-2
-    np.testing.assert_allclose(kf.center, np.array([10.0, -5.0]) * 0.5 * (1 - math.exp(-2)))
-    np.testing.assert_allclose(kf.velocity, np.array([10.0, -5.0]) * math.exp(-2))

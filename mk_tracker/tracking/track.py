@@ -121,14 +121,6 @@ class LifecycleConfig:
         "re-update, Cao et al. 2023, Sec. 4.1), instead of correcting the drifted "
         "prediction.  Off by default: the leave-one-sequence-out grid of "
         "benchmarks/bench_multi_object.py chose it for one held-out sequence of four")
-    coast_velocity_time_constant: float = parameter(
-        0.0, "Seconds; while a track coasts unseen (state occluded or lost when it is "
-        "predicted) its velocity decays towards 0 with this time constant instead of "
-        "staying constant (an Ornstein-Uhlenbeck velocity, Singer 1970; "
-        "mk_tracker.kalman.damped_step_matrices): the last velocity, estimated from the "
-        "detections before the occlusion, is trusted less the longer the track goes "
-        "unseen.  0 = constant velocity (off).  Tracks started by hand are exempt",
-        minimum=0.0, maximum=100.0)
 
 
 def measurement_sigma(box_height: float, quality: float, config: LifecycleConfig) -> float:
@@ -272,16 +264,8 @@ class Track:
         search, :meth:`hold_if_uncertain`) keeps its position: only its stamp advances."""
         dt = float(stamp) - self.stamp
         if dt > 0 and not self.held:
-            self.kf.predict(dt, self.coast_time_constant())
+            self.kf.predict(dt)
         self.stamp = float(stamp)
-
-    def coast_time_constant(self) -> float:
-        """The velocity time constant of this track's next prediction: the lifecycle's
-        ``coast_velocity_time_constant`` while it coasts unseen (occluded or lost), not
-        started by hand; 0 (constant velocity) otherwise."""
-        if self.manual or self.state not in (TrackState.OCCLUDED, TrackState.LOST):
-            return 0.0
-        return float(self.config.coast_velocity_time_constant)
 
     @property
     def position_std(self) -> float:

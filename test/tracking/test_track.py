@@ -212,24 +212,3 @@ def test_tracker_reupdates_after_a_gap_only_when_enabled():
     # correction of the standing prediction gives another value.
     assert 18.0 < velocities[1] < 22.0
     assert abs(velocities[1] - velocities[0]) > 0.5
-
-
-def test_only_an_unseen_track_coasts_with_a_decaying_velocity():
-    cfg = LifecycleConfig(coast_velocity_time_constant=0.5)
-    moving = dict(score=1.0, kalman=KalmanConfig(), config=cfg)
-    seen = Track(1, np.array([0.0, 0.0, 20.0, 50.0]), 0.0, state=TrackState.CONFIRMED, **moving)
-    unseen = Track(2, np.array([0.0, 0.0, 20.0, 50.0]), 0.0, state=TrackState.OCCLUDED, **moving)
-    manual = Track(3, np.array([0.0, 0.0, 20.0, 50.0]), 0.0, state=TrackState.OCCLUDED, **moving)
-    manual.manual = True
-    for t in (seen, unseen, manual):
-        t.kf._state[2:] = (10.0, 0.0)
-        t.predict(1.0)
-    assert seen.center[0] == pytest.approx(10.0 + 10.0)       # box centre 10 + v dt
-    assert manual.center[0] == pytest.approx(20.0)
-    assert unseen.center[0] == pytest.approx(10.0 + 10.0 * 0.5 * (1 - np.exp(-2.0)))
-    assert unseen.kf.velocity[0] == pytest.approx(10.0 * np.exp(-2.0))
-    off = Track(4, np.array([0.0, 0.0, 20.0, 50.0]), 0.0, state=TrackState.OCCLUDED,
-                score=1.0, kalman=KalmanConfig(), config=LifecycleConfig())
-    off.kf._state[2:] = (10.0, 0.0)
-    off.predict(1.0)
-    assert off.center[0] == pytest.approx(20.0)
