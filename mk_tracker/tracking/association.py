@@ -10,7 +10,18 @@ The cost of giving detection ``j`` to track ``i`` combines two cues:
   pairs with ``d2`` above a quantile (``gate``) are impossible and get an infinite cost.
 
 ``cost = overlap_weight * (1 - IoU) + (1 - overlap_weight) * d2 / gate`` (the distance term
-is in [0, 1] inside the gate), optionally plus an appearance term.  The assignment minimising
+is in [0, 1] inside the gate), optionally plus an appearance term.
+
+With ``max_height_ratio`` a second validation gate acts on the box height: a detection whose
+height differs from the track's smoothed height by more than that factor
+(``|ln(h_det / h_track)| > ln(max_height_ratio)``, :func:`height_ratio_exceeded`) is not
+taken as a measurement of the track's centre.  DeepSORT (Wojke et al. 2017, eq. (1)-(2))
+gates on the Mahalanobis distance of the whole (x, y, aspect, height) measurement, and
+Bar-Shalom & Li (1995, Sec. 6.3) define the validation region over every measured
+component; our filter has the centre only in its state (the size is smoothed apart), so the
+size component of the gate is this ratio on the height.  On the TUD clips the public
+detector gives short upper-body boxes and boxes around two people whose centres lie off
+the person (docs/failure_analysis.md, "Why the coasting boxes sit off the person").  The assignment minimising
 the total cost is found with the Hungarian method (``scipy.optimize.linear_sum_assignment``);
 pairs whose cost exceeds ``max_cost`` are then left unmatched.
 
@@ -20,6 +31,7 @@ of size tracks x detections.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,6 +64,14 @@ class AssociationConfig:
     min_iou: float = parameter(
         0.0, "Pairs with less overlap than this are not matched (0 = distance gate only)",
         minimum=0.0, maximum=1.0)
+    max_height_ratio: float = parameter(
+        0.0, "Size validation gate: a detection whose height differs from the track's "
+        "smoothed height by more than this factor (either way) is not a measurement of the "
+        "track (Wojke et al. 2017 gate on the height too); 0 = off", minimum=0.0,
+        maximum=100.0)
+    height_gate_forbids: bool = parameter(
+        True, "SCREEN ONLY: true = the gated pair is not matched; false = matched but does "
+        "not correct the centre")
 
 
 @dataclass(frozen=True)
@@ -92,6 +112,27 @@ def mahalanobis_matrix(centers: np.ndarray, innovation_covs: np.ndarray,
     return (d[:, None] * x * x - 2.0 * b[:, None] * x * y + a[:, None] * y * y) / det[:, None]
 
 
+def height_ratio_exceeded(track_heights: np.ndarray, detection_heights: np.ndarray,
+                          max_ratio: float) -> np.ndarray:
+    """``(T, D)`` booleans: detection heights outside ``[h / max_ratio, h * max_ratio]`` of
+    each track height ``h`` (the size component of the validation gate, module docstring).
+
+    ``detection_heights`` is ``(D,)`` or ``(T, D)`` (per-track time-compensated boxes);
+    ``max_ratio`` 0 (off) or below 1 gives all False.
+    """
+    th = np.asarray(track_heights, dtype=np.float64).reshape(-1)
+    dh = np.asarray(detection_heights, dtype=np.float64)
+    if dh.ndim == 1:
+        dh = np.broadcast_to(dh[None, :], (th.shape[0], dh.shape[0]))
+    if dh.ndim != 2 or dh.shape[0] != th.shape[0]:
+        raise AssociationError(f"detection heights {dh.shape} do not fit {th.shape[0]} tracks")
+    if max_ratio < 1.0 or dh.size == 0:
+        return np.zeros(dh.shape, dtype=bool)
+    if np.any(~(th > 0)) or np.any(~(dh > 0)):
+        raise AssociationError("box heights must be positive")
+    return np.abs(np.log(dh / th[:, None])) > math.log(max_ratio)
+
+
 def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,
                      mahalanobis: np.ndarray, config: AssociationConfig,
                      extra_cost: np.ndarray | None = None) -> np.ndarray:
@@ -126,6 +167,9 @@ def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,
             raise AssociationError(f"extra cost {e.shape} does not match {cost.shape}")
         cost = cost + e
     forbidden = (m > config.gate) | (ious < config.min_iou)
+    if config.max_height_ratio > 0 and config.height_gate_forbids:
+        heights = d[..., 3] if d.ndim == 3 else d.reshape(-1, 4)[:, 3]
+        forbidden |= height_ratio_exceeded(t[:, 3], heights, config.max_height_ratio)
     cost[forbidden] = np.inf
     return cost
 

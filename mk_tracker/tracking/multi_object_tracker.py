@@ -64,7 +64,8 @@ from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
 
-from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
+from mk_tracker.tracking.association import (assign, association_cost, height_ratio_exceeded,
+                                             mahalanobis_matrix)
 from mk_tracker.tracking.body_parts import is_other_part
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
@@ -707,7 +708,12 @@ class MultiObjectTracker:
                 if cfg.observation_centric_reupdate and not t.manual and not group \
                         and was is not TrackState.TENTATIVE:
                     t.reupdate_from_last_seen(det_box, stamp, self._frame_interval)
-                t.correct(det_box, _quality(det.score))
+                a = self.config.association
+                # size validation gate, matched but not corrected (association.py)
+                off_size = a.max_height_ratio > 0 and not a.height_gate_forbids and \
+                    not group and bool(height_ratio_exceeded(
+                        [t.size[1]], [det_box[3]], a.max_height_ratio)[0, 0])
+                t.correct(det_box, _quality(det.score), use_centre=not off_size)
                 if refined is not None and iou(refined[0], det_box) >= \
                         self.config.refine_consistency_iou:
                     t.correct(refined[0], quality * self.config.fused_quality_factor,

@@ -251,3 +251,32 @@ def test_float32_distances_are_used_in_float64():
     t = np.array([[0, 0, 4, 2]], float)
     cost = association_cost(t, t, np.array([[1.0]], np.float32), cfg)
     assert cost[0, 0] == 1.0 / 3.0
+
+
+# -- size validation gate (association.max_height_ratio) -------------------------------------
+
+def test_height_ratio_gate_is_symmetric_in_log_and_off_at_zero():
+    from mk_tracker.tracking.association import height_ratio_exceeded
+    # track 100 px, ratio 1.4: 71.4 .. 140 px pass, 70 and 141 do not
+    out = height_ratio_exceeded([100.0], [100.0, 139.0, 141.0, 72.0, 70.0], 1.4)
+    assert out.tolist() == [[False, False, True, False, True]]
+    assert not height_ratio_exceeded([100.0], [10.0, 1000.0], 0.0).any()     # off
+    per_track = height_ratio_exceeded([50.0, 100.0], [[50.0, 100.0], [50.0, 100.0]], 1.4)
+    assert per_track.tolist() == [[False, True], [True, False]]
+    with pytest.raises(AssociationError):
+        height_ratio_exceeded([100.0], [0.0], 1.4)
+
+
+def test_height_ratio_gate_forbids_the_pair_and_leaves_others_alone():
+    t = np.array([[0, 0, 30, 60], [100, 0, 30, 60]], float)
+    # an upper-body box on track 0 (same top, 28 px high) and a whole-body one on track 1
+    d = np.array([[0, 0, 30, 28], [100, 0, 30, 62]], float)
+    maha = np.zeros((2, 2))
+    off = association_cost(t, d, maha, AssociationConfig())
+    on = association_cost(t, d, maha, AssociationConfig(max_height_ratio=1.4))
+    assert math.isfinite(off[0, 0]) and math.isinf(on[0, 0])
+    assert on[1, 1] == pytest.approx(off[1, 1])
+    assert assign(on, 0.85).matches == [(1, 1)]
+    # per-track (time-compensated) boxes are gated by their own heights
+    on3 = association_cost(t, np.stack([d, d]), maha, AssociationConfig(max_height_ratio=1.4))
+    assert np.array_equal(np.isinf(on3), np.isinf(on))

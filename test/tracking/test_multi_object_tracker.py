@@ -400,3 +400,47 @@ def test_frame_result_exposes_each_tracks_kernels_for_drawing():
     plain_trk = MultiObjectTracker(plain())
     out = [plain_trk.step(img, i * DT, [FrameDetection(box, 0.9)]) for i in range(4)][-1]
     assert out.reported() and out.kernels == {} and kernel_drawings(out) == {}
+
+
+# -- size validation gate (association.max_height_ratio) -------------------------------------
+
+def _short_detection_case(**assoc):
+    """A person walked for 10 frames, then a too-short detection of it (40 of 60 px high,
+    centre 6 px higher: ratio 1.5); the recovery round (which has its own size ratio) is
+    off so that the first round decides.  Returns the person's live tracks."""
+    cfg = plain(**{"recovery.enabled": False,
+                   **{f"association.{k}": v for k, v in assoc.items()}})
+    trk = MultiObjectTracker(cfg)
+    walk(trk, 10, lambda i: [(100, 100, 30, 60)])
+    walk(trk, 1, lambda i: [(100, 104, 30, 40)], start=10)
+    return [t for t in trk.tracks if t.state.name != "DELETED"]
+
+
+def test_off_size_detection_is_not_matched_with_the_gate_on():
+    off = _short_detection_case()
+    assert len(off) == 1 and off[0].last_detection == pytest.approx(10 * DT)
+    assert off[0].center[1] < 129.0 and off[0].size[1] < 55.0     # pulled by the short box
+    # ratio 1.5 > 1.4: the pair is forbidden, the track coasts on its own prediction
+    on = _short_detection_case(max_height_ratio=1.4)
+    assert len(on) == 1                           # the short box starts no track either
+    assert on[0].last_detection == pytest.approx(9 * DT)
+    assert on[0].center[1] == pytest.approx(130.0, abs=0.5) and on[0].size[1] == 60.0
+    # ratio 1.5 < 1.6: matched as without the gate
+    loose = _short_detection_case(max_height_ratio=1.6)
+    assert loose[0].center == pytest.approx(off[0].center) and \
+        loose[0].size == pytest.approx(off[0].size)
+
+
+def test_gate_that_never_fires_changes_nothing():
+    """Off (0) is today's tracker; a ratio no detection exceeds gives the same tracks."""
+    rng = np.random.default_rng(3)
+    boxes = [[(100 + 3 * i + rng.normal(0, 2), 100 + rng.normal(0, 2), 30,
+               60 + rng.normal(0, 2)), (400 - 2 * i, 120, 32, 64)] for i in range(30)]
+    runs = []
+    for ratio in (None, 0.0, 3.0):
+        cfg = plain() if ratio is None else plain(**{"association.max_height_ratio": ratio})
+        trk = MultiObjectTracker(cfg)
+        res = walk(trk, 30, lambda i: boxes[i] if i % 7 else boxes[i][:1])
+        runs.append([[(o.id, tuple(np.round(o.box, 9))) for o in r.tracks] for r in res])
+    assert runs[0] == runs[1] == runs[2]
+    assert len(runs[0][-1]) == 2
