@@ -15,13 +15,16 @@ is in [0, 1] inside the gate), optionally plus an appearance term.
 With ``max_height_ratio`` a second validation gate acts on the box height: a detection whose
 height differs from the track's smoothed height by more than that factor
 (``|ln(h_det / h_track)| > ln(max_height_ratio)``, :func:`height_ratio_exceeded`) is not
-taken as a measurement of the track's centre.  DeepSORT (Wojke et al. 2017, eq. (1)-(2))
+assigned to that track (an infinite cost, like a pair outside the distance gate).  DeepSORT (Wojke et al. 2017, eq. (1)-(2))
 gates on the Mahalanobis distance of the whole (x, y, aspect, height) measurement, and
 Bar-Shalom & Li (1995, Sec. 6.3) define the validation region over every measured
 component; our filter has the centre only in its state (the size is smoothed apart), so the
 size component of the gate is this ratio on the height.  On the TUD clips the public
 detector gives short upper-body boxes and boxes around two people whose centres lie off
-the person (docs/failure_analysis.md, "Why the coasting boxes sit off the person").  The assignment minimising
+the person (docs/failure_analysis.md, "Why the coasting boxes sit off the person").
+Matching such a detection but not correcting the centre with it was screened too and lost
+to forbidding the pair on TUD-Campus, TUD-Stadtmitte and crowd-15 (commit d052bb1 has it;
+docs/benchmark_multi_object.md).  The assignment minimising
 the total cost is found with the Hungarian method (``scipy.optimize.linear_sum_assignment``);
 pairs whose cost exceeds ``max_cost`` are then left unmatched.
 
@@ -66,12 +69,9 @@ class AssociationConfig:
         minimum=0.0, maximum=1.0)
     max_height_ratio: float = parameter(
         0.0, "Size validation gate: a detection whose height differs from the track's "
-        "smoothed height by more than this factor (either way) is not a measurement of the "
-        "track (Wojke et al. 2017 gate on the height too); 0 = off", minimum=0.0,
+        "smoothed height by more than this factor (either way) is not assigned to it "
+        "(Wojke et al. 2017 gate on the height too); 0 = off", minimum=0.0,
         maximum=100.0)
-    height_gate_forbids: bool = parameter(
-        True, "SCREEN ONLY: true = the gated pair is not matched; false = matched but does "
-        "not correct the centre")
 
 
 @dataclass(frozen=True)
@@ -167,7 +167,7 @@ def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,
             raise AssociationError(f"extra cost {e.shape} does not match {cost.shape}")
         cost = cost + e
     forbidden = (m > config.gate) | (ious < config.min_iou)
-    if config.max_height_ratio > 0 and config.height_gate_forbids:
+    if config.max_height_ratio > 0:
         heights = d[..., 3] if d.ndim == 3 else d.reshape(-1, 4)[:, 3]
         forbidden |= height_ratio_exceeded(t[:, 3], heights, config.max_height_ratio)
     cost[forbidden] = np.inf

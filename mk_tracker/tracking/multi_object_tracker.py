@@ -19,7 +19,8 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    motion since the previous frame (:mod:`mk_tracker.tracking.camera_motion`); then its
    Kalman filter is advanced to the frame time, (4.2)-(4.3).
 4. **Association** (:mod:`mk_tracker.tracking.association`): Hungarian assignment of detections to
-   tentative/confirmed/occluded tracks on overlap + Kalman-gated distance; 4b' a second
+   tentative/confirmed/occluded tracks on overlap + Kalman-gated distance (and, with
+   ``association.max_height_ratio``, a gate on the height ratio); 4b' a second
    round from the last detected boxes of the tracks left without one, checked by
    appearance (:mod:`mk_tracker.tracking.recovery`: drifted estimates); then the
    remaining detections (and those of still-tentative tracks) against *lost* tracks, gated
@@ -64,8 +65,7 @@ from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
 
-from mk_tracker.tracking.association import (assign, association_cost, height_ratio_exceeded,
-                                             mahalanobis_matrix)
+from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.tracking.body_parts import is_other_part
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
@@ -708,12 +708,7 @@ class MultiObjectTracker:
                 if cfg.observation_centric_reupdate and not t.manual and not group \
                         and was is not TrackState.TENTATIVE:
                     t.reupdate_from_last_seen(det_box, stamp, self._frame_interval)
-                a = self.config.association
-                # size validation gate, matched but not corrected (association.py)
-                off_size = a.max_height_ratio > 0 and not a.height_gate_forbids and \
-                    not group and bool(height_ratio_exceeded(
-                        [t.size[1]], [det_box[3]], a.max_height_ratio)[0, 0])
-                t.correct(det_box, _quality(det.score), use_centre=not off_size)
+                t.correct(det_box, _quality(det.score))
                 if refined is not None and iou(refined[0], det_box) >= \
                         self.config.refine_consistency_iou:
                     t.correct(refined[0], quality * self.config.fused_quality_factor,

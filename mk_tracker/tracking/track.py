@@ -295,18 +295,16 @@ class Track:
                                                                self.config))
 
     def correct(self, box: np.ndarray, quality: float, use_size: bool = True,
-                size_weight: float = 1.0, use_centre: bool = True) -> None:
+                size_weight: float = 1.0) -> None:
         """Kalman update (4.4)-(4.5) with the centre of ``box``, and size smoothing.
 
         The measurement std and the size-smoothing weight both follow ``quality``;
-        ``use_size=False`` updates the centre only, ``use_centre=False`` the size only;
-        ``size_weight`` scales the size update.
+        ``use_size=False`` updates the centre only; ``size_weight`` scales the size update.
         """
         x, y, w, h = (float(v) for v in box)
         q = min(max(float(quality), 0.0), 1.0) if math.isfinite(quality) else 0.0
-        if use_centre:
-            self.kf.update((x + w / 2.0, y + h / 2.0),
-                           sigma_w=measurement_sigma(h, q, self.config))
+        self.kf.update((x + w / 2.0, y + h / 2.0),
+                       sigma_w=measurement_sigma(h, q, self.config))
         if not use_size:
             return
         alpha = size_weight * self.config.size_smoothing * max(q, self.config.quality_floor)
