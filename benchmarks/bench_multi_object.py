@@ -98,6 +98,9 @@ GRID: dict[str, tuple] = {
     "max_reported_coast_std": (0.0, 0.12),
     "reacquire_hold_time": (0.6, 0.0),
     "group.member_min_height": (0.0, 0.8),
+    # size validation gate (tracking/association.py): chosen by the TUD-Campus fold only,
+    # off over all sequences (docs/benchmark_multi_object.md)
+    "association.max_height_ratio": (0.0, 1.4),
 }
 
 #: Real low-frame-rate CHECKS (``--low-fps-checks``), not folds: every ``LOW_FPS_STEP``-th
