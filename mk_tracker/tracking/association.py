@@ -10,23 +10,23 @@ The cost of giving detection ``j`` to track ``i`` combines two cues:
   pairs with ``d2`` above a quantile (``gate``) are impossible and get an infinite cost.
 
 ``cost = overlap_weight * (1 - IoU) + (1 - overlap_weight) * d2 / gate`` (the distance term
-is in [0, 1] inside the gate), optionally plus an appearance term.
+is in [0, 1] inside the gate), optionally plus an appearance term.  The assignment minimising
+the total cost is found with the Hungarian method (``scipy.optimize.linear_sum_assignment``);
+pairs whose cost exceeds ``max_cost`` are then left unmatched.
 
 With ``max_height_ratio`` a second validation gate acts on the box height: a detection whose
 height differs from the track's smoothed height by more than that factor
 (``|ln(h_det / h_track)| > ln(max_height_ratio)``, :func:`height_ratio_exceeded`) is not
-assigned to that track (an infinite cost, like a pair outside the distance gate).  DeepSORT (Wojke et al. 2017, eq. (1)-(2))
-gates on the Mahalanobis distance of the whole (x, y, aspect, height) measurement, and
-Bar-Shalom & Li (1995, Sec. 6.3) define the validation region over every measured
-component; our filter has the centre only in its state (the size is smoothed apart), so the
-size component of the gate is this ratio on the height.  On the TUD clips the public
-detector gives short upper-body boxes and boxes around two people whose centres lie off
-the person (docs/failure_analysis.md, "Why the coasting boxes sit off the person").
-Matching such a detection but not correcting the centre with it was screened too and lost
-to forbidding the pair on TUD-Campus, TUD-Stadtmitte and crowd-15 (commit d052bb1 has it;
-docs/benchmark_multi_object.md).  The assignment minimising
-the total cost is found with the Hungarian method (``scipy.optimize.linear_sum_assignment``);
-pairs whose cost exceeds ``max_cost`` are then left unmatched.
+assigned to that track (an infinite cost, like a pair outside the distance gate).  DeepSORT
+(Wojke et al. 2017, eq. (1)-(2)) gates on the Mahalanobis distance of the whole
+(x, y, aspect, height) measurement, and the validation region of Bar-Shalom & Fortmann
+(1988) covers every measured component; our filter has the centre only in its state (the
+size is smoothed apart), so the size component of the gate is this ratio on the height.
+On the TUD clips the public detector gives short upper-body boxes and boxes around two
+people whose centres lie off the person (docs/failure_analysis.md, "Why the coasting boxes
+sit off the person").  Matching such a detection but not correcting the centre with it was
+screened too and lost to forbidding the pair on TUD-Campus, TUD-Stadtmitte and crowd-15
+(commit d052bb1 has it; docs/benchmark_multi_object.md).
 
 Everything here is pure numpy on arrays, so the work per frame is one vectorised cost matrix
 of size tracks x detections.
