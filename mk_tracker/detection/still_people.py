@@ -27,6 +27,16 @@ footprints already use.  The rule (``detector.still_people``, :class:`StillPeopl
   At a full pass that does not find it alone (its warm pixels touch a neighbour's: one
   region) it is kept while its box is still warm at ``keep_fill`` of the share of pixels
   it held; otherwise it ends.
+* ``persistent_passes`` (0 = off): the candidates are the connected regions of the pixels
+  warm at this full pass *and* at the ``persistent_passes`` full passes before it, not of
+  this pass's warm pixels alone.  A still person's pixels are warm at every pass, a
+  person walking past is warm at other pixels from pass to pass, so the bridge of warm
+  pixels that joins the two in one frame (one region, not person-shaped) is dropped, and
+  the still one is found alone.  It is the "static foreground" of dual-background
+  detection of abandoned objects (Porikli, Ivanov & Haga, EURASIP J. Adv. Signal Process.
+  2008: a pixel that is foreground for a long time but not for a short one is static),
+  with the kernel's warm test of (3.6) as the foreground and the full passes as the
+  samples.  Two neighbours who both stand still stay joined.
 
 Without learnt people (no person-shaped detection yet) nothing is reported: size and warmth
 are relative to the people this detector has seen move, not constants of one camera.  Warm
@@ -37,6 +47,7 @@ the ignore regions are there for known ones.  Measured in docs/benchmark_real_th
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import cv2
@@ -78,6 +89,11 @@ class StillPeopleConfig:
         0.7, "still_people: a reported region not found alone at a full pass (it touches a "
         "neighbour's warm pixels) is kept while its box is warm at this share of the "
         "pixels it held", minimum=0.0, maximum=10.0)
+    persistent_passes: int = parameter(
+        0, "still_people: candidates are regions of the pixels warm at this full pass and "
+        "at this many full passes before it (static foreground: drops a passer-by's warm "
+        "pixels that join a still person's); 0: this pass's warm pixels alone",
+        minimum=0, maximum=100)
     memory: float = parameter(
         300.0, "still_people: person samples (height, warmth) remembered, with "
         "exponential forgetting", minimum=1.0, maximum=1e6)
@@ -108,6 +124,7 @@ class StillPeople:
         self._warmth = np.zeros(2)             # forgetting sums of (1, warmth) of people
         self._height = np.zeros(2)             # ... and of (1, height) of whole people
         self._regions: list[_Region] = []
+        self._warm_masks: deque = deque(maxlen=max(int(config.persistent_passes), 0))
 
     @property
     def people_warmth(self) -> float | None:
@@ -167,8 +184,9 @@ class StillPeople:
         c = self.config
         found: list[_Region] = []
         people, tall = self.people_warmth, self.people_height
+        warm = self._persistent(frame > background + radius)
         if people is not None and tall is not None:
-            warm = (frame > background + radius).astype(np.uint8)
+            warm = warm.astype(np.uint8)
             n, labels, stats, _ = cv2.connectedComponentsWithStats(warm, connectivity=8)
             rows, cols = frame.shape
             for k in range(1, n):
@@ -195,6 +213,19 @@ class StillPeople:
                                                                       radius, old):
                 kept.append(old)    # confirmed, now touching a neighbour's warm pixels
         self._regions = found + kept
+
+    def _persistent(self, warm: np.ndarray) -> np.ndarray:
+        """``persistent_passes``: ``warm`` and the warm masks of that many previous full
+        passes (fewer while they are not there yet); ``warm`` itself when 0."""
+        if self._warm_masks.maxlen == 0:
+            return warm
+        if any(m.shape != warm.shape for m in self._warm_masks):
+            self._warm_masks.clear()
+        out = warm.copy()
+        for mask in self._warm_masks:
+            out &= mask
+        self._warm_masks.append(warm)
+        return out
 
     def _still_warm(self, frame: np.ndarray, background: float, radius: float,
                     reg: _Region) -> bool:
