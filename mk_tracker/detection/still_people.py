@@ -36,7 +36,9 @@ footprints already use.  The rule (``detector.still_people``, :class:`StillPeopl
   detection of abandoned objects (Porikli, Ivanov & Haga, EURASIP J. Adv. Signal Process.
   2008: a pixel that is foreground for a long time but not for a short one is static),
   with the kernel's warm test of (3.6) as the foreground and the full passes as the
-  samples.  Two neighbours who both stand still stay joined.
+  samples.  Such a region's pixels have been warm since the oldest of those passes, so its
+  ``min_time`` clock starts there (else persistence would delay every still person by
+  ``persistent_passes`` passes).  Two neighbours who both stand still stay joined.
 
 Without learnt people (no person-shaped detection yet) nothing is reported: size and warmth
 are relative to the people this detector has seen move, not constants of one camera.  Warm
@@ -184,7 +186,7 @@ class StillPeople:
         c = self.config
         found: list[_Region] = []
         people, tall = self.people_warmth, self.people_height
-        warm = self._persistent(frame > background + radius)
+        warm, since = self._persistent(frame > background + radius, stamp)
         if people is not None and tall is not None:
             warm = warm.astype(np.uint8)
             n, labels, stats, _ = cv2.connectedComponentsWithStats(warm, connectivity=8)
@@ -203,7 +205,7 @@ class StillPeople:
                 level = float(frame[y:y + h, x:x + w][labels[y:y + h, x:x + w] == k].mean())
                 if level - background < c.min_warmth * people:
                     continue
-                found.append(_Region(box, stamp, level - background, area, area / (w * h)))
+                found.append(_Region(box, since, level - background, area, area / (w * h)))
         kept = []
         for old in self._regions:
             best = max(found, key=lambda reg: iou(old.box, reg.box), default=None)
@@ -214,18 +216,21 @@ class StillPeople:
                 kept.append(old)    # confirmed, now touching a neighbour's warm pixels
         self._regions = found + kept
 
-    def _persistent(self, warm: np.ndarray) -> np.ndarray:
+    def _persistent(self, warm: np.ndarray, stamp: float) -> tuple[np.ndarray, float]:
         """``persistent_passes``: ``warm`` and the warm masks of that many previous full
-        passes (fewer while they are not there yet); ``warm`` itself when 0."""
+        passes (fewer while they are not there yet), and the stamp of the oldest pass used;
+        ``(warm, stamp)`` when 0."""
         if self._warm_masks.maxlen == 0:
-            return warm
-        if any(m.shape != warm.shape for m in self._warm_masks):
+            return warm, stamp
+        if any(m.shape != warm.shape for _, m in self._warm_masks):
             self._warm_masks.clear()
         out = warm.copy()
-        for mask in self._warm_masks:
+        since = stamp
+        for then, mask in self._warm_masks:
             out &= mask
-        self._warm_masks.append(warm)
-        return out
+            since = min(since, then)
+        self._warm_masks.append((stamp, warm))
+        return out, since
 
     def _still_warm(self, frame: np.ndarray, background: float, radius: float,
                     reg: _Region) -> bool:
