@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         people, tall = self.people_warmth, self.people_height
         masks = list(self._warm_masks)            # before the rule appends this pass's
         mask = frame > background + radius
-        for _, m in masks if all(m.shape == mask.shape for _, m in masks) else []:
+        for m in masks if all(m.shape == mask.shape for m in masks) else []:
             mask = mask & m
         box, reasons = (None, ["no person learnt yet"]) if people is None or tall is None \
             else explain(mask, frame, background, MAN, boxes, people, tall, self.config,

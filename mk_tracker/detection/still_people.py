@@ -27,18 +27,20 @@ footprints already use.  The rule (``detector.still_people``, :class:`StillPeopl
   At a full pass that does not find it alone (its warm pixels touch a neighbour's: one
   region) it is kept while its box is still warm at ``keep_fill`` of the share of pixels
   it held; otherwise it ends.
-* ``persistent_passes`` (0 = off): the candidates are the connected regions of the pixels
-  warm at this full pass *and* at the ``persistent_passes`` full passes before it, not of
-  this pass's warm pixels alone.  A still person's pixels are warm at every pass, a
+* ``persistent_passes`` (0 = off): the candidates are also the connected regions of the
+  pixels warm at this full pass *and* at the ``persistent_passes`` full passes before it
+  (those not already found, at ``match_iou``, among this pass's regions).  A still person's pixels are warm at every pass, a
   person walking past is warm at other pixels from pass to pass, so the bridge of warm
   pixels that joins the two in one frame (one region, not person-shaped) is dropped, and
   the still one is found alone.  It is the "static foreground" of dual-background
   detection of abandoned objects (Porikli, Ivanov & Haga, EURASIP J. Adv. Signal Process.
   2008: a pixel that is foreground for a long time but not for a short one is static),
   with the kernel's warm test of (3.6) as the foreground and the full passes as the
-  samples.  Such a region's pixels have been warm since the oldest of those passes, so its
-  ``min_time`` clock starts there (else persistence would delay every still person by
-  ``persistent_passes`` passes).  Two neighbours who both stand still stay joined.
+  samples.  Its ``min_time`` clock starts at this pass, as any region's (starting it at the
+  oldest pass of the window reported the persistent cores of people who stand and talk:
+  commit 5d611ea, docs/benchmark_real_thermal.md).  The regions of this pass's warm pixels
+  stay candidates as before, so a person who stops alone is not delayed by the window.
+  Two neighbours who both stand still stay joined.
 
 Without learnt people (no person-shaped detection yet) nothing is reported: size and warmth
 are relative to the people this detector has seen move, not constants of one camera.  Warm
@@ -185,27 +187,15 @@ class StillPeople:
               stamp: float) -> None:
         c = self.config
         found: list[_Region] = []
-        people, tall = self.people_warmth, self.people_height
-        warm, since = self._persistent(frame > background + radius, stamp)
-        if people is not None and tall is not None:
-            warm = warm.astype(np.uint8)
-            n, labels, stats, _ = cv2.connectedComponentsWithStats(warm, connectivity=8)
-            rows, cols = frame.shape
-            for k in range(1, n):
-                x, y, w, h, area = (int(v) for v in stats[k])
-                if x <= 0 or y <= 0 or x + w >= cols or y + h >= rows:
-                    continue
-                if not is_person_shaped(w, h, self.person_aspect):
-                    continue
-                if not c.min_height_ratio * tall <= h <= c.max_height_ratio * tall:
-                    continue
-                box = (float(x), float(y), float(w), float(h))
-                if _overlapped(box, boxes, c.max_iou):
-                    continue
-                level = float(frame[y:y + h, x:x + w][labels[y:y + h, x:x + w] == k].mean())
-                if level - background < c.min_warmth * people:
-                    continue
-                found.append(_Region(box, since, level - background, area, area / (w * h)))
+        warm = frame > background + radius
+        persistent = self._persistent(warm)
+        if self.people_warmth is not None and self.people_height is not None:
+            found = self._candidates(warm, frame, background, boxes, stamp)
+            if persistent is not None:
+                found += [reg for reg in self._candidates(persistent, frame, background,
+                                                          boxes, stamp)
+                          if not any(iou(reg.box, other.box) >= c.match_iou
+                                     for other in found)]
         kept = []
         for old in self._regions:
             best = max(found, key=lambda reg: iou(old.box, reg.box), default=None)
@@ -216,21 +206,45 @@ class StillPeople:
                 kept.append(old)    # confirmed, now touching a neighbour's warm pixels
         self._regions = found + kept
 
-    def _persistent(self, warm: np.ndarray, stamp: float) -> tuple[np.ndarray, float]:
+    def _candidates(self, mask: np.ndarray, frame: np.ndarray, background: float, boxes,
+                    stamp: float) -> list[_Region]:
+        """The connected regions of ``mask`` that pass the tests of the module docstring."""
+        c = self.config
+        people, tall = self.people_warmth, self.people_height
+        out = []
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8),
+                                                               connectivity=8)
+        rows, cols = frame.shape
+        for k in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[k])
+            if x <= 0 or y <= 0 or x + w >= cols or y + h >= rows:
+                continue
+            if not is_person_shaped(w, h, self.person_aspect):
+                continue
+            if not c.min_height_ratio * tall <= h <= c.max_height_ratio * tall:
+                continue
+            box = (float(x), float(y), float(w), float(h))
+            if _overlapped(box, boxes, c.max_iou):
+                continue
+            level = float(frame[y:y + h, x:x + w][labels[y:y + h, x:x + w] == k].mean())
+            if level - background < c.min_warmth * people:
+                continue
+            out.append(_Region(box, stamp, level - background, area, area / (w * h)))
+        return out
+
+    def _persistent(self, warm: np.ndarray) -> np.ndarray | None:
         """``persistent_passes``: ``warm`` and the warm masks of that many previous full
-        passes (fewer while they are not there yet), and the stamp of the oldest pass used;
-        ``(warm, stamp)`` when 0."""
+        passes (fewer while they are not there yet); None when 0 or when there is no
+        earlier pass."""
         if self._warm_masks.maxlen == 0:
-            return warm, stamp
-        if any(m.shape != warm.shape for _, m in self._warm_masks):
+            return None
+        if any(m.shape != warm.shape for m in self._warm_masks):
             self._warm_masks.clear()
-        out = warm.copy()
-        since = stamp
-        for then, mask in self._warm_masks:
+        out = warm.copy() if self._warm_masks else None
+        for mask in self._warm_masks:
             out &= mask
-            since = min(since, then)
-        self._warm_masks.append((stamp, warm))
-        return out, since
+        self._warm_masks.append(warm)
+        return out
 
     def _still_warm(self, frame: np.ndarray, background: float, radius: float,
                     reg: _Region) -> bool:

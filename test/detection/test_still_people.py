@@ -122,17 +122,16 @@ def test_persistent_passes_drop_the_walkers_changing_pixels_and_find_the_still_p
     reports = _still_reports(1, _passes(8))
     person = (40.0, 15.0, 10.0, 30.0)
     hits = [k for k, found in enumerate(reports) if any(iou(b, person) >= 0.9 for b in found)]
-    # pass 0 has no earlier pass (the walker still joins him); found alone from pass 1 with
-    # pixels warm since pass 0, so reported once min_time (2 s) has passed since then: from
-    # pass 2 on, in every pass
-    assert hits == list(range(2, 8))
-    assert all(len(found) == 1 for found in reports[2:])     # the walker is never a still one
+    # pass 0 has no earlier pass (the walker still joins him); found alone from pass 1,
+    # reported once he stayed min_time (2 s) in place: from pass 3 on, in every pass
+    assert hits == list(range(3, 8))
+    assert all(len(found) == 1 for found in reports[3:])     # the walker is never a still one
 
 
 def test_persistence_does_not_delay_a_person_who_stops():
-    # he arrives at pass 2 and stays (nobody touches him): without persistence found at 2,
-    # reported at 4 (2 s later); with 2 persistent passes found alone only at pass 4, but
-    # his pixels were warm since pass 2, so reported at 4 too (not at 6)
+    # he arrives at pass 2 and stays (nobody touches him): found at 2, reported at 4 (2 s
+    # later); with 2 persistent passes his persistent region appears only at pass 4, but
+    # this pass's regions are still candidates, so he is reported at 4 too (not at 6)
     person = (40.0, 15.0, 10.0, 30.0)
     frames = _passes(8, walker_touches=False)
     for f in frames[:2]:
