@@ -29,7 +29,10 @@ footprints already use.  The rule (``detector.still_people``, :class:`StillPeopl
   it held; otherwise it ends.
 * ``persistent_passes`` (0 = off): the candidates are also the connected regions of the
   pixels warm at this full pass *and* at the ``persistent_passes`` full passes before it
-  (those not already found, at ``match_iou``, among this pass's regions).  A still person's pixels are warm at every pass, a
+  (those not already found, at ``match_iou``, among this pass's regions, and only when the
+  region of this pass's warm pixels that holds them is not itself of one person's shape
+  and size: else they are the still core of that one person, e.g. a detected person who
+  stands and talks).  A still person's pixels are warm at every pass, a
   person walking past is warm at other pixels from pass to pass, so the bridge of warm
   pixels that joins the two in one frame (one region, not person-shaped) is dropped, and
   the still one is found alone.  It is the "static foreground" of dual-background
@@ -190,12 +193,16 @@ class StillPeople:
         warm = frame > background + radius
         persistent = self._persistent(warm)
         if self.people_warmth is not None and self.people_height is not None:
-            found = self._candidates(warm, frame, background, boxes, stamp)
+            plain = cv2.connectedComponentsWithStats(warm.astype(np.uint8), connectivity=8)
+            found = self._candidates(plain, frame, background, boxes, stamp)
             if persistent is not None:
-                found += [reg for reg in self._candidates(persistent, frame, background,
-                                                          boxes, stamp)
+                found += [reg for reg in self._candidates(
+                              cv2.connectedComponentsWithStats(persistent.astype(np.uint8),
+                                                               connectivity=8),
+                              frame, background, boxes, stamp)
                           if not any(iou(reg.box, other.box) >= c.match_iou
-                                     for other in found)]
+                                     for other in found)
+                          and not self._in_one_person(reg, plain)]
         kept = []
         for old in self._regions:
             best = max(found, key=lambda reg: iou(old.box, reg.box), default=None)
@@ -206,22 +213,42 @@ class StillPeople:
                 kept.append(old)    # confirmed, now touching a neighbour's warm pixels
         self._regions = found + kept
 
-    def _candidates(self, mask: np.ndarray, frame: np.ndarray, background: float, boxes,
-                    stamp: float) -> list[_Region]:
-        """The connected regions of ``mask`` that pass the tests of the module docstring."""
+    def _person_sized(self, w: float, h: float) -> bool:
+        """An upright person's shape and a height of ``min_height_ratio`` ..
+        ``max_height_ratio`` times the learnt one."""
         c = self.config
-        people, tall = self.people_warmth, self.people_height
+        return is_person_shaped(w, h, self.person_aspect) and (
+            c.min_height_ratio * self.people_height <= h
+            <= c.max_height_ratio * self.people_height)
+
+    def _in_one_person(self, reg: _Region, plain) -> bool:
+        """Whether the region of this pass's warm pixels that holds most of ``reg``'s box is
+        itself of one person's shape and size: then the persistent region is the still core
+        of that person (reported or not by the plain rule), not a person cut free from a
+        neighbour's warm pixels."""
+        _, labels, stats, _ = plain
+        x, y, w, h = (int(v) for v in reg.box)
+        inside = labels[y:y + h, x:x + w]
+        ks, counts = np.unique(inside[inside > 0], return_counts=True)
+        if not len(ks):
+            return False
+        _, _, pw, ph, _ = (int(v) for v in stats[int(ks[np.argmax(counts)])])
+        return self._person_sized(pw, ph)
+
+    def _candidates(self, components, frame: np.ndarray, background: float, boxes,
+                    stamp: float) -> list[_Region]:
+        """The connected regions (``cv2.connectedComponentsWithStats`` of a mask) that pass
+        the tests of the module docstring."""
+        c = self.config
+        people = self.people_warmth
         out = []
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8),
-                                                               connectivity=8)
+        n, labels, stats, _ = components
         rows, cols = frame.shape
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
             if x <= 0 or y <= 0 or x + w >= cols or y + h >= rows:
                 continue
-            if not is_person_shaped(w, h, self.person_aspect):
-                continue
-            if not c.min_height_ratio * tall <= h <= c.max_height_ratio * tall:
+            if not self._person_sized(w, h):
                 continue
             box = (float(x), float(y), float(w), float(h))
             if _overlapped(box, boxes, c.max_iou):
