@@ -96,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         sp.StillPeople._find = original
     t0 = inputs[0][1]
-    print("| frame | region on the man | IoU with him | fails | rule's region on him: s in place |")
+    print("| frame | region on the man | IoU with him | fails | "
+          "rule's region on him: s in place |")
     print("|---:|---|---:|---|---:|")
     for stamp, box, reasons, held in rows:
         where = "-" if box is None else "({:.0f}, {:.0f}, {:.0f}, {:.0f})".format(*box)

@@ -27,7 +27,7 @@ footprints already use.  The rule (``detector.still_people``, :class:`StillPeopl
   At a full pass that does not find it alone (its warm pixels touch a neighbour's: one
   region) it is kept while its box is still warm at ``keep_fill`` of the share of pixels
   it held; otherwise it ends.
-* ``persistent_passes`` (0 = off): the candidates are also the connected regions of the
+* ``persistent_passes`` (2; 0 = off): the candidates are also the connected regions of the
   pixels warm at this full pass *and* at the ``persistent_passes`` full passes before it
   (those not already found, at ``match_iou``, among this pass's regions, and only when the
   region of this pass's warm pixels that holds them is not itself of one person's shape
@@ -97,9 +97,10 @@ class StillPeopleConfig:
         "neighbour's warm pixels) is kept while its box is warm at this share of the "
         "pixels it held", minimum=0.0, maximum=10.0)
     persistent_passes: int = parameter(
-        0, "still_people: candidates are regions of the pixels warm at this full pass and "
-        "at this many full passes before it (static foreground: drops a passer-by's warm "
-        "pixels that join a still person's); 0: this pass's warm pixels alone",
+        2, "still_people: candidates are also regions of the pixels warm at this full pass and "
+        "at this many full passes before it, when this pass's region holding them is not one "
+        "person (static foreground: drops a passer-by's warm pixels that join a still "
+        "person's; chosen on the still-people and group choice seeds); 0: off",
         minimum=0, maximum=100)
     memory: float = parameter(
         300.0, "still_people: person samples (height, warmth) remembered, with "
