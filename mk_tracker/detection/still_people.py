@@ -27,6 +27,23 @@ footprints already use.  The rule (``detector.still_people``, :class:`StillPeopl
   At a full pass that does not find it alone (its warm pixels touch a neighbour's: one
   region) it is kept while its box is still warm at ``keep_fill`` of the share of pixels
   it held; otherwise it ends.
+* ``persistent_passes`` (2; 0 = off): the candidates are also the connected regions of the
+  pixels warm at this full pass *and* at the ``persistent_passes`` full passes before it
+  (those not already found, at ``match_iou``, among this pass's regions, and only when the
+  region of this pass's warm pixels that holds them is not itself of one person's shape
+  and size: else they are the still core of that one person, e.g. a detected person who
+  stands and talks).  A still person's pixels are warm at every pass, a
+  person walking past is warm at other pixels from pass to pass, so the bridge of warm
+  pixels that joins the two in one frame (one region, not person-shaped) is dropped, and
+  the still one is found alone.  It is the "static foreground" of dual-background
+  detection of abandoned objects (Porikli, Ivanov & Haga, EURASIP J. Adv. Signal Process.
+  2008: a pixel that is foreground for a long time but not for a short one is static),
+  with the kernel's warm test of (3.6) as the foreground and the full passes as the
+  samples.  Its ``min_time`` clock starts at this pass, as any region's (starting it at the
+  oldest pass of the window reported the persistent cores of people who stand and talk:
+  commit 5d611ea, docs/benchmark_real_thermal.md).  The regions of this pass's warm pixels
+  stay candidates as before, so a person who stops alone is not delayed by the window.
+  Two neighbours who both stand still stay joined.
 
 Without learnt people (no person-shaped detection yet) nothing is reported: size and warmth
 are relative to the people this detector has seen move, not constants of one camera.  Warm
@@ -37,6 +54,7 @@ the ignore regions are there for known ones.  Measured in docs/benchmark_real_th
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import cv2
@@ -78,6 +96,12 @@ class StillPeopleConfig:
         0.7, "still_people: a reported region not found alone at a full pass (it touches a "
         "neighbour's warm pixels) is kept while its box is warm at this share of the "
         "pixels it held", minimum=0.0, maximum=10.0)
+    persistent_passes: int = parameter(
+        2, "still_people: candidates are also regions of the pixels warm at this full pass and "
+        "at this many full passes before it, when this pass's region holding them is not one "
+        "person (static foreground: drops a passer-by's warm pixels that join a still "
+        "person's; chosen on the still-people and group choice seeds); 0: off",
+        minimum=0, maximum=100)
     memory: float = parameter(
         300.0, "still_people: person samples (height, warmth) remembered, with "
         "exponential forgetting", minimum=1.0, maximum=1e6)
@@ -108,6 +132,7 @@ class StillPeople:
         self._warmth = np.zeros(2)             # forgetting sums of (1, warmth) of people
         self._height = np.zeros(2)             # ... and of (1, height) of whole people
         self._regions: list[_Region] = []
+        self._warm_masks: deque = deque(maxlen=max(int(config.persistent_passes), 0))
 
     @property
     def people_warmth(self) -> float | None:
@@ -166,26 +191,19 @@ class StillPeople:
               stamp: float) -> None:
         c = self.config
         found: list[_Region] = []
-        people, tall = self.people_warmth, self.people_height
-        if people is not None and tall is not None:
-            warm = (frame > background + radius).astype(np.uint8)
-            n, labels, stats, _ = cv2.connectedComponentsWithStats(warm, connectivity=8)
-            rows, cols = frame.shape
-            for k in range(1, n):
-                x, y, w, h, area = (int(v) for v in stats[k])
-                if x <= 0 or y <= 0 or x + w >= cols or y + h >= rows:
-                    continue
-                if not is_person_shaped(w, h, self.person_aspect):
-                    continue
-                if not c.min_height_ratio * tall <= h <= c.max_height_ratio * tall:
-                    continue
-                box = (float(x), float(y), float(w), float(h))
-                if _overlapped(box, boxes, c.max_iou):
-                    continue
-                level = float(frame[y:y + h, x:x + w][labels[y:y + h, x:x + w] == k].mean())
-                if level - background < c.min_warmth * people:
-                    continue
-                found.append(_Region(box, stamp, level - background, area, area / (w * h)))
+        warm = frame > background + radius
+        persistent = self._persistent(warm)
+        if self.people_warmth is not None and self.people_height is not None:
+            plain = cv2.connectedComponentsWithStats(warm.astype(np.uint8), connectivity=8)
+            found = self._candidates(plain, frame, background, boxes, stamp)
+            if persistent is not None:
+                found += [reg for reg in self._candidates(
+                              cv2.connectedComponentsWithStats(persistent.astype(np.uint8),
+                                                               connectivity=8),
+                              frame, background, boxes, stamp)
+                          if not any(iou(reg.box, other.box) >= c.match_iou
+                                     for other in found)
+                          and not self._in_one_person(reg, plain)]
         kept = []
         for old in self._regions:
             best = max(found, key=lambda reg: iou(old.box, reg.box), default=None)
@@ -195,6 +213,66 @@ class StillPeople:
                                                                       radius, old):
                 kept.append(old)    # confirmed, now touching a neighbour's warm pixels
         self._regions = found + kept
+
+    def _person_sized(self, w: float, h: float) -> bool:
+        """An upright person's shape and a height of ``min_height_ratio`` ..
+        ``max_height_ratio`` times the learnt one."""
+        c = self.config
+        return is_person_shaped(w, h, self.person_aspect) and (
+            c.min_height_ratio * self.people_height <= h
+            <= c.max_height_ratio * self.people_height)
+
+    def _in_one_person(self, reg: _Region, plain) -> bool:
+        """Whether the region of this pass's warm pixels that holds most of ``reg``'s box is
+        itself of one person's shape and size: then the persistent region is the still core
+        of that person (reported or not by the plain rule), not a person cut free from a
+        neighbour's warm pixels."""
+        _, labels, stats, _ = plain
+        x, y, w, h = (int(v) for v in reg.box)
+        inside = labels[y:y + h, x:x + w]
+        ks, counts = np.unique(inside[inside > 0], return_counts=True)
+        if not len(ks):
+            return False
+        _, _, pw, ph, _ = (int(v) for v in stats[int(ks[np.argmax(counts)])])
+        return self._person_sized(pw, ph)
+
+    def _candidates(self, components, frame: np.ndarray, background: float, boxes,
+                    stamp: float) -> list[_Region]:
+        """The connected regions (``cv2.connectedComponentsWithStats`` of a mask) that pass
+        the tests of the module docstring."""
+        c = self.config
+        people = self.people_warmth
+        out = []
+        n, labels, stats, _ = components
+        rows, cols = frame.shape
+        for k in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[k])
+            if x <= 0 or y <= 0 or x + w >= cols or y + h >= rows:
+                continue
+            if not self._person_sized(w, h):
+                continue
+            box = (float(x), float(y), float(w), float(h))
+            if _overlapped(box, boxes, c.max_iou):
+                continue
+            level = float(frame[y:y + h, x:x + w][labels[y:y + h, x:x + w] == k].mean())
+            if level - background < c.min_warmth * people:
+                continue
+            out.append(_Region(box, stamp, level - background, area, area / (w * h)))
+        return out
+
+    def _persistent(self, warm: np.ndarray) -> np.ndarray | None:
+        """``persistent_passes``: ``warm`` and the warm masks of that many previous full
+        passes (fewer while they are not there yet); None when 0 or when there is no
+        earlier pass."""
+        if self._warm_masks.maxlen == 0:
+            return None
+        if any(m.shape != warm.shape for m in self._warm_masks):
+            self._warm_masks.clear()
+        out = warm.copy() if self._warm_masks else None
+        for mask in self._warm_masks:
+            out &= mask
+        self._warm_masks.append(warm)
+        return out
 
     def _still_warm(self, frame: np.ndarray, background: float, radius: float,
                     reg: _Region) -> bool:

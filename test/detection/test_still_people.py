@@ -73,3 +73,93 @@ def test_nothing_is_reported_before_a_person_was_detected():
 def test_a_person_too_small_for_the_learnt_size_is_not_reported():
     frames = _run(True, min_time=0.0, min_height_ratio=1.5)
     assert _hits(frames, STILL) == []
+
+
+# -- persistent_passes: the static foreground (hand-made full passes on StillPeople) --------
+
+def _passes(n: int, walker_touches: bool = True) -> list[np.ndarray]:
+    """Background 40; a still person (level 150, 10x30 px at columns 40-49, rows 15-44) in
+    every pass; a walker of the same size and level beside him, touching him, on his left
+    at even passes and on his right at odd ones (elsewhere if not ``walker_touches``)."""
+    out = []
+    for k in range(n):
+        f = np.full((60, 100), 40, np.uint8)
+        f[15:45, 40:50] = 150
+        if walker_touches:
+            cols = slice(30, 40) if k % 2 == 0 else slice(50, 60)
+        else:
+            cols = slice(75 + k % 2, 85 + k % 2)
+        f[15:45, cols] = 150
+        out.append(f)
+    return out
+
+
+class _Det:
+    def __init__(self, box):
+        self.box = box
+
+
+def _still_reports(passes: int, frames: list[np.ndarray]) -> list[list]:
+    """The still people reported at each full pass (1 s apart; the walker is detected)."""
+    from mk_tracker.detection.still_people import StillPeople
+    rule = StillPeople(StillPeopleConfig(min_time=2.0, persistent_passes=passes), 0.4)
+    out = []
+    for k, f in enumerate(frames):
+        cols = np.flatnonzero(f[30] == 150)
+        walker = [c for c in cols if not 40 <= c < 50]
+        dets = [_Det((float(min(walker)), 15.0, 10.0, 30.0))]
+        found = rule.step(f, 20.0, dets, float(k), True, lambda box, score, pixels: box)
+        out.append([b for b in found if not isinstance(b, _Det)])
+    return out
+
+
+def test_a_walker_touching_the_still_person_at_every_pass_hides_him_without_persistence():
+    reports = _still_reports(0, _passes(8))
+    assert not any(reports)
+
+
+def test_persistent_passes_drop_the_walkers_changing_pixels_and_find_the_still_person():
+    reports = _still_reports(1, _passes(8))
+    person = (40.0, 15.0, 10.0, 30.0)
+    hits = [k for k, found in enumerate(reports) if any(iou(b, person) >= 0.9 for b in found)]
+    # pass 0 has no earlier pass (the walker still joins him); found alone from pass 1,
+    # reported once he stayed min_time (2 s) in place: from pass 3 on, in every pass
+    assert hits == list(range(3, 8))
+    assert all(len(found) == 1 for found in reports[3:])     # the walker is never a still one
+
+
+def test_persistence_does_not_delay_a_person_who_stops():
+    # he arrives at pass 2 and stays (nobody touches him): found at 2, reported at 4 (2 s
+    # later); with 2 persistent passes his persistent region appears only at pass 4, but
+    # this pass's regions are still candidates, so he is reported at 4 too (not at 6)
+    person = (40.0, 15.0, 10.0, 30.0)
+    frames = _passes(8, walker_touches=False)
+    for f in frames[:2]:
+        f[15:45, 40:50] = 40
+    for passes in (0, 2):
+        reports = _still_reports(passes, frames)
+        hits = [k for k, found in enumerate(reports)
+                if any(iou(b, person) >= 0.9 for b in found)]
+        assert hits == list(range(4, 8)), passes
+
+
+def test_the_still_core_of_one_detected_person_is_not_a_still_person():
+    # a person swaying by 3 px between passes (columns 40-49, then 37-46), detected in a
+    # loose box (IoU 0.32 with his region, so the plain rule leaves him to the detection):
+    # his pixels warm at every pass are a narrower core (40-46) that the box overlaps at
+    # IoU 0.23 only; it lies in a region of one person, so it is no still person
+    from mk_tracker.detection.still_people import StillPeople
+    rule = StillPeople(StillPeopleConfig(min_time=2.0, persistent_passes=2), 0.3)
+    person, loose = (40.0, 15.0, 10.0, 30.0), (33.0, 10.0, 22.0, 42.0)
+    walker = (75.0, 15.0, 10.0, 30.0)
+    reported = []
+    for k in range(8):
+        f = np.full((60, 100), 40, np.uint8)
+        f[15:45, 40:50] = 150 if k % 2 == 0 else 40
+        if k % 2:
+            f[15:45, 37:47] = 150
+        f[15:45, 75:85] = 150
+        found = rule.step(f, 20.0, [_Det(loose), _Det(walker)], float(k), True,
+                          lambda box, score, pixels: box)
+        reported += [b for b in found if not isinstance(b, _Det)]
+    assert reported == []

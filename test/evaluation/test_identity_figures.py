@@ -30,10 +30,14 @@ def test_identity_figures_per_frame_and_over_the_clip():
 
 def test_real_thermal_clip_keeps_ids_and_duplicates_down(shared_data, tmp_path):
     """BU-TIV-lab (~7 people, 4-6 visible, no ground truth), counter masked, defaults:
-    measured 8 ids, 0.00 duplicate pairs and 4.06 tracks per frame, no reported box
+    measured 8 ids, 0.00 duplicate pairs and 4.73 tracks per frame, no reported box
     taller than the 512 px frame, and the man with crossed arms at the back left, who
-    stands still for the whole clip, covered by a reported box (IoU >= 0.3) in 194 frames
-    (docs/benchmark_real_thermal.md); before still people were detected
+    stands still for the whole clip, covered by a reported box (IoU >= 0.3) in 452 frames
+    (110-561; docs/benchmark_real_thermal.md); before the persistent warm pixels of the
+    still-people rule (detector.still_people.persistent_passes 0) 8 / 0.00 / 4.06 and the
+    man covered in 194 frames (368-561: his warm pixels joined a neighbour's at the full
+    passes; the tracks per frame rose with the frames he is reported in); before still
+    people were detected
     (detector.still_people) 7 / 0.00 / 3.72 and the man covered in no frame; before observation-
     centric recovery of drifted tracks (tracker.recovery.*) 9 / 0.00 / 4.33 with 325
     boxes taller than the frame (runaway kernels that stopped births; nearby recovery
@@ -66,13 +70,13 @@ def test_real_thermal_clip_keeps_ids_and_duplicates_down(shared_data, tmp_path):
     stamps = sorted(result.frame_stamps)
     frames = [list(result.tracks.get(ns, [])) for ns in stamps]
     f = identity_figures(frames)
-    assert f["ids"] <= 11 and f["duplicates"] <= 0.02 and f["tracks"] <= 4.8, f
+    assert f["ids"] <= 11 and f["duplicates"] <= 0.02 and f["tracks"] <= 5.2, f
     tallest = max(float(box[3]) for frame in frames for _, box in frame)
     assert tallest <= 512.0, tallest          # no runaway box (the frame is 512 px high)
     assert f["tracks"] >= 3.0, f              # people are followed (4-6 visible)
     # the man at the back left, still from the first frame to the last (detector.still_people)
     man = (85.0, 38.0, 55.0, 178.0)
     covered = sum(any(iou(box, man) >= 0.3 for _, box in frame) for frame in frames)
-    assert covered >= 150, covered
+    assert covered >= 400, covered
     with open_bag(bag) as reader:             # the imported bag is the clip, thermal only
         assert "/thermal/image_raw" in reader.topics
