@@ -41,7 +41,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from mk_tracker.boxes import iou_matrix
-from mk_tracker.parameters import parameter
+from mk_tracker.parameters import ParameterError, parameter
 
 #: Cost given to impossible pairs before the Hungarian step (any value above every real
 #: cost works; inf is not accepted by linear_sum_assignment when a row is all-inf).
@@ -70,8 +70,16 @@ class AssociationConfig:
     max_height_ratio: float = parameter(
         0.0, "Size validation gate: a detection whose height differs from the track's "
         "smoothed height by more than this factor (either way) is not assigned to it "
-        "(Wojke et al. 2017 gate on the height too); 0 = off", minimum=0.0,
-        maximum=100.0)
+        "(Wojke et al. 2017 gate on the height too); 0 = off, else at least 1",
+        minimum=0.0, maximum=100.0)
+
+    def __post_init__(self) -> None:
+        # The declared range [0, 100] is what a ROS range can say; a factor in (0, 1) would
+        # forbid every pair, so it is refused here instead of being read silently as "off".
+        if 0.0 < self.max_height_ratio < 1.0:
+            raise ParameterError(
+                f"max_height_ratio: {self.max_height_ratio} is a factor below 1; "
+                "use 0 (off) or a factor of at least 1")
 
 
 @dataclass(frozen=True)
@@ -118,7 +126,9 @@ def height_ratio_exceeded(track_heights: np.ndarray, detection_heights: np.ndarr
     each track height ``h`` (the size component of the validation gate, module docstring).
 
     ``detection_heights`` is ``(D,)`` or ``(T, D)`` (per-track time-compensated boxes);
-    ``max_ratio`` 0 (off) or below 1 gives all False.
+    ``max_ratio`` 0 (off) or below 1 gives all False.  A pair in which either height is not
+    a positive finite number is outside the gate (True): such a box cannot be a person, and
+    one bad box must not stop the frame.
     """
     th = np.asarray(track_heights, dtype=np.float64).reshape(-1)
     dh = np.asarray(detection_heights, dtype=np.float64)
@@ -128,9 +138,10 @@ def height_ratio_exceeded(track_heights: np.ndarray, detection_heights: np.ndarr
         raise AssociationError(f"detection heights {dh.shape} do not fit {th.shape[0]} tracks")
     if max_ratio < 1.0 or dh.size == 0:
         return np.zeros(dh.shape, dtype=bool)
-    if np.any(~(th > 0)) or np.any(~(dh > 0)):
-        raise AssociationError("box heights must be positive")
-    return np.abs(np.log(dh / th[:, None])) > math.log(max_ratio)
+    valid = (np.isfinite(th) & (th > 0))[:, None] & np.isfinite(dh) & (dh > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_ratio = np.abs(np.log(dh / th[:, None]))
+    return ~valid | (log_ratio > math.log(max_ratio))
 
 
 def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,

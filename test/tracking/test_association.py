@@ -263,8 +263,20 @@ def test_height_ratio_gate_is_symmetric_in_log_and_off_at_zero():
     assert not height_ratio_exceeded([100.0], [10.0, 1000.0], 0.0).any()     # off
     per_track = height_ratio_exceeded([50.0, 100.0], [[50.0, 100.0], [50.0, 100.0]], 1.4)
     assert per_track.tolist() == [[False, True], [True, False]]
-    with pytest.raises(AssociationError):
-        height_ratio_exceeded([100.0], [0.0], 1.4)
+    # a box that cannot be a person is outside the gate, without stopping the frame
+    bad = height_ratio_exceeded([100.0, 0.0], [0.0, 100.0, np.nan, -5.0], 1.4)
+    assert bad.tolist() == [[True, False, True, True], [True, True, True, True]]
+
+
+def test_height_ratio_below_one_is_refused_not_read_as_off():
+    from mk_tracker.parameters import ParameterError, updated
+    for bad in (0.5, 0.999):
+        with pytest.raises(ParameterError, match="max_height_ratio"):
+            AssociationConfig(max_height_ratio=bad)
+        with pytest.raises(ParameterError, match="max_height_ratio"):
+            updated(AssociationConfig(), {"max_height_ratio": bad})
+    assert AssociationConfig(max_height_ratio=0.0).max_height_ratio == 0.0
+    assert AssociationConfig(max_height_ratio=1.0).max_height_ratio == 1.0
 
 
 def test_height_ratio_gate_forbids_the_pair_and_leaves_others_alone():
