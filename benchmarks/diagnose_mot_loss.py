@@ -50,6 +50,15 @@ stamps): the RGB-only chain of ``bench_background_detector.py`` (issue #13), who
 A real clip at a lower frame rate is named ``CLIP/STEP+OFFSET``: ``TUD-Stadtmitte/4+2`` keeps
 every 4th frame from frame 2 (0-based) at 25 / 4 = 6.25 fps, the copy of
 ``bench_multi_object.py --low-fps-checks`` (``tud_frames(folder, step, offset)``).
+
+A thermal -> RGB crowd scene of ``benchmarks/bench_groups.py`` is named
+``groups-PEOPLE-SEED-WxH`` (``groups-8-101-640x480``): the crowd preset, the thermal detector
+(``config/detector.yaml`` with ``--set-detector`` overrides, e.g.
+``split_by_person_size=true``) run over its thermal frames, its boxes mapped into the RGB
+image by the scene's homography (what the tracker does with thermal-plane detections), the
+tracker configured by ``config/tracker.yaml`` (+ ``--set``) and scored, as the pipeline is,
+against every person at all visible in the RGB image (:func:`groups_frames`).  Its MOTA is
+the ``bench_groups.py`` row's.
 """
 
 from __future__ import annotations
@@ -237,6 +246,35 @@ def peer_hypotheses(frames, fps) -> dict:
     return {name: bmo.run_tracker(peer, frames)[0] for name, peer in peers.items()}
 
 
+def groups_frames(name: str, detector_changes: dict, frames: int = 150):
+    """``(frames, fps)`` of the bench_groups scene ``groups-PEOPLE-SEED-WxH`` (module
+    docstring): per frame the BGR image, its stamp, the thermal detector's boxes in RGB
+    pixels with their scores, and the ground truth of ``mk_tracker process`` (every person
+    with ``visible_fraction > 0``, box clipped to the image: ``ground_truth_detections``)."""
+    from mk_tracker.boxes import transform_box
+    from mk_tracker.detection.thermal_detector import ThermalDetector
+    from mk_tracker.synthetic.scene_bag import build_preset, ground_truth_detections
+    from mk_tracker.tools.pipeline_config import load_pipeline_config
+    try:
+        _, people, seed, size = name.split("-")
+        width, height = (int(v) for v in size.split("x"))
+        people, seed = int(people), int(seed)
+    except ValueError:
+        raise SystemExit(f"{name}: expected groups-PEOPLE-SEED-WxH") from None
+    scene = build_preset("crowd", seed=seed, people=people, frames=frames, width=width,
+                         height=height)
+    detector = ThermalDetector(updated(load_pipeline_config().detector, detector_changes))
+    out = []
+    for k in range(len(scene)):
+        f = scene.frame(k)
+        dets = [(*transform_box(d.box, scene.homography), d.score)
+                for d in detector.process(f.thermal, f.stamp)]
+        gt = [MotRow(k + 1, int(d.id), tuple(d.box))
+              for d in ground_truth_detections(scene, f, "rgb")]
+        out.append((f.rgb, f.stamp, dets, gt))
+    return out, float(scene.config.fps)
+
+
 def background_frames(frames):
     """``frames`` with each frame's detections replaced by the background detector's (its
     shipped defaults, fed the frames in order at their stamps)."""
@@ -290,6 +328,9 @@ def main(argv=None) -> int:
     parser.add_argument("--detections", choices=("public", "background"), default="public",
                         help="the clips' own detections, or the background-subtraction "
                              "detector's (shipped defaults)")
+    parser.add_argument("--set-detector", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="detector overrides for groups-* scenes, e.g. "
+                             "split_by_person_size=true")
     args = parser.parse_args(argv)
     motion = bmo.REAL_MOTION if args.real_motion else None
     box_error = bmo.REAL_DETECTION_NOISE if args.real_detection_noise else None
@@ -299,6 +340,13 @@ def main(argv=None) -> int:
           f"setting: defaults"
           f"{' + ' + str(changes) if changes else ''}\n")
     for name in args.sequences:
+        if name.startswith("groups-"):
+            from mk_tracker.tools.pipeline_config import load_pipeline_config
+            frames, fps = groups_frames(name, setting_changes(args.set_detector))
+            print("\n".join(report(name, frames,
+                                    updated(load_pipeline_config().tracker, changes), fps)),
+                  flush=True)
+            continue
         if name.startswith("TUD"):
             clip, _, rate = name.partition("/")
             step, _, offset = rate.partition("+")
