@@ -199,3 +199,73 @@ def test_reporting_bounds_do_not_change_tracking():
         assert a.tracks == b.tracks
         differ += [t.id for t in a.reported()] != [t.id for t in b.reported()]
     assert differ > 0
+
+
+def _refined(track_id, since, still=False, manual=False, state="confirmed") -> TrackOutput:
+    return TrackOutput(id=track_id, state=state, box=(0, 0, 30, 80), score=0.8,
+                       velocity=(0.0, 0.0), age=2.0, time_since_detection=since, hits=9,
+                       manual=manual, position_covariance=(1.0, 0.0, 0.0, 1.0), still=still)
+
+
+def test_reported_drops_confirmed_tracks_seen_by_refinement_alone_past_the_bound():
+    tracks = [_refined(1, 0.0),                     # detected this frame: kept
+              _refined(2, 0.12),                    # refined, within the bound: kept
+              _refined(3, 0.16),                    # at the bound: kept
+              _refined(4, 0.2),                     # past it: dropped
+              _refined(5, 0.4, still=True),         # standing still: kept
+              _refined(6, 0.4, manual=True),        # started by hand: kept
+              _refined(7, 0.1, state="occluded")]   # coasting: the coast bounds decide
+    result = FrameResult(stamp=1.0, tracks=tracks, max_reported_coast_time=0.2,
+                         max_reported_refined_time=0.16)
+    assert [t.id for t in result.reported()] == [1, 2, 3, 5, 6, 7]
+    result.max_reported_coast_time = 0.05
+    assert [t.id for t in result.reported()] == [1, 2, 3, 5, 6]
+    # 0 = no such bound
+    result.max_reported_refined_time = 0.0
+    assert [t.id for t in result.reported()] == [1, 2, 3, 4, 5, 6]
+
+
+class VisibleRefiner:
+    """Fake refiner that always finds its target, visible, where the Kalman filter predicts
+    it (a refiner locked on whatever is there: it cannot tell a person from background)."""
+
+    def start(self, image, box):
+        return {"box": tuple(box)}
+
+    def refine(self, image, state, predicted_center=None):
+        w, h = state["box"][2:]
+        cx, cy = predicted_center
+        return type("R", (), {"box": (cx - w / 2, cy - h / 2, w, h), "similarity": 0.95,
+                              "lost": False})()
+
+    def appearance_similarity(self, image, state, box):
+        return 0.95
+
+
+def _refined_frames(bound: float, speed: float) -> list[tuple[str, bool]]:
+    """A person detected for 20 frames walking right at ``speed`` px/frame, then never
+    again; per undetected frame (state, reported?) with the refiner always seeing it."""
+    trk = MultiObjectTracker(updated(MultiObjectTrackerConfig(), {
+        "max_reported_refined_time": bound, "lifecycle.max_undetected_time": 0.5}),
+        refiner=VisibleRefiner())
+    for i in range(20):
+        trk.step(IMG, i * DT, [FrameDetection((100 + speed * i, 200, 30, 60), 0.9)])
+    out = []
+    for i in range(20, 30):
+        r = trk.step(IMG, i * DT, [])
+        (t,) = r.tracks
+        out.append((t.state, t.id in {u.id for u in r.reported()}))
+    return out
+
+
+def test_a_track_seen_by_refinement_alone_is_reported_only_while_its_detection_is_recent():
+    # walking 4 px/frame = 100 px/s, 1.7 box heights/s: not still
+    frames = _refined_frames(0.1, 4.0)
+    # confirmed all along (the refiner sees it) ...
+    assert [s for s, _ in frames] == ["confirmed"] * 10
+    # ... reported for 0.1 s = 2.5 frames after the last detection (frames 1 and 2), then not
+    assert [rep for _, rep in frames] == [True, True] + [False] * 8
+    # without the bound: every frame
+    assert all(rep for _, rep in _refined_frames(0.0, 4.0))
+    # a person standing still is not detected by the kernel covariance detector: exempt
+    assert all(rep for _, rep in _refined_frames(0.1, 0.0))
