@@ -94,6 +94,12 @@ class AssociationConfig:
         "detection's area inside the track's predicted box (a person-sized detection inside "
         "a track box that went stale, not a box around two people that reaches beyond it); "
         "0 = IoU alone", minimum=0.0, maximum=1.0)
+    fallback_max_growth: float = parameter(
+        0.0, "In that second round a pair also needs the detection's height at most this "
+        "factor of the track's predicted height (a stale size learnt on a box around two "
+        "people is too large, so the person's own detection is smaller; a taller detection "
+        "is a merge with a neighbour or a shadow, which the gated round refused); 0 = no "
+        "limit", minimum=0.0, maximum=100.0)
 
     def __post_init__(self) -> None:
         # The declared range [0, 100] is what a ROS range can say; a factor in (0, 1) would
@@ -208,12 +214,14 @@ def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,
 
 
 def iou_fallback(track_boxes: np.ndarray, detection_boxes: np.ndarray,
-                 min_iou: float, min_coverage: float = 0.0) -> list[tuple[int, int]]:
+                 min_iou: float, min_coverage: float = 0.0,
+                 max_growth: float = 0.0) -> list[tuple[int, int]]:
     """Second association round by overlap alone (SORT, Bewley et al. 2016, Sec. 3.3):
     the one-to-one ``(track row, detection row)`` pairs maximising the total IoU of
     ``track_boxes (T, 4)`` with ``detection_boxes (D, 4)``, each pair with IoU at least
-    ``min_iou`` (> 0; no pair when it is 0) and at least ``min_coverage`` of the
-    detection's area inside the track's box."""
+    ``min_iou`` (> 0; no pair when it is 0), at least ``min_coverage`` of the
+    detection's area inside the track's box and, when ``max_growth`` > 0, the detection's
+    height at most ``max_growth`` times the track's."""
     t = np.asarray(track_boxes, dtype=np.float64).reshape(-1, 4)
     d = np.asarray(detection_boxes, dtype=np.float64).reshape(-1, 4)
     if min_iou <= 0 or not len(t) or not len(d):
@@ -225,6 +233,8 @@ def iou_fallback(track_boxes: np.ndarray, detection_boxes: np.ndarray,
                  - np.maximum(t[:, None, 1], d[None, :, 1]), 0.0, None)
     area = np.maximum(d[:, 2] * d[:, 3], 1e-9)[None, :]
     ok = (ious >= min_iou) & (ix * iy / area >= min_coverage)
+    if max_growth > 0:
+        ok &= d[None, :, 3] <= max_growth * t[:, None, 3]
     cost = np.where(ok, 1.0 - ious, np.inf)
     return assign(cost, 1.0 - min_iou).matches
 

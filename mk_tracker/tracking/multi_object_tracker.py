@@ -633,7 +633,8 @@ class MultiObjectTracker:
         pairs = iou_fallback(np.array([t.box for t in tracks]).reshape(-1, 4),
                              np.array([dets[k].box for k in left]).reshape(-1, 4),
                              self.config.association.fallback_iou,
-                             self.config.association.fallback_coverage)
+                             self.config.association.fallback_coverage,
+                             self.config.association.fallback_max_growth)
         for r, k in pairs:
             matched[left[k]] = tracks[r].id
         self.totals["overlap_matches"] += len(pairs)

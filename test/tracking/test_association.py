@@ -305,6 +305,9 @@ def test_iou_fallback_pairs_by_overlap_and_refuses_weak_or_outside_pairs():
     assert iou_fallback(tracks, dets, 0.3, min_coverage=0.8) == [(0, 0)]
     assert iou_fallback(tracks, dets, 0.7) == []                      # IoU 0.65 < 0.7
     assert iou_fallback(np.zeros((0, 4)), dets, 0.3) == []
+    # detection 1 is 300 / 170 = 1.76 times as tall as track 1: refused at a growth of 1.2
+    assert iou_fallback(tracks, dets, 0.3, max_growth=1.2) == [(0, 0)]
+    assert sorted(iou_fallback(tracks, dets, 0.3, max_growth=1.8)) == [(0, 0), (1, 1)]
 
 
 def test_iou_fallback_is_one_to_one_maximising_total_overlap():

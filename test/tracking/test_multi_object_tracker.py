@@ -475,3 +475,11 @@ def test_overlap_round_coverage_refuses_a_detection_reaching_beyond_the_track():
     assert n == 0 and tracks[0].id == 1 and tracks[0].time_since_detection > 0
     tracks, n = _stale_size_run(changes, (300, 100, 60, 170))   # all of it inside
     assert n == 1 and tracks[0].time_since_detection == 0.0
+
+
+def test_overlap_round_growth_limit_refuses_a_taller_detection():
+    changes = {"association.fallback_iou": 0.3, "association.fallback_max_growth": 1.0}
+    tracks, n = _stale_size_run(changes, (290, 100, 80, 300))   # taller than the track
+    assert n == 0 and tracks[0].id == 1 and tracks[0].time_since_detection > 0
+    tracks, n = _stale_size_run(changes, (300, 100, 60, 170))   # shorter: the stale case
+    assert n == 1 and tracks[0].time_since_detection == 0.0
