@@ -22,7 +22,10 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    tentative/confirmed/occluded tracks on overlap + Kalman-gated distance (and, with
    ``association.max_height_ratio``, a gate on the height ratio); 4b' a second
    round from the last detected boxes of the tracks left without one, checked by
-   appearance (:mod:`mk_tracker.tracking.recovery`: drifted estimates); then the
+   appearance (:mod:`mk_tracker.tracking.recovery`: drifted estimates); with
+   ``association.fallback_iou`` (off by default) 4b'' a third round by overlap alone, as
+   SORT associates, for tracks whose stale size put their person's detection outside the
+   centre gate (:func:`~mk_tracker.tracking.association.iou_fallback`); then the
    remaining detections (and those of still-tentative tracks) against *lost* tracks, gated
    by the Kalman prediction or by the track's last detection (whose spread grows with the
    time since it, :mod:`mk_tracker.tracking.reacquisition`), where the appearance model
