@@ -175,8 +175,14 @@ def main(argv=None) -> int:
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                         help="score this one setting (on top of the defaults) instead of "
                              "the grid, in-sample")
+    parser.add_argument("--grid", nargs="*", default=None, metavar="NAME=V1,V2",
+                        help="this grid instead of GRID (each dimension NAME=V1,V2,...; a "
+                             "single value fixes that parameter), folds as usual")
     args = parser.parse_args(argv)
-    grid = [setting_changes(args.set)] if args.set else settings(GRID)
+    grid = [setting_changes(args.set)] if args.set else settings(
+        GRID if args.grid is None else {
+            name: tuple(setting_changes([f"{name}={v}"])[name] for v in values.split(","))
+            for name, _, values in (item.partition("=") for item in args.grid)})
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         chains, refs, sorts = {}, {}, {}

@@ -47,6 +47,12 @@ background-subtraction detector (shipped defaults, run once over the clip at the
 stamps): the RGB-only chain of ``bench_background_detector.py`` (issue #13), whose chain
 ``mk_tracker process --detections background`` runs the same detector and tracker.
 
+``--background-benchmark`` runs the five sequences of ``bench_background_detector.py`` (the
+TUD clips and the generated crowd-3 and static-camera scenes) on that detector's boxes, as
+``background_tracker_profile.py`` does.  Each sequence ends with the errors against SORT
+person by person: people SORT matched and we missed, by our cause, and our false positives
+beyond SORT's in the same frame.
+
 A real clip at a lower frame rate is named ``CLIP/STEP+OFFSET``: ``TUD-Stadtmitte/4+2`` keeps
 every 4th frame from frame 2 (0-based) at 25 / 4 = 6.25 fps, the copy of
 ``bench_multi_object.py --low-fps-checks`` (``tud_frames(folder, step, offset)``).
@@ -138,8 +144,10 @@ def diagnose_ours(frames, hyp, states):
     ev, match, n_gt = events(frames, hyp)
     carried = {(f, h) for (f, _), h in match.items()}
     fp, fn, sw = Counter(), Counter(), Counter()
+    causes: dict = {}       # ("FP", frame, hypothesis id) / ("FN", frame, person id) -> cause
     for _, e in ev[ev.Type == "FP"].iterrows():
         f, h = int(e.FrameId), int(e.HId)
+        before = Counter(fp)
         gts = frames[f - 1][3]
         state, box, detected, det_box = states[f - 1][h][:4]
         ious = _iou(box, [g.box for g in gts])
@@ -162,8 +170,10 @@ def diagnose_ours(frames, hyp, states):
                 fp["detected, on a false detection"] += 1
             else:
                 fp["detected, detection off too"] += 1
+        causes["FP", f, h] = next(iter(fp - before))
     for _, e in ev[ev.Type == "MISS"].iterrows():
         f, o = int(e.FrameId), int(e.OId)
+        before = Counter(fn)
         gts = {g.id: g.box for g in frames[f - 1][3]}
         box = gts[o]
         dets = [d[:4] for d in frames[f - 1][2]]
@@ -198,6 +208,7 @@ def diagnose_ours(frames, hyp, states):
                 fn["undetected: neighbour's box"] += 1
             else:
                 fn["undetected: nothing"] += 1
+        causes["FN", f, o] = next(iter(fn - before))
     kinds = Counter()
     matched_h = {(f, h) for (f, _), h in match.items()}
     for k, info in enumerate(states):
@@ -220,7 +231,7 @@ def diagnose_ours(frames, hyp, states):
         f, o = int(e.FrameId), int(e.OId)
         sw["hand-over (matched the frame before)" if (f - 1, o) in match
            else "after a gap"] += 1
-    return n_gt, fp, fn, sw
+    return n_gt, fp, fn, sw, causes
 
 
 def diagnose_peer(frames, hyp):
@@ -287,8 +298,9 @@ def background_frames(frames):
 
 def report(name, frames, config, fps=25.0) -> list[str]:
     hyp, states = run_ours(config, frames)
-    n_gt, fp, fn, sw = diagnose_ours(frames, hyp, states)
-    peers = {p: diagnose_peer(frames, h) for p, h in peer_hypotheses(frames, fps).items()}
+    n_gt, fp, fn, sw, causes = diagnose_ours(frames, hyp, states)
+    peer_hyp = peer_hypotheses(frames, fps)
+    peers = {p: diagnose_peer(frames, h) for p, h in peer_hyp.items()}
     o_fp, o_fn, o_sw = sum(fp.values()), sum(fn.values()), sum(sw.values())
     names = list(peers)
     head = " | ".join(names)
@@ -312,6 +324,47 @@ def report(name, frames, config, fps=25.0) -> list[str]:
     for label, counter in (("FP", fp), ("FN", fn), ("IDSW", sw)):
         for cause, n in counter.most_common():
             lines.append(f"| {label} | {cause} | {n} | {n / n_gt:.3f} |")
+    return lines + [""] + versus_sort(frames, hyp, peer_hyp["SORT"], causes, n_gt)
+
+
+def versus_sort(frames, ours, sort, causes, n_gt) -> list[str]:
+    """Our errors that SORT does not make, by our cause, and SORT's that we do not make.
+
+    A person in a frame missed by us and matched by SORT ("SORT only") costs us one miss
+    against SORT; a false positive of ours in a frame counts against SORT's false positives
+    of that frame (a false positive has no identity to pair, so the two are compared by
+    count per frame: ``max(0, ours - SORT)`` of our false positives of the frame are "ours
+    beyond SORT's", attributed to our causes in proportion)."""
+    _ev_o, match_o, _ = events(frames, ours)
+    ev_s, match_s, _ = events(frames, sort)
+    persons = {(f, o) for f, (_, _, _, g) in enumerate(frames, 1) for o in
+               (r.id for r in g)}
+    only_sort = Counter(causes.get(("FN", f, o), "?") for f, o in persons
+                        if (f, o) in match_s and (f, o) not in match_o)
+    only_ours = sum(1 for k in persons if k in match_o and k not in match_s)
+    fp_s = Counter(int(e.FrameId) for _, e in ev_s[ev_s.Type == "FP"].iterrows())
+    fp_o_frames: dict[int, list[str]] = {}
+    for (kind, f, _h), cause in causes.items():
+        if kind == "FP":
+            fp_o_frames.setdefault(f, []).append(cause)
+    beyond, fewer = Counter(), 0
+    for f in set(fp_o_frames) | set(fp_s):
+        mine = fp_o_frames.get(f, [])
+        extra = len(mine) - fp_s.get(f, 0)
+        if extra > 0:
+            for cause in mine:
+                beyond[cause] += extra / len(mine)
+        else:
+            fewer -= extra
+    lines = ["Against SORT, person by person (IoU >= 0.5 matches of each tracker): "
+             f"matched by SORT only {sum(only_sort.values())}, by ours only {only_ours}; "
+             f"false positives of ours beyond SORT's in the same frame "
+             f"{sum(beyond.values()):.0f}, fewer than SORT's {fewer}.", "",
+             "| against SORT | our cause | count | MOTA points |", "|---|---|---|---|"]
+    for cause, n in only_sort.most_common():
+        lines.append(f"| FN, SORT matched | {cause} | {n} | {n / n_gt:.3f} |")
+    for cause, n in beyond.most_common():
+        lines.append(f"| FP beyond SORT's | {cause} | {n:.0f} | {n / n_gt:.3f} |")
     return lines + [""]
 
 
@@ -331,6 +384,11 @@ def main(argv=None) -> int:
     parser.add_argument("--set-detector", nargs="*", default=[], metavar="NAME=VALUE",
                         help="detector overrides for groups-* scenes, e.g. "
                              "split_by_person_size=true")
+    parser.add_argument("--background-benchmark", action="store_true",
+                        help="the five sequences of bench_background_detector.py (TUD clips, "
+                             "generated crowd-3 and static-camera 7 / 25 fps scenes) with the "
+                             "background detector's boxes (shipped defaults), as "
+                             "background_tracker_profile.py runs them; --sequences ignored")
     args = parser.parse_args(argv)
     motion = bmo.REAL_MOTION if args.real_motion else None
     box_error = bmo.REAL_DETECTION_NOISE if args.real_detection_noise else None
@@ -339,6 +397,16 @@ def main(argv=None) -> int:
     print(f"# Our errors by cause, next to the peers'\n\ndetections: {args.detections}; "
           f"setting: defaults"
           f"{' + ' + str(changes) if changes else ''}\n")
+    if args.background_benchmark:
+        import tempfile
+
+        import bench_background_detector as bbd
+        from background_tracker_profile import chain_frames
+        with tempfile.TemporaryDirectory() as tmp:
+            for name, bag, images, _truth, fps, _public in bbd.load_sequences(Path(tmp)):
+                chain, _ref = chain_frames(name, bag, images, fps, Path(tmp))
+                print("\n".join(report(name, chain, config, fps)), flush=True)
+        return 0
     for name in args.sequences:
         if name.startswith("groups-"):
             from mk_tracker.tools.pipeline_config import load_pipeline_config

@@ -444,3 +444,42 @@ def test_gate_that_never_fires_changes_nothing():
         runs.append([[(o.id, tuple(np.round(o.box, 9))) for o in r.tracks] for r in res])
     assert runs[0] == runs[1] == runs[2]
     assert len(runs[0][-1]) == 2
+
+
+def _stale_size_run(changes: dict, last_box) -> tuple:
+    """A track learns a 260-px-tall box (as from a detection around two people), then its
+    person is detected alone, 170 px tall, top-aligned: the centre moves 45 px, outside a
+    narrow centre gate, while the boxes overlap by IoU 0.65."""
+    cfg = updated(MultiObjectTrackerConfig(), {
+        "use_multi_kernel": False, "recovery.enabled": False, "association.gate": 1.0,
+        **changes})
+    trk = MultiObjectTracker(cfg)
+    img = np.random.default_rng(0).integers(0, 255, (480, 640, 3), dtype=np.uint8)
+    for k in range(10):
+        trk.step(img, k * 0.04, [FrameDetection((300, 100, 60, 260), 0.9, k * 0.04)])
+    res = trk.step(img, 0.4, [FrameDetection(last_box, 0.9, 0.4)])
+    return res.tracks, trk.totals["overlap_matches"]
+
+
+def test_overlap_round_gives_a_stale_sized_track_its_persons_detection():
+    tracks, n = _stale_size_run({}, (300, 100, 60, 170))                 # off (default)
+    assert n == 0 and [t.id for t in tracks] == [1] and tracks[0].time_since_detection > 0
+    tracks, n = _stale_size_run({"association.fallback_iou": 0.3}, (300, 100, 60, 170))
+    assert n == 1 and [t.id for t in tracks] == [1]
+    assert tracks[0].time_since_detection == 0.0 and tracks[0].box[3] < 260
+
+
+def test_overlap_round_coverage_refuses_a_detection_reaching_beyond_the_track():
+    changes = {"association.fallback_iou": 0.3, "association.fallback_coverage": 0.8}
+    tracks, n = _stale_size_run(changes, (290, 100, 80, 300))   # 0.65 of it inside
+    assert n == 0 and tracks[0].id == 1 and tracks[0].time_since_detection > 0
+    tracks, n = _stale_size_run(changes, (300, 100, 60, 170))   # all of it inside
+    assert n == 1 and tracks[0].time_since_detection == 0.0
+
+
+def test_overlap_round_growth_limit_refuses_a_taller_detection():
+    changes = {"association.fallback_iou": 0.3, "association.fallback_max_growth": 1.0}
+    tracks, n = _stale_size_run(changes, (290, 100, 80, 300))   # taller than the track
+    assert n == 0 and tracks[0].id == 1 and tracks[0].time_since_detection > 0
+    tracks, n = _stale_size_run(changes, (300, 100, 60, 170))   # shorter: the stale case
+    assert n == 1 and tracks[0].time_since_detection == 0.0
