@@ -72,7 +72,6 @@ class FrameResult:
     max_reported_coast_time: float = float("inf")
     max_reported_coast_std: float = 0.0
     min_reported_coast_match_iou: float = 0.0
-    max_reported_refined_time: float = 0.0
     #: live tracks stacked on another one of the same person, not reported
     suppressed_ids: set[int] = field(default_factory=set)
 
@@ -83,22 +82,11 @@ class FrameResult:
         (:func:`coast_position_std`; 0 = no such bound) and while their prediction met
         their last detection at an IoU of at least ``min_reported_coast_match_iou``
         (``TrackOutput.last_match_iou``; 0 = no such bound); always for tracks started
-        by hand, which have no detector; never those in ``suppressed_ids``.  A confirmed
-        track seen by its refinement alone is reported for at most
-        ``max_reported_refined_time`` seconds since its last detection unless it stands
-        still (0 = no such bound)."""
+        by hand, which have no detector; never those in ``suppressed_ids``."""
         return [t for t in self.tracks if t.id not in self.suppressed_ids and (
-                (t.state == TrackState.CONFIRMED.value
-                 and (t.manual or self._report_refined(t)))
+                t.state == TrackState.CONFIRMED.value
                 or (t.state == TrackState.OCCLUDED.value
                     and (t.manual or self._report_coasting(t))))]
-
-    def _report_refined(self, t: TrackOutput) -> bool:
-        """The bound ``max_reported_refined_time`` of :meth:`reported` on a confirmed track
-        not started by hand: detected this frame, or detected at most that long ago, or
-        standing still (``TrackOutput.still``), or no bound (0)."""
-        return self.max_reported_refined_time <= 0.0 or t.still or \
-            t.time_since_detection <= self.max_reported_refined_time
 
     def _report_coasting(self, t: TrackOutput) -> bool:
         """The bounds of :meth:`reported` on a coasting track not started by hand."""

@@ -261,8 +261,7 @@ class MultiObjectTracker:
                              max_reported_coast_time=self.config.max_reported_coast_time,
                              max_reported_coast_std=self.config.max_reported_coast_std,
                              min_reported_coast_match_iou=(
-                                 self.config.min_reported_coast_match_iou),
-                             max_reported_refined_time=self.config.max_reported_refined_time)
+                                 self.config.min_reported_coast_match_iou))
         self.totals["frames"] += 1
         size = tuple(image_bgr.shape[:2])
         if self.last_stamp is not None and \

@@ -203,8 +203,6 @@ class TrackOutput:
     velocity_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     position_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     last_match_iou: float = 1.0
-    #: moving slower than ``lifecycle.still_speed`` (:meth:`Track.is_still`)
-    still: bool = False
 
 
 class Track:
@@ -380,5 +378,4 @@ class Track:
                                                 float(p[3, 2]), float(p[3, 3])),
                            position_covariance=(float(p[0, 0]), float(p[0, 1]),
                                                 float(p[1, 0]), float(p[1, 1])),
-                           last_match_iou=float(self.last_match_iou),
-                           still=self.is_still())
+                           last_match_iou=float(self.last_match_iou))

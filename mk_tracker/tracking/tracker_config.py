@@ -149,15 +149,5 @@ class MultiObjectTrackerConfig:
         "innovation at its last update, in the IoU the scoring uses): a filter that already "
         "missed the one-frame-ahead observation (a box around two people, a person turning) "
         "extrapolates a box off the person; 0 = no such bound", minimum=0.0, maximum=1.0)
-    max_reported_refined_time: float = parameter(
-        0.0, "FrameResult.reported() includes a confirmed track that no detection confirmed "
-        "this frame (seen by its multiple-kernel refinement alone, Chu et al. 2013 Sec. IV-D) "
-        "for at most this many seconds after its last detection, unless it stands still "
-        "(lifecycle.still_speed: the kernel covariance detector does not see a still person); "
-        "it stays tracked (and in tracks) until lifecycle.max_undetected_time.  In generated "
-        "thermal -> RGB crowds with the detector's size split, such boxes more than 4 frames "
-        "after a detection were off the person 3 times in 4 (docs/benchmark_groups.md, "
-        "'Where the tracker loses with the size split'); 0 = no bound", minimum=0.0,
-        maximum=1e4)
     max_tracks: int = parameter(500, "Upper bound on live tracks; extra detections are "
                                 "not started", minimum=1, maximum=100000)
