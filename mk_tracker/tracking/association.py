@@ -28,16 +28,6 @@ sit off the person").  Matching such a detection but not correcting the centre w
 screened too and lost to forbidding the pair on TUD-Campus, TUD-Stadtmitte and crowd-15
 (commit d052bb1 has it; docs/benchmark_multi_object.md).
 
-With ``fallback_iou`` a second round (:func:`iou_fallback`, step 4b'' of the tracker) gives
-the confirmed or occluded tracks that the gated round left without a detection the remaining
-detections by overlap alone, as SORT associates (Bewley et al. 2016: Hungarian on ``1 -
-IoU`` of the predicted and detected boxes, pairs below an IoU threshold refused).  The
-case it is for: a track whose smoothed size was learnt on a box around two people keeps
-that size when its person is detected alone again; the detection's centre then lies half a
-height-difference from the predicted centre, outside the centre gate, while the boxes still
-overlap (TUD-Campus on the background detector's boxes, docs/benchmark_background_detector.md,
-"Where our tracker loses to SORT").
-
 Everything here is pure numpy on arrays, so the work per frame is one vectorised cost matrix
 of size tracks x detections.
 """
@@ -82,24 +72,6 @@ class AssociationConfig:
         "smoothed height by more than this factor (either way) is not assigned to it "
         "(Wojke et al. 2017 gate on the height too); 0 = off, else at least 1",
         minimum=0.0, maximum=100.0)
-
-    fallback_iou: float = parameter(
-        0.0, "Second round for the confirmed or occluded tracks the gated round left without "
-        "a detection: a remaining detection whose box overlaps the track's predicted box by "
-        "at least this IoU is assigned to it (SORT's association, Bewley et al. 2016; for a "
-        "track whose size went stale, so its centre gate misses the detection); 0 = off",
-        minimum=0.0, maximum=1.0)
-    fallback_coverage: float = parameter(
-        0.0, "In that second round a pair also needs at least this fraction of the "
-        "detection's area inside the track's predicted box (a person-sized detection inside "
-        "a track box that went stale, not a box around two people that reaches beyond it); "
-        "0 = IoU alone", minimum=0.0, maximum=1.0)
-    fallback_max_growth: float = parameter(
-        0.0, "In that second round a pair also needs the detection's height at most this "
-        "factor of the track's predicted height (a stale size learnt on a box around two "
-        "people is too large, so the person's own detection is smaller; a taller detection "
-        "is a merge with a neighbour or a shadow, which the gated round refused); 0 = no "
-        "limit", minimum=0.0, maximum=100.0)
 
     def __post_init__(self) -> None:
         # The declared range [0, 100] is what a ROS range can say; a factor in (0, 1) would
@@ -211,32 +183,6 @@ def association_cost(track_boxes: np.ndarray, detection_boxes: np.ndarray,
         forbidden |= height_ratio_exceeded(t[:, 3], heights, config.max_height_ratio)
     cost[forbidden] = np.inf
     return cost
-
-
-def iou_fallback(track_boxes: np.ndarray, detection_boxes: np.ndarray,
-                 min_iou: float, min_coverage: float = 0.0,
-                 max_growth: float = 0.0) -> list[tuple[int, int]]:
-    """Second association round by overlap alone (SORT, Bewley et al. 2016, Sec. 3.3):
-    the one-to-one ``(track row, detection row)`` pairs maximising the total IoU of
-    ``track_boxes (T, 4)`` with ``detection_boxes (D, 4)``, each pair with IoU at least
-    ``min_iou`` (> 0; no pair when it is 0), at least ``min_coverage`` of the
-    detection's area inside the track's box and, when ``max_growth`` > 0, the detection's
-    height at most ``max_growth`` times the track's."""
-    t = np.asarray(track_boxes, dtype=np.float64).reshape(-1, 4)
-    d = np.asarray(detection_boxes, dtype=np.float64).reshape(-1, 4)
-    if min_iou <= 0 or not len(t) or not len(d):
-        return []
-    ious = iou_matrix(t, d)
-    ix = np.clip(np.minimum(t[:, None, 0] + t[:, None, 2], d[None, :, 0] + d[None, :, 2])
-                 - np.maximum(t[:, None, 0], d[None, :, 0]), 0.0, None)
-    iy = np.clip(np.minimum(t[:, None, 1] + t[:, None, 3], d[None, :, 1] + d[None, :, 3])
-                 - np.maximum(t[:, None, 1], d[None, :, 1]), 0.0, None)
-    area = np.maximum(d[:, 2] * d[:, 3], 1e-9)[None, :]
-    ok = (ious >= min_iou) & (ix * iy / area >= min_coverage)
-    if max_growth > 0:
-        ok &= d[None, :, 3] <= max_growth * t[:, None, 3]
-    cost = np.where(ok, 1.0 - ious, np.inf)
-    return assign(cost, 1.0 - min_iou).matches
 
 
 def assign(cost: np.ndarray, max_cost: float) -> Assignment:

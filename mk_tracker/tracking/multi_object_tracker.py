@@ -22,10 +22,7 @@ This is the core of ``tracker_node`` (a pure library: no rclpy).  One call of
    tentative/confirmed/occluded tracks on overlap + Kalman-gated distance (and, with
    ``association.max_height_ratio``, a gate on the height ratio); 4b' a second
    round from the last detected boxes of the tracks left without one, checked by
-   appearance (:mod:`mk_tracker.tracking.recovery`: drifted estimates); with
-   ``association.fallback_iou`` (off by default) 4b'' a third round by overlap alone, as
-   SORT associates, for tracks whose stale size put their person's detection outside the
-   centre gate (:func:`~mk_tracker.tracking.association.iou_fallback`); then the
+   appearance (:mod:`mk_tracker.tracking.recovery`: drifted estimates); then the
    remaining detections (and those of still-tentative tracks) against *lost* tracks, gated
    by the Kalman prediction or by the track's last detection (whose spread grows with the
    time since it, :mod:`mk_tracker.tracking.reacquisition`), where the appearance model
@@ -68,8 +65,7 @@ from typing import Any, Iterable, Protocol, Sequence
 
 import numpy as np
 
-from mk_tracker.tracking.association import (assign, association_cost, iou_fallback,
-                                             mahalanobis_matrix)
+from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.tracking.body_parts import is_other_part
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
@@ -185,8 +181,7 @@ class MultiObjectTracker:
             if self.config.camera_motion.enabled else None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
                        "resets": 0, "size_resets": 0, "group_measurements": 0,
-                       "merged_duplicates": 0, "camera_motion_fallbacks": 0,
-                       "overlap_matches": 0}
+                       "merged_duplicates": 0, "camera_motion_fallbacks": 0}
 
     # -- public API -----------------------------------------------------------------------
     def reset(self) -> None:
@@ -315,10 +310,6 @@ class MultiObjectTracker:
                                  self.config.recovery, result.events, lambda t, box:
                                  reference_similarity(t, box, image_bgr,
                                                       self._refiner_for(t))[0])
-        # 4b''. the confirmed / occluded tracks still without a detection vs the detections
-        # still unassigned, by overlap alone (association.fallback_iou; SORT's round)
-        if self.config.association.fallback_iou > 0:
-            self._overlap_round(free, single, dets, matched_track)
         # 4c. remaining detections vs lost tracks (re-acquisition)
         # A person reappearing part-occluded may first be seen by a new tentative track (its
         # appearance does not match yet); its detections stay candidates until it is
@@ -622,25 +613,6 @@ class MultiObjectTracker:
         track_boxes = np.array([t.box for t in tracks])
         cost = association_cost(track_boxes, boxes, maha, self.config.association)
         return assign(cost, self.config.association.max_cost)
-
-    def _overlap_round(self, free: list[Track], single: list[int],
-                       dets: list[PreparedDetection], matched: dict[int, int]) -> None:
-        """Step 4b'': :func:`~mk_tracker.tracking.association.iou_fallback` between the
-        confirmed or occluded tracks of step 4b that neither 4b nor the recovery gave a
-        detection and the detections of step 4b given to no track; ``matched`` (detection
-        index -> track id) is updated."""
-        taken = set(matched.values())
-        tracks = [t for t in free if t.id not in taken
-                  and t.state in (TrackState.CONFIRMED, TrackState.OCCLUDED)]
-        left = [k for k in single if k not in matched]
-        pairs = iou_fallback(np.array([t.box for t in tracks]).reshape(-1, 4),
-                             np.array([dets[k].box for k in left]).reshape(-1, 4),
-                             self.config.association.fallback_iou,
-                             self.config.association.fallback_coverage,
-                             self.config.association.fallback_max_growth)
-        for r, k in pairs:
-            matched[left[k]] = tracks[r].id
-        self.totals["overlap_matches"] += len(pairs)
 
     def _reacquire(self, lost: list[Track], dets: list[PreparedDetection], image: np.ndarray
                    ) -> tuple[list[tuple[int, int]], set[int]]:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mk_tracker.tracking.association import (AssociationConfig, AssociationError, assign,
-                                    association_cost, iou_fallback, mahalanobis_matrix)
+                                    association_cost, mahalanobis_matrix)
 
 
 def test_mahalanobis_matches_hand_computation():
@@ -292,27 +292,3 @@ def test_height_ratio_gate_forbids_the_pair_and_leaves_others_alone():
     # per-track (time-compensated) boxes are gated by their own heights
     on3 = association_cost(t, np.stack([d, d]), maha, AssociationConfig(max_height_ratio=1.4))
     assert np.array_equal(np.isinf(on3), np.isinf(on))
-
-
-def test_iou_fallback_pairs_by_overlap_and_refuses_weak_or_outside_pairs():
-    tracks = np.array([[0, 0, 60, 260], [200, 0, 60, 170]], float)
-    dets = np.array([[0, 0, 60, 170],        # inside track 0 (IoU 0.65, all of it inside)
-                     [190, 0, 80, 300],      # around track 1, reaching beyond it
-                     [500, 0, 60, 170]], float)  # far from both
-    assert iou_fallback(tracks, dets, 0.0) == []                       # off
-    assert sorted(iou_fallback(tracks, dets, 0.3)) == [(0, 0), (1, 1)]
-    # detection 1 has only 170 * 60 / (300 * 80) = 0.43 of its area inside track 1
-    assert iou_fallback(tracks, dets, 0.3, min_coverage=0.8) == [(0, 0)]
-    assert iou_fallback(tracks, dets, 0.7) == []                      # IoU 0.65 < 0.7
-    assert iou_fallback(np.zeros((0, 4)), dets, 0.3) == []
-    # detection 1 is 300 / 170 = 1.76 times as tall as track 1: refused at a growth of 1.2
-    assert iou_fallback(tracks, dets, 0.3, max_growth=1.2) == [(0, 0)]
-    assert sorted(iou_fallback(tracks, dets, 0.3, max_growth=1.8)) == [(0, 0), (1, 1)]
-
-
-def test_iou_fallback_is_one_to_one_maximising_total_overlap():
-    tracks = np.array([[0, 0, 100, 100], [40, 0, 100, 100]], float)
-    dets = np.array([[20, 0, 100, 100], [60, 0, 100, 100]], float)
-    # track 1 overlaps both detections by IoU 0.67; giving it detection 0 would leave
-    # track 0 only detection 1 at IoU 0.25 (< 0.3): one pair instead of two
-    assert sorted(iou_fallback(tracks, dets, 0.3)) == [(0, 0), (1, 1)]
