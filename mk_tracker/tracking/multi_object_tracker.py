@@ -96,7 +96,7 @@ from mk_tracker.tracking.scale_estimation import fit_height
 from mk_tracker.parameters import ParameterError, validate_config
 from mk_tracker.stamps import checked_stamp
 from mk_tracker.tracking.track import (OUTPUT_STATES, LifecycleConfig, Track, TrackOutput, TrackState,
-                              birth_kalman, next_state)
+                              next_state)
 
 
 class Refiner(Protocol):
@@ -570,11 +570,10 @@ class MultiObjectTracker:
     def _new_track(self, box: np.ndarray, stamp: float, score: float, state: TrackState,
                    kalman: KalmanConfig | None = None,
                    lifecycle: LifecycleConfig | None = None) -> Track:
-        lifecycle = self.config.lifecycle if lifecycle is None else lifecycle
-        if kalman is None:          # born on a detection (a hand-started track brings its own)
-            kalman = birth_kalman(self.config.kalman, lifecycle, float(box[3]))
-        t = Track(self._next_id, box, stamp, score=_quality(score), kalman=kalman,
-                  config=lifecycle, state=state)
+        t = Track(self._next_id, box, stamp, score=_quality(score),
+                  kalman=self.config.kalman if kalman is None else kalman,
+                  config=self.config.lifecycle if lifecycle is None else lifecycle,
+                  state=state)
         self._next_id += 1
         self.tracks.append(t)
         return t

@@ -36,7 +36,7 @@ from __future__ import annotations
 import copy
 import enum
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -69,12 +69,6 @@ class LifecycleConfig:
     max_tentative_misses: int = parameter(
         0, "Consecutive frames without a detection after which a tentative track is deleted",
         minimum=0, maximum=1000)
-    birth_velocity_heights: float = parameter(
-        0.0, "Initial velocity std of a track born on a detection, in box heights per second: "
-        "> 0 replaces kalman.initial_velocity_var by (this x box height)^2, so the prior on an "
-        "unknown walker's speed (about 0.75 body heights per second) scales with the "
-        "person's image size, far or near; 0 = kalman.initial_velocity_var in px. Tracks "
-        "started by hand keep manual_track.initial_velocity_var", minimum=0.0, maximum=100.0)
     occlusion_similarity: float = parameter(
         0.6, "Multiple-kernel similarity below which an undetected track is occluded "
         "(coasting on the Kalman prediction)", minimum=0.0, maximum=1.0)
@@ -209,18 +203,6 @@ class TrackOutput:
     velocity_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     position_covariance: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     last_match_iou: float = 1.0
-
-
-def birth_kalman(kalman: KalmanConfig, config: LifecycleConfig, height: float) -> KalmanConfig:
-    """The Kalman settings of a track born on a detection box ``height`` px tall:
-    ``kalman`` with its initial velocity variance (2.1) set to
-    ``(birth_velocity_heights * height)^2`` when that parameter is on (and the height is a
-    positive number), else ``kalman`` itself."""
-    h = float(height)
-    if config.birth_velocity_heights <= 0.0 or not (math.isfinite(h) and h > 0.0):
-        return kalman
-    var = min(max((config.birth_velocity_heights * h) ** 2, 1e-9), 1e12)
-    return replace(kalman, initial_velocity_var=var)
 
 
 class Track:

@@ -212,39 +212,3 @@ def test_tracker_reupdates_after_a_gap_only_when_enabled():
     # correction of the standing prediction gives another value.
     assert 18.0 < velocities[1] < 22.0
     assert abs(velocities[1] - velocities[0]) > 0.5
-
-
-def test_birth_kalman_scales_the_velocity_prior_with_the_box_height():
-    from mk_tracker.tracking.track import birth_kalman
-    kalman = KalmanConfig()
-    assert birth_kalman(kalman, LifecycleConfig(), 200.0) is kalman          # off
-    on = LifecycleConfig(birth_velocity_heights=0.5)
-    assert birth_kalman(kalman, on, 200.0).initial_velocity_var == pytest.approx(100.0 ** 2)
-    assert birth_kalman(kalman, on, 40.0).initial_velocity_var == pytest.approx(20.0 ** 2)
-    assert birth_kalman(kalman, on, 200.0).sigma_u == kalman.sigma_u        # nothing else
-    for bad in (0.0, -3.0, float("nan")):                                   # no usable size
-        assert birth_kalman(kalman, on, bad) is kalman
-
-
-def test_a_fast_walker_at_a_low_frame_rate_keeps_one_track_with_the_size_scaled_prior():
-    import dataclasses
-
-    from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjectTracker,
-                                                          MultiObjectTrackerConfig)
-    img = np.zeros((480, 640, 3), np.uint8)
-    ids = {}
-    for heights in (0.0, 1.0):
-        cfg = MultiObjectTrackerConfig(use_multi_kernel=False)
-        cfg = dataclasses.replace(cfg, lifecycle=dataclasses.replace(
-            cfg.lifecycle, birth_velocity_heights=heights))
-        trk = MultiObjectTracker(cfg)
-        seen = set()
-        for i in range(4):      # 80x200 px, 45 px per frame at 6.25 fps: 1.4 heights/s
-            res = trk.step(img, i / 6.25, [FrameDetection((50.0 + 45.0 * i, 100.0, 80.0,
-                                                           200.0), 0.9)])
-            seen |= {t.id for t in res.tracks}
-        ids[heights] = seen
-    # a 50 px/s prior puts the second box outside the centre gate: a new track each frame;
-    # one body height per second takes it
-    assert len(ids[0.0]) > 1
-    assert len(ids[1.0]) == 1
