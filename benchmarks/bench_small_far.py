@@ -34,6 +34,12 @@ def small_far_frames(seed: int, people: int, frames: int, heights: tuple, args):
     scale = (heights[0] + heights[1]) / 2.0 / 77.5 if args.scale_speed else 1.0
     scene = far_view_scene(n_people=people, seed=seed, frames=frames, heights=heights,
                            motion=bmo.REAL_MOTION, speed_scale=scale)
+    if getattr(args, "alike", False):   # everyone in the same grey clothes: no appearance cue
+        import dataclasses
+        from mk_tracker.synthetic.presets import make_scene
+        people = tuple(dataclasses.replace(q, upper_color=(80, 80, 80), lower_color=(55, 55, 65))
+                       for q in scene.config.people)
+        scene = make_scene(dataclasses.replace(scene.config, people=people))
     return bmo.scene_frames(scene, seed, args.min_visible, args.miss, args.false_positives,
                             args.noise, bmo.GT_MIN_VISIBLE, bmo.REAL_DETECTION_NOISE)
 
@@ -52,6 +58,8 @@ def main(argv=None) -> int:
                    help="extra settings for a third 'ours, --set' run")
     p.add_argument("--no-scale-speed", dest="scale_speed", action="store_false",
                    help="keep far_view_scene's px/s speeds (too fast for small people)")
+    p.add_argument("--alike", action="store_true",
+                   help="every person in the same grey clothes (no appearance cue)")
     p.add_argument("--no-peers", action="store_true")
     p.add_argument("--results", type=Path, default=Path("/tmp/mk_tracker_small_far"))
     args = p.parse_args(argv)
