@@ -426,6 +426,13 @@ def main(argv=None) -> int:
         elif name.startswith("crowd-"):
             frames, fps = bmo.crowd_frames(int(name.split("-")[1]), 1, 300, 0.5, 0.1, 0.3,
                                            2.0, motion=motion, box_error=box_error)
+        elif name.startswith("small-far-"):   # issue #16 proxy: small-far-SEED-PEOPLE[-alike]
+            import bench_small_far
+            seed, _, people = name[len("small-far-"):].removesuffix("-alike").partition("-")
+            frames, fps = bench_small_far.small_far_frames(
+                int(seed), int(people or 22), 795, (40.0, 60.0), argparse.Namespace(
+                    min_visible=0.5, miss=0.1, false_positives=0.3, noise=2.0,
+                    scale_speed=True, alike=name.endswith("-alike")))
         else:
             frames, fps = bmo.far_frames(1, 0.5, 0.1, 0.3, 2.0, motion=motion,
                                          box_error=box_error)

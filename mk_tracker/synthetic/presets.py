@@ -275,7 +275,8 @@ def enter_leave_scene(seed: int = 0, frames: int = 150) -> SyntheticScene:
 def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
                    fps: float = 7.0, stop_fraction: float = 0.0, shadows: float = 0.0,
                    illumination_drift: float = 0.0, heights: tuple = (50.0, 105.0),
-                   perspective: float = 0.0, motion: dict | None = None) -> SyntheticScene:
+                   perspective: float = 0.0, motion: dict | None = None,
+                   speed_scale: float = 1.0) -> SyntheticScene:
     """A far view at a low frame rate: small people crossing from edge to edge (640x480).
 
     The condition of issue #16's unseen outdoor clips: ``fps`` 7, people 50-105 px tall
@@ -292,8 +293,15 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
     proportional to the row of the feet).  At their defaults the scene is the same as
     before they existed: the stops draw from a random stream of their own.  ``motion``:
     the people's motion variation, as in :func:`crowd_scene` (default ``None``, straight).
+    ``speed_scale`` multiplies every walking speed (default 1: the scene as before): with
+    smaller ``heights`` it keeps the speed in body heights per second that of the default
+    people (e.g. 50 / 77.5 for 40-60 px people), since a person's image speed scales with
+    the image size at a fixed distance-to-ground-speed ratio.
     """
     _check_preset_args(seed, frames)
+    if not (isinstance(speed_scale, (int, float)) and math.isfinite(speed_scale)
+            and speed_scale > 0):
+        raise SceneError(f"speed_scale must be a positive number, got {speed_scale!r}")
     if isinstance(n_people, bool) or not isinstance(n_people, (int, np.integer)) \
             or n_people < 0:
         raise SceneError(f"n_people must be a non-negative integer, got {n_people!r}")
@@ -309,7 +317,7 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
     people = []
     while len(people) < int(n_people):
         h = float(rng.uniform(*heights))
-        speed = float(rng.uniform(6.0, 16.0)) * 7.0 / fps    # 42-112 px/s at any fps
+        speed = float(rng.uniform(6.0, 16.0)) * 7.0 / fps * speed_scale  # 42-112 px/s
         y_start = float(rng.uniform(0.3, 0.97)) * height
         y_end = min(max(y_start + float(rng.uniform(-0.15, 0.15)) * height, 0.3 * height),
                     0.97 * height)

@@ -592,3 +592,19 @@ def test_crowd_stops_cut_the_same_walks_and_people_then_stand_still():
         assert np.allclose(feet[-60:, k], stop.waypoints[-1])
     with pytest.raises(SceneError):
         crowd_scene(stop_fraction=-0.1)
+
+
+def test_far_view_scene_speed_scale_scales_only_the_walking_speeds():
+    """speed_scale (the issue #16 unseen-B proxy: small people walking as many body heights
+    per second as the default ones) multiplies every speed and leaves the rest alone."""
+    from mk_tracker.synthetic.presets import far_view_scene
+    base = far_view_scene(seed=4, frames=30, heights=(40.0, 60.0)).config.people
+    slow = far_view_scene(seed=4, frames=30, heights=(40.0, 60.0),
+                          speed_scale=0.5).config.people
+    assert len(base) == len(slow) and len(base) > 0
+    for a, b in zip(base, slow):
+        assert b.speed == pytest.approx(0.5 * a.speed, abs=1e-3)
+        assert (b.height, b.waypoints, b.start_frame) == (a.height, a.waypoints, a.start_frame)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(SceneError):
+            far_view_scene(seed=0, frames=2, speed_scale=bad)
