@@ -34,7 +34,7 @@ import numpy as np
 
 from mk_tracker.tracking.association import assign
 
-__all__ = ["last_detection_distance2", "nearer_of_both", "reacquire_check",
+__all__ = ["distinct_best", "last_detection_distance2", "nearer_of_both", "reacquire_check",
            "reacquisition_matches", "reference_similarity"]
 
 
@@ -116,6 +116,28 @@ def reference_similarity(track: Any, box: Sequence[float], image: np.ndarray,
     return max(sims), int(np.argmax(sims))
 
 
+def distinct_best(sims: np.ndarray, margin: float) -> np.ndarray:
+    """Per pair ``(T, D)``: does ``sims[i, j]`` beat every other finite entry of its row
+    (track ``i``'s similarity at the other detections it could take) and of its column (the
+    other tracks' similarities at detection ``j``) by at least ``margin``?  NaN entries (not
+    a candidate: outside the gate or of another size) never compete and are never distinct.
+
+    This is the ratio test of feature matching (Lowe, IJCV 2004, Sec. 7.1: a match is
+    kept only when the nearest neighbour is clearly nearer than the second nearest) as a
+    difference of similarities, applied both ways: an appearance that several candidates
+    share identifies none of them, so among look-alike people a lost id is not given back
+    by appearance (issue #16's unseen B, ``benchmarks/bench_small_far.py --alike``)."""
+    s = np.asarray(sims, dtype=np.float64)
+    out = np.zeros(s.shape, dtype=bool)
+    filled = np.where(np.isfinite(s), s, -np.inf)
+    for i, j in zip(*np.nonzero(np.isfinite(s))):
+        row = np.delete(filled[i], j)
+        col = np.delete(filled[:, j], i)
+        rival = max(row.max(initial=-np.inf), col.max(initial=-np.inf))
+        out[i, j] = s[i, j] - rival >= margin
+    return out
+
+
 def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.ndarray,
                           gated: np.ndarray, image: np.ndarray, config: Any,
                           check: Callable[..., tuple[str | None, float, int | None]]
@@ -127,11 +149,14 @@ def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.nda
     of both, :func:`nearer_of_both`); ``check(track, det, d2, image)`` is
     :func:`reacquire_check` for one pair.  The cost of a pair that passes is
     ``(1 - similarity) + reacquire_distance_weight * d2 / reacquire_gate``, assigned
-    one-to-one.  A matched track restarts its working target from the frozen reference that
+    one-to-one; with ``reacquire_margin`` >= 0 only pairs that are a distinct best match
+    both ways (:func:`distinct_best`, over the pairs inside the gate at a plausible size)
+    may be assigned.  A matched track restarts its working target from the frozen reference that
     matched: its models were blended while the person disappeared.  A detection counts as
     contested when it is inside a track's *Kalman* gate at a plausible size (whatever its
     appearance)."""
     cost = np.full(np.shape(maha), np.inf)
+    sims = np.full(np.shape(maha), np.nan)
     contested: set[int] = set()
     best_reference: dict[tuple[int, int], int] = {}
     for i, t in enumerate(lost):
@@ -139,12 +164,17 @@ def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.nda
             refused, sim, k = check(t, d, float(gated[i, j]), image)
             if refused in (None, "appearance") and maha[i, j] <= config.reacquire_gate:
                 contested.add(j)
+            if refused in (None, "appearance"):
+                sims[i, j] = sim
             if refused is not None:
                 continue
             if k is not None:
                 best_reference[(i, j)] = k
             cost[i, j] = (1.0 - sim) + config.reacquire_distance_weight * \
                 gated[i, j] / config.reacquire_gate
+    margin = getattr(config, "reacquire_margin", -1.0)
+    if margin >= 0.0:
+        cost[~distinct_best(sims, margin)] = np.inf
     matches = assign(cost, math.inf).matches
     for i, j in matches:
         k = best_reference.get((i, j))

@@ -87,6 +87,12 @@ class MultiObjectTrackerConfig:
     reacquire_similarity: float = parameter(
         0.4, "Appearance similarity a detection needs to re-acquire a lost track",
         minimum=0.0, maximum=1.0)
+    reacquire_margin: float = parameter(
+        -1.0, "A lost track re-acquires a detection only if its appearance similarity there "
+        "beats, by at least this much, its similarity at every other detection it could "
+        "take and every other lost track's similarity at that detection (a distinct best "
+        "match both ways, tracking/reacquisition.py); where people look alike the id is "
+        "not given back.  Negative = off", minimum=-1.0, maximum=1.0)
     reacquire_distance_weight: float = parameter(
         0.5, "Weight of the gated distance (d2 / gate) next to 1 - appearance similarity in "
         "the re-acquisition cost", minimum=0.0, maximum=100.0)

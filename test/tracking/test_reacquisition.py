@@ -158,3 +158,36 @@ def test_a_track_keeps_its_last_detection_box_itself_not_the_filtered_one():
     assert t.size[0] != 35.0                         # the smoothed size lags behind
     trk.step(IMG, 6 * DT, [])                        # a missed frame leaves it as it was
     assert tuple(t.detected_box) == (120.0, 100.0, 35.0, 60.0)
+
+
+def test_distinct_best_is_a_ratio_test_both_ways():
+    from mk_tracker.tracking.reacquisition import distinct_best
+    nan = float("nan")
+    sims = np.array([[0.9, 0.5, nan],
+                     [0.85, nan, 0.3]])
+    # (0, 0): beats its row (0.5) by 0.4 but its column (0.85) by 0.05 only
+    assert distinct_best(sims, 0.0).tolist() == [[True, False, False],
+                                                 [False, False, False]]
+    assert not distinct_best(sims, 0.1)[0, 0]
+    # (1, 2) has no rival in its column, but its row's 0.85 beats it; a lone candidate has
+    # no rival at all: distinct at any margin
+    assert distinct_best(np.array([[0.45]]), 0.5).tolist() == [[True]]
+    assert distinct_best(np.array([[nan]]), 0.0).tolist() == [[False]]
+
+
+def test_reacquire_margin_gives_no_id_back_between_indistinguishable_candidates():
+    """Without a refiner every similarity is 1: two detections in the lost track's gate
+    cannot be told apart, so with a positive margin neither takes the id back; one alone
+    still does."""
+    back, beside = (154.0, 100.0, 30.0, 60.0), (190.0, 100.0, 30.0, 60.0)
+    for margin, extra, keeps in ((-1.0, [beside], True), (0.05, [beside], False),
+                                 (0.05, [], True)):
+        trk = MultiObjectTracker(config(reacquire_margin=margin, **LAST_DETECTION_GATE))
+        for i in range(15):
+            trk.step(IMG, i * DT, [FrameDetection((100 + 4.0 * i, 100, 30, 60), 0.9)])
+        (tid,) = [t.id for t in trk.tracks]
+        for i in range(15, 40):
+            trk.step(IMG, i * DT, [])
+        r = trk.step(IMG, 40 * DT, [FrameDetection(b, 0.9) for b in [back] + extra])
+        took = any("re-acquired" in e for e in r.events)
+        assert took is keeps, (margin, extra)
