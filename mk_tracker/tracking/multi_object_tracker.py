@@ -92,7 +92,6 @@ from mk_tracker.tracking.manual_track import (columns_cover, manual_track_kalman
                                               manual_track_lifecycle,
                                               manual_track_multi_kernel, recentre_shift)
 from mk_tracker.tracking.multi_kernel import MultiKernelTracker, visibility_similarity
-from mk_tracker.tracking.mutual_exclusion import claimed_by_other
 from mk_tracker.tracking.scale_estimation import fit_height
 from mk_tracker.parameters import ParameterError, validate_config
 from mk_tracker.stamps import checked_stamp
@@ -182,8 +181,7 @@ class MultiObjectTracker:
             if self.config.camera_motion.enabled else None
         self.totals = {"frames": 0, "dropped_stale": 0, "skipped_bad_detections": 0,
                        "resets": 0, "size_resets": 0, "group_measurements": 0,
-                       "merged_duplicates": 0, "camera_motion_fallbacks": 0,
-                       "excluded_refinements": 0}
+                       "merged_duplicates": 0, "camera_motion_fallbacks": 0}
 
     # -- public API -----------------------------------------------------------------------
     def reset(self) -> None:
@@ -366,13 +364,6 @@ class MultiObjectTracker:
             if found is not None and k > 0 and t.detected_box is not None and \
                     self._fit_refiner(t, t.detected_box[3] / k, t.detected_box[3] * k):
                 found = (np.asarray(t.target.box, dtype=np.float64), found[1], found[2])
-            other = None if found is None else claimed_by_other(
-                t.id, found[0], det_boxes_now, self.config.refinement_exclusion_iou)
-            if other is not None:
-                result.events.append(f"track {t.id}: refinement on track {other}'s "
-                                     f"detection refused")
-                self.totals["excluded_refinements"] += 1
-                found = None
             if found is not None:
                 refined[t.id] = found
                 t.refined_box = found[0]

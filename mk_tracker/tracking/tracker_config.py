@@ -125,11 +125,6 @@ class MultiObjectTrackerConfig:
         "kernels' box has the detection's height (the detection measures the size; without "
         "it the kernels keep the size of the last appearance refresh and their scale "
         "update (9)-(11) runs on its own; not in the paper)")
-    refinement_exclusion_iou: float = parameter(
-        0.0, "An undetected track's refined box that overlaps the detection box assigned to "
-        "another track this frame by more than this IoU is refused and the track coasts on "
-        "its prediction (two people cannot stand in one place; tracking/mutual_exclusion.py); "
-        "0 = off", minimum=0.0, maximum=1.0)
     max_refined_size_ratio: float = parameter(
         0.0, "The kernels of a track are held to at most this factor above or below its last "
         "detected height (a bound on the scale update (9)-(11) of an undetected track; not "
