@@ -320,7 +320,8 @@ class MultiObjectTracker:
                      if k not in matched_track or matched_track[k] in tentative]
         held: set[int] = set()             # tentative tracks not confirmed this frame
         if lost and remaining:
-            matches, contested = self._reacquire(lost, [dets[k] for k in remaining], image_bgr)
+            matches, contested = self._reacquire(lost, [dets[k] for k in remaining], image_bgr,
+                                                 np.array([d.box for d in dets]))
             for k in contested:
                 tid = matched_track.get(remaining[k])
                 if tid in tentative and stamp - tentative[tid].created < \
@@ -614,7 +615,8 @@ class MultiObjectTracker:
         cost = association_cost(track_boxes, boxes, maha, self.config.association)
         return assign(cost, self.config.association.max_cost)
 
-    def _reacquire(self, lost: list[Track], dets: list[PreparedDetection], image: np.ndarray
+    def _reacquire(self, lost: list[Track], dets: list[PreparedDetection], image: np.ndarray,
+                   frame_boxes: np.ndarray | None = None
                    ) -> tuple[list[tuple[int, int]], set[int]]:
         """Matches ``(lost index, det index)`` by gated distance, size and appearance
         (:meth:`_reacquire_check`).  The distance is the smaller of the Kalman one and, with
@@ -637,8 +639,10 @@ class MultiObjectTracker:
                                self.last_stamp - np.array([t.last_detection for t in lost]),
                                self.config.reacquire_last_detection_floor,
                                self.config.reacquire_last_detection_speed)
-        return reacquisition_matches(lost, dets, maha, gated, image, self.config,
-                                     self._reacquire_check)
+        return reacquisition_matches(
+            lost, dets, maha, gated, image, self.config, self._reacquire_check,
+            lambda t, box: reference_similarity(t, box, image, self._refiner_for(t))[0],
+            frame_boxes)
 
     def _reacquire_check(self, t: Track, d: PreparedDetection, maha: float, image: np.ndarray
                          ) -> tuple[str | None, float, int | None]:

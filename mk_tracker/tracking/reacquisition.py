@@ -34,7 +34,8 @@ import numpy as np
 
 from mk_tracker.tracking.association import assign
 
-__all__ = ["distinct_best", "last_detection_distance2", "nearer_of_both", "reacquire_check",
+__all__ = ["distinct_best", "last_detection_distance2", "nearer_of_both", "nearest_others",
+           "reacquire_check",
            "reacquisition_matches", "reference_similarity"]
 
 
@@ -138,9 +139,22 @@ def distinct_best(sims: np.ndarray, margin: float) -> np.ndarray:
     return out
 
 
+def nearest_others(box: np.ndarray, boxes: np.ndarray, count: int) -> np.ndarray:
+    """The ``count`` boxes of ``boxes (N, 4)`` whose centres are nearest to ``box``'s,
+    ``box`` itself (an identical row) left out."""
+    b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    b = b[~np.all(np.isclose(b, box), axis=1)]
+    if count <= 0 or not len(b):
+        return b[:0]
+    d = np.sum((b[:, :2] + b[:, 2:] / 2.0 - (box[:2] + box[2:] / 2.0)) ** 2, axis=1)
+    return b[np.argsort(d, kind="stable")[:count]]
+
+
 def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.ndarray,
                           gated: np.ndarray, image: np.ndarray, config: Any,
-                          check: Callable[..., tuple[str | None, float, int | None]]
+                          check: Callable[..., tuple[str | None, float, int | None]],
+                          rival_similarity: Callable[[Any, np.ndarray], float] | None = None,
+                          frame_boxes: np.ndarray | None = None
                           ) -> tuple[list[tuple[int, int]], set[int]]:
     """Matches ``(lost index, det index)`` of lost tracks and detections, and the detections
     inside some lost track's Kalman gate.
@@ -151,7 +165,11 @@ def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.nda
     ``(1 - similarity) + reacquire_distance_weight * d2 / reacquire_gate``, assigned
     one-to-one; with ``reacquire_margin`` >= 0 only pairs that are a distinct best match
     both ways (:func:`distinct_best`, over the pairs inside the gate at a plausible size)
-    may be assigned.  A matched track restarts its working target from the frozen reference that
+    may be assigned; with ``reacquire_rivals`` > 0 the rivals of a pair also include the
+    track's similarity (``rival_similarity(track, box)``) at the boxes of that many other
+    people of this frame nearest to the detection (``frame_boxes``, every detection of the
+    frame): a model that scores the people around as high as the candidate does not tell
+    them apart, whether or not they are candidates themselves.  A matched track restarts its working target from the frozen reference that
     matched: its models were blended while the person disappeared.  A detection counts as
     contested when it is inside a track's *Kalman* gate at a plausible size (whatever its
     appearance)."""
@@ -174,7 +192,16 @@ def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.nda
                 gated[i, j] / config.reacquire_gate
     margin = getattr(config, "reacquire_margin", -1.0)
     if margin >= 0.0:
-        cost[~distinct_best(sims, margin)] = np.inf
+        rivals = int(getattr(config, "reacquire_rivals", 0))
+        outside = np.full(np.shape(maha), -np.inf)
+        if rivals > 0 and rival_similarity is not None and frame_boxes is not None:
+            for i, j in zip(*np.nonzero(np.isfinite(cost))):
+                near = nearest_others(np.asarray(dets[j].box, dtype=np.float64),
+                                      frame_boxes, rivals)
+                scores = [rival_similarity(lost[i], b) for b in near]
+                outside[i, j] = max((v for v in scores if math.isfinite(v)), default=-np.inf)
+        keep = distinct_best(sims, margin) & (sims - outside >= margin)
+        cost[~keep] = np.inf
     matches = assign(cost, math.inf).matches
     for i, j in matches:
         k = best_reference.get((i, j))

@@ -93,6 +93,11 @@ class MultiObjectTrackerConfig:
         "take and every other lost track's similarity at that detection (a distinct best "
         "match both ways, tracking/reacquisition.py); where people look alike the id is "
         "not given back.  Negative = off", minimum=-1.0, maximum=1.0)
+    reacquire_rivals: int = parameter(
+        3, "With reacquire_margin: the lost track's similarity must also beat, by the "
+        "margin, its similarity at the boxes of this many other people of the frame nearest "
+        "to the detection (does its model tell the people there apart?); 0 = candidates "
+        "only", minimum=0, maximum=100)
     reacquire_distance_weight: float = parameter(
         0.5, "Weight of the gated distance (d2 / gate) next to 1 - appearance similarity in "
         "the re-acquisition cost", minimum=0.0, maximum=100.0)

@@ -191,3 +191,51 @@ def test_reacquire_margin_gives_no_id_back_between_indistinguishable_candidates(
         r = trk.step(IMG, 40 * DT, [FrameDetection(b, 0.9) for b in [back] + extra])
         took = any("re-acquired" in e for e in r.events)
         assert took is keeps, (margin, extra)
+
+
+def test_nearest_others_leaves_the_box_itself_out():
+    from mk_tracker.tracking.reacquisition import nearest_others
+    boxes = np.array([[0.0, 0, 10, 10], [50, 0, 10, 10], [20, 0, 10, 10], [90, 0, 10, 10]])
+    near = nearest_others(boxes[0], boxes, 2)
+    assert near.tolist() == [[20, 0, 10, 10], [50, 0, 10, 10]]
+    assert nearest_others(boxes[0], boxes, 0).shape == (0, 4)
+    assert nearest_others(boxes[0], boxes[:1], 3).shape == (0, 4)
+
+
+class LabelRefiner:
+    """Fake refiner: a target is the label of the nearest x in ``labels_at``; the similarity
+    is 0.9 at a box of the same label, 0.1 otherwise."""
+
+    def __init__(self, labels_at):
+        self.labels_at = labels_at
+
+    def _label(self, box):
+        return min(self.labels_at.items(), key=lambda kv: abs(kv[0] - box[0]))[1]
+
+    def start(self, image, box):
+        return self._label(box)
+
+    def refine(self, image, state, predicted_center=None):
+        return type("R", (), {"box": None, "similarity": 0.0, "lost": True})()
+
+    def appearance_similarity(self, image, state, box):
+        return 0.9 if self._label(box) == state else 0.1
+
+
+@pytest.mark.parametrize("bystander, rivals, keeps", [
+    ("red", 0, True),      # the candidate alone is a distinct best match
+    ("red", 1, False),     # a look-alike bystander: the model does not tell them apart
+    ("blue", 1, True)])    # a bystander in other clothes is no rival
+def test_reacquire_rivals_are_the_people_around(bystander, rivals, keeps):
+    ref = LabelRefiner({100.0: "red", 154.0: "red", 300.0: bystander})
+    trk = MultiObjectTracker(config(reacquire_margin=0.05, reacquire_rivals=rivals,
+                                    **LAST_DETECTION_GATE), refiner=ref)
+    other = FrameDetection((300.0, 100.0, 30.0, 60.0), 0.9)
+    for i in range(15):
+        trk.step(IMG, i * DT, [FrameDetection((100 + 4.0 * i, 100, 30, 60), 0.9), other])
+    tid = min(t.id for t in trk.tracks)
+    for i in range(15, 40):
+        trk.step(IMG, i * DT, [other])
+    assert [t.state for t in trk.tracks if t.id == tid] == ["lost"]
+    r = trk.step(IMG, 40 * DT, [FrameDetection((154.0, 100.0, 30.0, 60.0), 0.9), other])
+    assert any(f"track {tid} re-acquired" in e for e in r.events) is keeps
