@@ -36,8 +36,9 @@ member, refinement only, coasting by the std of its centre per box side, the qua
 unmatched box costs one false positive, a matched one saves one miss.
 
 ID switches are split by whether the person was matched in the frame before (a hand-over
-between neighbours) or came back after a gap.  The peers' FP / FN / IDSW are split only by
-"a detection of the person existed".
+between neighbours) or came back after a gap, and by what the new id was the frame before
+(a lost track re-acquiring, a new track, another person's track, an unmatched live
+track).  The peers' FP / FN / IDSW are split only by "a detection of the person existed".
 
     nice -n 10 .venv/bin/python benchmarks/diagnose_mot_loss.py [--sequences TUD-Campus ...] \
         [--set lifecycle.min_hits=2 ...]
@@ -227,10 +228,23 @@ def diagnose_ours(frames, hyp, states):
     for kind in sorted({k for k, _ in kinds}):
         print(f"  reported {kind:28s}: {kinds[(kind, True)]:4d} matched, "
               f"{kinds[(kind, False)]:4d} unmatched")
+    took = {(f, h) for (f, _), h in match.items()}
     for _, e in ev[ev.Type == "SWITCH"].iterrows():
-        f, o = int(e.FrameId), int(e.OId)
-        sw["hand-over (matched the frame before)" if (f - 1, o) in match
-           else "after a gap"] += 1
+        f, o, h = int(e.FrameId), int(e.OId), int(e.HId)
+        # what the new id was the frame before: a lost track that took this person back
+        # (re-acquisition), a track on another person, a new (tentative) track, or another
+        # live track of ours that matched nobody
+        before = states[f - 2].get(h) if f >= 2 else None
+        if before is None or before[0] == "tentative":
+            new_id = "a new track"
+        elif before[0] == "lost":
+            new_id = "a lost track re-acquiring"
+        elif (f - 1, h) in took:
+            new_id = "another person's track"
+        else:
+            new_id = "an unmatched live track"
+        sw[("hand-over (matched the frame before)" if (f - 1, o) in match
+            else "after a gap") + f"; new id: {new_id}"] += 1
     return n_gt, fp, fn, sw, causes
 
 
