@@ -17,6 +17,8 @@ from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjec
                                                       MultiObjectTrackerConfig)
 from mk_tracker.tracking.track import LifecycleConfig, Track
 
+from fake_refiners import LabelRefiner
+
 IMG = np.zeros((480, 640, 3), np.uint8)
 DT = 1.0 / 25.0
 
@@ -109,27 +111,6 @@ def config(**changes) -> MultiObjectTrackerConfig:
                                                 "max_reported_coast_std": 0.0, **changes})
 
 
-class LabelRefiner:
-    """Fake refiner: a target is the label of the nearest x position in ``labels_at``; a
-    refinement finds nothing (the undetected track coasts); appearance 0.9 for the same
-    label, else 0.05."""
-
-    def __init__(self, labels_at):
-        self.labels_at = labels_at
-
-    def _label(self, box):
-        return min(self.labels_at.items(), key=lambda kv: abs(kv[0] - box[0]))[1]
-
-    def start(self, image, box):
-        return self._label(box)
-
-    def refine(self, image, state, predicted_center=None):
-        return type("R", (), {"box": None, "similarity": 0.0, "lost": True})()
-
-    def appearance_similarity(self, image, state, box):
-        return 0.9 if self._label(box) == state else 0.05
-
-
 def _one_person_two_tracks(trk, frames_after=12):
     """Person B walks in from x = 140 (track born first), stops at x = 104 next to person A
     at x = 100 (born second); both are detected apart for 15 frames, stacked (IoU 26/34);
@@ -202,7 +183,6 @@ def test_tracks_started_by_hand_are_never_merged():
     ids = {t.id for t in r.reported()}
     assert manual in ids and len(ids) == 2
     assert trk.totals["merged_duplicates"] == 0
-
 
 
 # -- a pair waiting for min_time is published as one (duplicates.report_one) -------------------

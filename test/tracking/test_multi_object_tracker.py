@@ -20,6 +20,8 @@ from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjec
 from mk_tracker.parameters import parameter_specs, updated
 from mk_tracker.tracking.track import LifecycleConfig
 
+from fake_refiners import LabelRefiner
+
 IMG = np.zeros((480, 640, 3), np.uint8)
 DT = 1.0 / 25.0
 
@@ -186,27 +188,6 @@ def test_output_carries_velocity_age_and_time_since_detection():
     assert t.age == pytest.approx(40 * DT)
     assert t.time_since_detection == pytest.approx(DT)
     assert t.state == "occluded" and t.score == 0.0
-
-
-class LabelRefiner:
-    """Fake refiner: a target is a label; similarity comes from a table the test controls."""
-
-    def __init__(self):
-        self.labels_at = {}          # box x position -> label, set by the test
-        self.refined = 0
-
-    def _label(self, box):
-        return min(self.labels_at.items(), key=lambda kv: abs(kv[0] - box[0]))[1]
-
-    def start(self, image, box):
-        return self._label(box)
-
-    def refine(self, image, state, predicted_center=None):
-        self.refined += 1
-        return type("R", (), {"box": None, "similarity": 0.0, "lost": True})()
-
-    def appearance_similarity(self, image, state, box):
-        return 0.9 if self._label(box) == state else 0.05
 
 
 def test_reacquisition_needs_the_appearance_to_match():

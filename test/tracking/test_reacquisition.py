@@ -14,6 +14,8 @@ from mk_tracker.tracking.multi_object_tracker import (FrameDetection, MultiObjec
                                                       MultiObjectTrackerConfig)
 from mk_tracker.tracking.reacquisition import last_detection_distance2, nearer_of_both
 
+from fake_refiners import LabelRefiner
+
 IMG = np.zeros((480, 640, 3), np.uint8)
 DT = 1.0 / 25.0
 LAST_DETECTION_GATE = {"reacquire_last_detection_floor": 0.1,
@@ -200,26 +202,6 @@ def test_nearest_others_leaves_the_box_itself_out():
     assert near.tolist() == [[20, 0, 10, 10], [50, 0, 10, 10]]
     assert nearest_others(boxes[0], boxes, 0).shape == (0, 4)
     assert nearest_others(boxes[0], boxes[:1], 3).shape == (0, 4)
-
-
-class LabelRefiner:
-    """Fake refiner: a target is the label of the nearest x in ``labels_at``; the similarity
-    is 0.9 at a box of the same label, 0.1 otherwise."""
-
-    def __init__(self, labels_at):
-        self.labels_at = labels_at
-
-    def _label(self, box):
-        return min(self.labels_at.items(), key=lambda kv: abs(kv[0] - box[0]))[1]
-
-    def start(self, image, box):
-        return self._label(box)
-
-    def refine(self, image, state, predicted_center=None):
-        return type("R", (), {"box": None, "similarity": 0.0, "lost": True})()
-
-    def appearance_similarity(self, image, state, box):
-        return 0.9 if self._label(box) == state else 0.1
 
 
 @pytest.mark.parametrize("bystander, rivals, keeps", [
