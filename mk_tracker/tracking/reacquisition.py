@@ -169,8 +169,9 @@ def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.nda
     track's similarity (``rival_similarity(track, box)``) at the boxes of that many other
     people of this frame nearest to the detection (``frame_boxes``, every detection of the
     frame): a model that scores the people around as high as the candidate does not tell
-    them apart, whether or not they are candidates themselves.  A matched track restarts its working target from the frozen reference that
-    matched: its models were blended while the person disappeared.  A detection counts as
+    them apart, whether or not they are candidates themselves.  A matched track restarts
+    its working target from the frozen reference that matched: its models were blended
+    while the person disappeared.  A detection counts as
     contested when it is inside a track's *Kalman* gate at a plausible size (whatever its
     appearance)."""
     cost = np.full(np.shape(maha), np.inf)
