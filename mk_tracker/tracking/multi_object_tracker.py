@@ -321,7 +321,7 @@ class MultiObjectTracker:
         held: set[int] = set()             # tentative tracks not confirmed this frame
         if lost and remaining:
             matches, contested = self._reacquire(lost, [dets[k] for k in remaining], image_bgr,
-                                                 np.array([d.box for d in dets]))
+                                                 dets)
             for k in contested:
                 tid = matched_track.get(remaining[k])
                 if tid in tentative and stamp - tentative[tid].created < \
@@ -616,7 +616,7 @@ class MultiObjectTracker:
         return assign(cost, self.config.association.max_cost)
 
     def _reacquire(self, lost: list[Track], dets: list[PreparedDetection], image: np.ndarray,
-                   frame_boxes: np.ndarray | None = None
+                   frame_dets: list[PreparedDetection] = ()
                    ) -> tuple[list[tuple[int, int]], set[int]]:
         """Matches ``(lost index, det index)`` by gated distance, size and appearance
         (:meth:`_reacquire_check`).  The distance is the smaller of the Kalman one and, with
@@ -642,7 +642,9 @@ class MultiObjectTracker:
         return reacquisition_matches(
             lost, dets, maha, gated, image, self.config, self._reacquire_check,
             lambda t, box: reference_similarity(t, box, image, self._refiner_for(t))[0],
-            frame_boxes)
+            # the people around, for reacquire_margin's rivals (built only when it is on)
+            np.array([d.box for d in frame_dets]).reshape(-1, 4)
+            if self.config.reacquire_margin >= 0.0 else None)
 
     def _reacquire_check(self, t: Track, d: PreparedDetection, maha: float, image: np.ndarray
                          ) -> tuple[str | None, float, int | None]:

@@ -32,6 +32,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from mk_tracker.boxes import box_center
 from mk_tracker.tracking.association import assign
 
 __all__ = ["distinct_best", "last_detection_distance2", "nearer_of_both", "nearest_others",
@@ -146,7 +147,7 @@ def nearest_others(box: np.ndarray, boxes: np.ndarray, count: int) -> np.ndarray
     b = b[~np.all(np.isclose(b, box), axis=1)]
     if count <= 0 or not len(b):
         return b[:0]
-    d = np.sum((b[:, :2] + b[:, 2:] / 2.0 - (box[:2] + box[2:] / 2.0)) ** 2, axis=1)
+    d = np.sum((b[:, :2] + b[:, 2:] / 2.0 - box_center(box)) ** 2, axis=1)
     return b[np.argsort(d, kind="stable")[:count]]
 
 
@@ -191,9 +192,9 @@ def reacquisition_matches(lost: Sequence[Any], dets: Sequence[Any], maha: np.nda
                 best_reference[(i, j)] = k
             cost[i, j] = (1.0 - sim) + config.reacquire_distance_weight * \
                 gated[i, j] / config.reacquire_gate
-    margin = getattr(config, "reacquire_margin", -1.0)
+    margin = config.reacquire_margin
     if margin >= 0.0:
-        rivals = int(getattr(config, "reacquire_rivals", 0))
+        rivals = int(config.reacquire_rivals)
         outside = np.full(np.shape(maha), -np.inf)
         if rivals > 0 and rival_similarity is not None and frame_boxes is not None:
             for i, j in zip(*np.nonzero(np.isfinite(cost))):
