@@ -64,6 +64,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
 from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shaped,
                                               people_in_width, split_columns)
@@ -383,13 +384,16 @@ class BackgroundDetector:
         n, labels = cv2.connectedComponents(grouping, connectivity=8)
         labels = np.where(mask > 0, labels, 0)
         min_area = 0.3 * min_w * min_h
+        # each group's pixel count and the bounds of its own foreground pixels, in one pass
+        # over the image each (a pass per group cost 60 % of a crowded TUD frame)
+        counts = np.bincount(labels.ravel(), minlength=n)
         parts = []
-        for i in range(1, n):
-            ys, xs = np.nonzero(labels == i)
-            if xs.size < 0.15 * min_w * min_h:
+        for i, found in enumerate(ndimage.find_objects(labels, max_label=n - 1), start=1):
+            if found is None or counts[i] < 0.15 * min_w * min_h:
                 continue
-            parts.append((float(xs.min()), float(ys.min()), float(xs.max() - xs.min() + 1),
-                          float(ys.max() - ys.min() + 1)))
+            rows, cols = found
+            parts.append((float(cols.start), float(rows.start), float(cols.stop - cols.start),
+                          float(rows.stop - rows.start)))
         parts = self._join(parts, min_h / scale, scale)
         out = []
         for box in parts:
