@@ -353,17 +353,19 @@ def far_view_scene(n_people: int = 10, seed: int = 0, frames: int = 140,
 
 
 def static_camera_scene(n_people: int = 10, seed: int = 0, frames: int = 210,
-                        fps: float = 7.0) -> SyntheticScene:
+                        fps: float = 7.0, heights: tuple = (72.0, 88.0),
+                        speed_scale: float = 1.0) -> SyntheticScene:
     """What a static outdoor surveillance camera sees (issue #13): the far view of
     :func:`far_view_scene` (7 fps by default; people crossing, pairs, a pillar) over a
-    ground plane (full perspective: adults of 72-88 px at 80% of the image height, about
-    30 px where the walkable ground starts and 105 px at the bottom), a quarter of the
-    walkers stopping for good on the way, cast shadows (strength 0.45) and the light
-    fading by 25% over the clip.  The test scene of the RGB-only system (background
-    subtraction -> tracker)."""
+    ground plane (full perspective: by default adults of 72-88 px at 80% of the image
+    height, about 30 px where the walkable ground starts and 105 px at the bottom), a
+    quarter of the walkers stopping for good on the way, cast shadows (strength 0.45) and
+    the light fading by 25% over the clip.  The test scene of the RGB-only system
+    (background subtraction -> tracker).  ``heights`` (at 80% of the image height) and
+    ``speed_scale`` are :func:`far_view_scene`'s: smaller people for a farther camera."""
     return far_view_scene(n_people, seed=seed, frames=frames, fps=fps, stop_fraction=0.25,
-                          shadows=0.45, illumination_drift=-0.25, heights=(72.0, 88.0),
-                          perspective=1.0)
+                          shadows=0.45, illumination_drift=-0.25, heights=tuple(heights),
+                          perspective=1.0, speed_scale=speed_scale)
 
 
 CROSS_MODAL_HOMOGRAPHY = (1.92, 0.06, 18.0,

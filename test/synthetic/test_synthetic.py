@@ -565,6 +565,17 @@ def test_static_camera_preset_has_stops_shadows_drift_and_takes_a_frame_rate():
         build_preset("crowd", fps=7.0)
 
 
+def test_static_camera_takes_smaller_people_and_slower_walkers():
+    from mk_tracker.synthetic.presets import static_camera_scene
+    base = static_camera_scene(seed=3, frames=30).config.people
+    far = static_camera_scene(seed=3, frames=30, heights=(40.0, 60.0),
+                              speed_scale=0.5).config.people
+    assert all(40.0 <= p.height <= 60.0 * 1.05 + 1e-9 for p in far)
+    assert not all(72.0 <= p.height for p in far)
+    for a, b in zip(base, far):
+        assert b.speed == pytest.approx(a.speed * 0.5, abs=2e-3)
+
+
 def test_far_view_walkers_keep_their_speed_in_seconds_at_another_frame_rate():
     from mk_tracker.synthetic.presets import far_view_scene
     slow = far_view_scene(seed=6, frames=30).config.people
