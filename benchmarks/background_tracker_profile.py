@@ -5,10 +5,10 @@ The tracker's defaults are chosen on public / generated detections
 (benchmarks/bench_multi_object.py); on the background detector's boxes of the TUD clips
 SORT did better with them (docs/benchmark_background_detector.md).  This script runs the
 background detector (shipped defaults) once over each of bench_background_detector.py's
-five sequences, then every setting of :data:`GRID` (tracker parameters on top of the
+six sequences, then every setting of :data:`GRID` (tracker parameters on top of the
 defaults) on its boxes, scores it against the ground truth ``mk_tracker process`` writes for
 the same bag (motmetrics, IoU >= 0.5) and, for each held-out sequence, reports the setting
-with the best mean MOTA + IDF1 over the *other* four (the protocol of
+with the best mean MOTA + IDF1 over the *other* five (the protocol of
 bench_multi_object.py).  The chosen values are checked on the real 6.25-fps checks (every
 4th frame of the TUD clips, offsets 0-3) with the setting of the fold that held out their
 source clip: checks, not folds.
@@ -63,11 +63,16 @@ def chain_frames(name: str, bag: Path, frames, fps: float, tmp: Path,
     det = BackgroundDetector(BackgroundDetectorConfig(**(detector or {})))
     chain = []
     for k, image in enumerate(frames):
-        stamp = k / fps
+        # the stamp the bag holds (whole nanoseconds) and `process` reads: k / fps itself
+        # differs in the last bits, which flipped one decision of the 795-frame scene
+        stamp = round(k / fps * 1e9) / 1e9
         dets = [(*d.box, d.score) for d in det.process(image, stamp, encoding="bgr8")]
         chain.append((image, stamp, dets, gt.get(k + 1, [])))
     mine = track(MultiObjectTrackerConfig(), chain)
-    if any(abs(mine[k] - reference[k]) > 1e-9 for k in ("mota", "idf1")):
+    # `process` scores the tracks it wrote with 2 decimals, so a box at IoU 0.5 can flip
+    # (one FP + one FN in the 16,184 boxes of the 795-frame scene): one such box allowed
+    tolerance = 2.0 / max(sum(len(rows) for rows in gt.values()), 1) + 1e-9
+    if any(abs(mine[k] - reference[k]) > tolerance for k in ("mota", "idf1")):
         raise SystemExit(f"{name}: this script's run of the defaults ({_cell(mine)}) is not "
                          f"mk_tracker process's ({_cell(reference)})")
     return chain, mine
@@ -100,12 +105,15 @@ DETECTOR_FOLDS = {
     "generated crowd-3 (seed 5)": {**_DETECTOR_BASE, "bootstrap_frames": 10,
                                    "split_ratio": 1.6, "counts_fps": 25.0,
                                    "shadow_threshold": 0.5},
-    "generated static camera, 7 fps (seed 21)": {**_DETECTOR_BASE, "bootstrap_frames": 10,
-                                                 "split_ratio": 1.6, "counts_fps": 0.0,
-                                                 "shadow_threshold": 0.7},
+    "generated static camera, 7 fps (seed 21)": {**_DETECTOR_BASE, "bootstrap_frames": 0,
+                                                 "split_ratio": 1.3, "column_trim": 0.0,
+                                                 "counts_fps": 25.0, "shadow_threshold": 0.5},
     "generated static camera, 25 fps (seed 22)": {**_DETECTOR_BASE, "bootstrap_frames": 10,
-                                                  "split_ratio": 1.6, "counts_fps": 25.0,
+                                                  "split_ratio": 1.3, "counts_fps": 25.0,
                                                   "shadow_threshold": 0.7},
+    "generated small people, 7 fps (seed 23)": {**_DETECTOR_BASE, "bootstrap_frames": 10,
+                                                "split_ratio": 1.6, "counts_fps": 25.0,
+                                                "shadow_threshold": 0.5},
 }
 
 #: The heading of the report's hand-written section, which a new run keeps.

@@ -48,7 +48,7 @@ background-subtraction detector (shipped defaults, run once over the clip at the
 stamps): the RGB-only chain of ``bench_background_detector.py`` (issue #13), whose chain
 ``mk_tracker process --detections background`` runs the same detector and tracker.
 
-``--background-benchmark`` runs the five sequences of ``bench_background_detector.py`` (the
+``--background-benchmark`` runs the six sequences of ``bench_background_detector.py`` (the
 TUD clips and the generated crowd-3 and static-camera scenes) on that detector's boxes, as
 ``background_tracker_profile.py`` does.  Each sequence ends with the errors against SORT
 person by person: people SORT matched and we missed, by our cause, and our false positives
@@ -399,7 +399,7 @@ def main(argv=None) -> int:
                         help="detector overrides for groups-* scenes, e.g. "
                              "split_by_person_size=true")
     parser.add_argument("--background-benchmark", action="store_true",
-                        help="the five sequences of bench_background_detector.py (TUD clips, "
+                        help="the six sequences of bench_background_detector.py (TUD clips, "
                              "generated crowd-3 and static-camera 7 / 25 fps scenes) with the "
                              "background detector's boxes (shipped defaults), as "
                              "background_tracker_profile.py runs them; --sequences ignored")
