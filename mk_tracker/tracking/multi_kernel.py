@@ -94,6 +94,7 @@ from mk_tracker.tracking.projected_gradient import (_compiled_step, constraint_j
                                                     kernel_pairs, pair_distances,
                                                     projected_gradient_step)
 from mk_tracker.tracking.kernel_layouts import kernel_layout, kernels_bounding_box
+from mk_tracker.tracking.peak_contrast import peak_contrasts
 from mk_tracker.parameters import validate_config
 from mk_tracker.tracking.image_border import complete_models, inside_fractions, support_offsets
 from mk_tracker.tracking.background_weighting import (BackgroundModel, background_model,
@@ -671,6 +672,20 @@ class MultiKernelTracker:
                                 weights=np.ones(n_k) if weights is None else weights,
                                 kernel_centres=x.copy(), kernel_axes=axes.copy(),
                                 iterations=0, lost=True, reason=reason, scale=state.scale)
+
+    def peak_contrast(self, image_bgr: np.ndarray, state: TargetState,
+                      result: RefinementResult, distance: float = 1.0) -> float:
+        """Mean over kernels of the contrast of ``result``'s located layout to a ring of
+        copies moved ``distance`` box sizes (:mod:`~mk_tracker.tracking.peak_contrast`): ~1
+        for a peak that stands out from its surroundings whatever its absolute level (5),
+        ~0 on a flat neighbourhood.  0 for a lost result or when the ring cannot be read."""
+        if result.lost or len(result.kernel_similarities) != state.num_kernels:
+            return 0.0
+        rho = np.clip(np.asarray(result.kernel_similarities, dtype=np.float64), 1e-300, 1.0)
+        contrasts = peak_contrasts(self, _checked_image(image_bgr), state,
+                                   np.asarray(result.kernel_centres, dtype=np.float64),
+                                   -np.log(rho), distance)
+        return float(np.mean(contrasts))
 
     def appearance_similarity(self, image_bgr: np.ndarray, state: TargetState, box: BoxLike
                               ) -> float:

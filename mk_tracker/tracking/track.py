@@ -92,6 +92,13 @@ class LifecycleConfig:
         "from max_undetected_time (the kernel covariance detector finds only what moves: a "
         "person standing still gets no detections while the multiple-kernel appearance "
         "still matches); 0 = no exemption", minimum=0.0, maximum=100.0)
+    still_contrast: float = parameter(
+        0.0, "A still track (still_speed) whose multiple-kernel level is below "
+        "occlusion_similarity still counts as visible when sqrt(level x contrast) is at "
+        "least this, the contrast being the mean over kernels of the located peak against "
+        "a ring of copies one box size away (peak_contrast.py: it stands out whatever the "
+        "light; a person who left leaves a flat neighbourhood); 0 = off", minimum=0.0,
+        maximum=1.0)
     still_needs_visible: bool = parameter(
         True, "The still_speed exemption from max_undetected_time holds only in frames where "
         "the multiple-kernel refinement sees the track (visible); false: a still track that "

@@ -57,3 +57,18 @@ def test_a_distinct_target_has_a_high_contrast_and_a_twin_beside_it_none():
         contrasts[name] = peak_contrasts(tracker, img, state, res.kernel_centres, ev.costs, 1.0)
     assert np.all(contrasts["alone"] > 0.9)
     assert np.all(contrasts["twin"] < 0.1)
+
+
+def test_the_trackers_peak_contrast_is_high_on_the_target_and_zero_where_it_left():
+    """:meth:`MultiKernelTracker.peak_contrast` (the still-track test of the multi-object
+    tracker): the mean kernel contrast of a refinement result; 0 for a lost result."""
+    tracker = MultiKernelTracker(MultiKernelConfig())
+    state = tracker.start(_frame([(100, 60)]), (100.0, 60.0, TW, TH))
+    here = _frame([(100, 60)], seed=1)
+    res = tracker.refine(here, state.copy())
+    assert tracker.peak_contrast(here, state, res) > 0.9
+    gone = _frame([], seed=1)                          # the person left: grey noise only
+    res_gone = tracker.refine(gone, state.copy())
+    assert tracker.peak_contrast(gone, state, res_gone) < 0.5
+    res_gone.lost = True
+    assert tracker.peak_contrast(gone, state, res_gone) == 0.0

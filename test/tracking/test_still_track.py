@@ -127,3 +127,42 @@ def test_a_passer_by_near_a_still_track_in_the_recovery_round(changes, jumps):
     assert (box[0] == pytest.approx(220.0)) is jumps
     assert (box[0] == pytest.approx(100.0, abs=1.0)) is not jumps
     assert len(r.tracks) == (1 if jumps else 2)     # else the passer-by starts a track
+
+
+# -- a still track in another light (lifecycle.still_contrast) --------------------------------
+
+class FadingRefiner(FollowRefiner):
+    """FollowRefiner whose level falls to ``level`` (< occlusion_similarity 0.6) once the
+    detections stop, while its peak stands out from its surroundings by ``contrast``."""
+
+    def __init__(self, level: float, contrast: float):
+        self.level, self.contrast, self.fading = level, contrast, False
+
+    def refine(self, image, state, predicted_center=None):
+        r = super().refine(image, state, predicted_center)
+        if self.fading:
+            r.similarity = self.level
+        return r
+
+    def peak_contrast(self, image, state, result):
+        return self.contrast
+
+
+@pytest.mark.parametrize("still_contrast, contrast, speed, kept", [
+    (0.0, 0.9, 0.0, False),    # off: the level (0.5) alone decides
+    (0.6, 0.9, 0.0, True),     # sqrt(0.5 x 0.9) = 0.67 >= 0.6: seen
+    (0.6, 0.5, 0.0, False),    # sqrt(0.5 x 0.5) = 0.5: a flat neighbourhood, not seen
+    (0.6, 0.9, 50.0, False),   # a walker (0.83 heights/s) is not a still track
+])
+def test_a_still_person_in_fading_light_is_judged_by_level_and_contrast(
+        still_contrast, contrast, speed, kept):
+    cfg = config(**{"lifecycle.still_contrast": still_contrast})
+    refiner = FadingRefiner(level=0.5, contrast=contrast)
+    trk = MultiObjectTracker(cfg, refiner=refiner)
+    for i in range(25):                     # detected for 1 s at similarity 0.9
+        trk.step(IMG, i * DT, [FrameDetection((100 + speed * i * DT, 100, 30, 60), 0.9)])
+    (tid,) = [t.id for t in trk.tracks]
+    refiner.fading = True
+    for i in range(25, 75):                 # 2 s without a detection, level 0.5
+        r = trk.step(IMG, i * DT, [])
+    assert {t.id: t.state for t in r.tracks}[tid] == ("confirmed" if kept else "lost")
