@@ -136,7 +136,9 @@ def sort_scores(chain, fps: float) -> dict:
 #: "member" is a fragment track inside a person's box (``group.member_min_height``,
 #: ``group.min_area_ratio``), the reported box lagging behind detection boxes that change
 #: size and place from frame to frame (``kalman.sigma_u``, ``lifecycle.size_smoothing``),
-#: and coasting boxes (``max_reported_coast_time``).  The first value of each is the shipped
+#: coasting boxes (``max_reported_coast_time``), and standing people whose track ends when
+#: the fading light lowers the level of their kernels (``lifecycle.still_contrast``: level
+#: and peak contrast together).  The first value of each is the shipped
 #: default.  ``group.member_min_height`` 0.3: a head (about 1/7 of a person's height) or a
 #: short fragment is no member, a farther person partly behind a nearer one is; 0.8: the
 #: value of config/tracker_public_detections.yaml.  (``lifecycle.min_hits`` 2 left the grid:
@@ -148,6 +150,7 @@ GRID: dict[str, tuple] = {
     "kalman.sigma_u": (30.0, 60.0, 100.0),
     "lifecycle.size_smoothing": (0.6, 1.0),
     "max_reported_coast_time": (0.2, 0.0),
+    "lifecycle.still_contrast": (0.6, 0.0),
 }
 
 
