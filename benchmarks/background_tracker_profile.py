@@ -153,7 +153,7 @@ GRID: dict[str, tuple] = {
     "kalman.sigma_u": (30.0, 60.0, 100.0),
     "lifecycle.size_smoothing": (0.6, 1.0),
     "max_reported_coast_time": (0.2, 0.0),
-    "lifecycle.still_contrast": (0.6, 0.0),
+    "lifecycle.still_contrast": (0.0, 0.6),
 }
 
 

@@ -93,7 +93,7 @@ class LifecycleConfig:
         "person standing still gets no detections while the multiple-kernel appearance "
         "still matches); 0 = no exemption", minimum=0.0, maximum=100.0)
     still_contrast: float = parameter(
-        0.6, "A still track (still_speed) whose multiple-kernel level is below "
+        0.0, "A still track (still_speed) whose multiple-kernel level is below "
         "occlusion_similarity still counts as visible when sqrt(level x contrast) is at "
         "least this, the contrast being the mean over kernels of the located peak against "
         "a ring of copies one box size away (peak_contrast.py: it stands out whatever the "

@@ -584,8 +584,9 @@ def test_public_detections_overlay_sets_the_protocols_choice_and_nothing_else():
 
 
 def test_background_detections_overlay_sets_the_protocols_choice_and_nothing_else():
-    """config/tracker_background_detections.yaml (issue #13): the two settings the
+    """config/tracker_background_detections.yaml (issue #13): the three settings the
     leave-one-sequence-out protocol of benchmarks/background_tracker_profile.py prefers
     for the background detector's boxes."""
     _assert_overlay_changes_only("tracker_background_detections.yaml", {
-        "max_reported_coast_time": 0.0, "group.member_min_height": 0.3})
+        "max_reported_coast_time": 0.0, "group.member_min_height": 0.3,
+        "lifecycle.still_contrast": 0.6})
