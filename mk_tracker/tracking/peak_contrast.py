@@ -20,12 +20,15 @@ background) or a neighbour as similar as the box gives ~0.  A ring copy with no 
 weighting's ``J0_i``, :mod:`~mk_tracker.tracking.background_weighting`) cancels in the
 difference.
 
-Used by ``benchmarks/diagnose_single_target.py --separation``; nothing in the tracker uses
-it.  Both uses tried in the tracker lost in the leave-one-clip-out protocol and were
-deleted (docs/benchmark_single_target.md, "Findings"): as the *failure test* of hand-started
-tracks (a look-alike passer-by is an equally distinct peak; commit e43c509), and as the
-gate of a model update in confident frames only (``manual_track.model_update`` confident,
-commit 9024b07).
+Used by ``benchmarks/diagnose_single_target.py --separation`` and, through
+:meth:`~mk_tracker.tracking.multi_kernel.MultiKernelTracker.peak_contrast`, by the
+multi-object tracker's test of a still undetected track (``lifecycle.still_contrast``: the
+geometric mean of level and contrast; off by default, on in the background detector's
+tracker profile).  Two other uses tried in the tracker lost in the leave-one-clip-out
+protocol and were deleted (docs/benchmark_single_target.md, "Findings"): as the *failure
+test* of hand-started tracks (a look-alike passer-by is an equally distinct peak; commit
+e43c509), and as the gate of a model update in confident frames only
+(``manual_track.model_update`` confident, commit 9024b07).
 
 Cost: one batched evaluation of ``8 N`` kernels on one more search region (the box grown by
 ``distance`` on every side); ~0.24 ms on OTB Woman.
