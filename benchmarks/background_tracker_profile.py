@@ -70,10 +70,11 @@ def chain_frames(name: str, bag: Path, frames, fps: float, tmp: Path,
         chain.append((image, stamp, dets, gt.get(k + 1, [])))
     mine = track(MultiObjectTrackerConfig(), chain)
     # `process` scores the tracks it wrote with 2 decimals, so a box at IoU 0.5 can flip:
-    # on the 795-frame scene with lifecycle.still_contrast on the two runs differ by 0.0003
-    # MOTA with the same 8,054 reported rows, every box within 0.01 px of the other run's
-    # (scored exact 0.28052, boxes rounded to 2 decimals 0.28065, `process` 0.28028); a
-    # mismatch of the tracker or detector settings moves the figures by far more
+    # on the 795-frame scene the runs differ by up to 0.001 MOTA; traced with the tracker's
+    # defaults and still_contrast 0.6: the same 8,054 reported rows, every box within 0.01
+    # px of the other run's (scored exact 0.28052, boxes rounded to 2 decimals 0.28065,
+    # `process` 0.28028); a mismatch of the tracker or detector settings moves the figures
+    # by far more
     tolerance = max(2.0 / max(sum(len(rows) for rows in gt.values()), 1), 0.002)
     if any(abs(mine[k] - reference[k]) > tolerance for k in ("mota", "idf1")):
         raise SystemExit(f"{name}: this script's run of the defaults ({_cell(mine)}) is not "
