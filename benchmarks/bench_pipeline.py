@@ -32,6 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from mk_tracker.bags.bag_io import open_bag  # noqa: E402
 from mk_tracker.bags.bag_writer import BagWriter  # noqa: E402
+from mk_tracker.boxes import intersection_area  # noqa: E402
 from mk_tracker.messages.detection_messages import (Detection, make_detection_array,  # noqa: E402
                                            read_detection_array)
 from mk_tracker.messages.message_types import bag_message_types  # noqa: E402
@@ -52,14 +53,45 @@ def copied_without_thermal(reader, writer):
         yield m
 
 
-def with_truth_as_detections(src: Path, dst: Path) -> None:
-    """A copy of ``src`` without thermal images, with ``/detections`` = ground truth."""
+def merged_boxes(boxes: list, overlap: float) -> list:
+    """``boxes`` (x, y, w, h) with every pair whose intersection exceeds ``overlap`` times the
+    smaller box's area replaced by their bounding box, until no such pair is left: what a
+    detector that reports people who touch as one object would give."""
+    out = [tuple(float(v) for v in b) for b in boxes]
+    joined = True
+    while joined:
+        joined = False
+        for i in range(len(out)):
+            for j in range(i + 1, len(out)):
+                a, b = out[i], out[j]
+                if intersection_area(a, b) > overlap * min(a[2] * a[3], b[2] * b[3]):
+                    x0, y0 = min(a[0], b[0]), min(a[1], b[1])
+                    x1, y1 = max(a[0] + a[2], b[0] + b[2]), max(a[1] + a[3], b[1] + b[3])
+                    out[i] = (x0, y0, x1 - x0, y1 - y0)
+                    del out[j]
+                    joined = True
+                    break
+            if joined:
+                break
+    return out
+
+
+def with_truth_as_detections(src: Path, dst: Path, min_visible: float = 0.0,
+                             merge_overlap: float | None = None) -> None:
+    """A copy of ``src`` without thermal images, with ``/detections`` = ground truth.
+
+    ``min_visible`` leaves out people less visible than that fraction (the generator writes
+    each person's visible fraction as the score of its ground-truth box); ``merge_overlap``
+    (``None``: off) joins the boxes of people who overlap, :func:`merged_boxes`."""
     with open_bag(src) as reader, BagWriter(dst, typestore=reader.typestore) as writer:
         types = bag_message_types(reader.typestore)
         for m in copied_without_thermal(reader, writer):
             if m.topic == "/ground_truth":
                 msg = reader.deserialize(m)
-                dets = [Detection(d.box, 1.0) for d in read_detection_array(msg)]
+                boxes = [d.box for d in read_detection_array(msg) if d.score >= min_visible]
+                if merge_overlap is not None:
+                    boxes = merged_boxes(boxes, merge_overlap)
+                dets = [Detection(tuple(b), 1.0) for b in boxes]
                 writer.add_topic("/detections", m.msgtype)
                 writer.write("/detections", m.timestamp_ns,
                              make_detection_array(dets, msg.header, types))
