@@ -58,15 +58,16 @@ class FootprintSplitting:
     """Footprint splitting and the person-size model's samples (mixin)."""
 
     def _learn_sizes(self, detections: list[Any]) -> list[Any]:
-        """split_by_person_size or split_clusters: person-size samples from the
-        person-shaped detections;
+        """split_by_person_size, split_clusters or person_cover: person-size samples from
+        the person-shaped detections;
         after a tracking pass, whether a detection is as wide as several people (two people
         met: the next full-frame pass, which splits it, comes ``group_recheck_frames``
         after the last one instead of ``reconfigure_period``).  A box that touches the top
         or bottom of the image is neither: its person is cut off, so neither its height
         nor the row of its feet is known."""
         c = self.config
-        if not (c.split_by_person_size or (c.split_clusters and c.current_frame_refinement)):
+        if not (c.split_by_person_size or (c.split_clusters and c.current_frame_refinement)
+                or c.person_cover.enabled):
             return detections
         group = False
         for d in detections:
@@ -80,7 +81,9 @@ class FootprintSplitting:
                 expected = self.heights.height_at(y + h)
                 group = expected is not None and people_in_width(
                     w, c.person_aspect * expected, c.split_ratio) > 1
-        self._group_seen = group if self.last_mode == "tracking" else False
+        # (the person cover needs no early full-frame pass: it covers groups every frame)
+        self._group_seen = group and self.last_mode == "tracking" and (
+            c.split_by_person_size or c.split_clusters)
         return detections
 
     def _whole_height(self, y: float, h: float) -> bool:

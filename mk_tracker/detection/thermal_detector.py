@@ -169,6 +169,7 @@ from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate
                                                  _footprint_levels)
 from mk_tracker.detection.keep_apart import KeepApart
 from mk_tracker.detection.object_extent import ObjectExtent
+from mk_tracker.detection.person_cover import PersonCover
 from mk_tracker.detection.person_size import PersonHeightModel
 from mk_tracker.detection.still_people import StillPeople
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
@@ -221,6 +222,14 @@ def _still_detection(box: tuple, score: float, pixels: int) -> ThermalDetection:
                             score=score, pixel_count=pixels)
 
 
+def _piece(group: ThermalDetection, box: tuple) -> ThermalDetection:
+    """One person box of ``person_cover`` in a group detection: the group's score, pixel
+    count and object id (its Kalman filter follows the group)."""
+    x, y, w, h = box
+    return ThermalDetection(box=box, centroid=(x + w / 2.0, y + h / 2.0), score=group.score,
+                            pixel_count=group.pixel_count, object_id=group.object_id)
+
+
 def _overlap(a: tuple, b: tuple) -> bool:
     """Whether boxes ``(x, y, w, h)`` share area: the test of
     :func:`mk_tracker.boxes.intersection_area` (False there means an IoU of 0)."""
@@ -229,7 +238,7 @@ def _overlap(a: tuple, b: tuple) -> bool:
 
 
 class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExtent,
-                      KeepApart):
+                      KeepApart, PersonCover):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
@@ -367,8 +376,9 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
 
     def _finish(self, detections: list[ThermalDetection], full_pass: bool
                 ) -> list[ThermalDetection]:
-        """Sizes learnt, whole bodies joined, still people added (``still_people``)."""
-        found = self._whole_bodies(self._learn_sizes(detections))
+        """Sizes learnt, whole bodies joined, groups covered by person boxes
+        (``person_cover``), still people added (``still_people``)."""
+        found = self._covered(self._whole_bodies(self._learn_sizes(detections)), _piece)
         if not self.config.still_people.enabled:
             return found
         return self._still.step(self._newest(), self._raw_radius(), found, self._last_stamp,

@@ -15,6 +15,7 @@ from mk_tracker.detection.body_extent import BodyExtentConfig
 from mk_tracker.detection.gain_compensation import GainConfig
 from mk_tracker.detection.keep_apart import KeepApartConfig
 from mk_tracker.detection.object_extent import ObjectExtentConfig
+from mk_tracker.detection.person_cover import PersonCoverConfig
 from mk_tracker.detection.still_people import StillPeopleConfig
 from mk_tracker.kalman import KalmanConfig
 from mk_tracker.parameters import parameter
@@ -194,6 +195,9 @@ class ThermalDetectorConfig:
     keep_apart: KeepApartConfig = parameter(
         KeepApartConfig(), "objects followed apart before they met are kept apart at "
         "full-frame passes (mk_tracker.detection.keep_apart)")
+    person_cover: PersonCoverConfig = parameter(
+        PersonCoverConfig(), "a detection as large as several people replaced by "
+        "whole-person boxes (mk_tracker.detection.person_cover)")
     still_people: StillPeopleConfig = parameter(
         StillPeopleConfig(), "warm person-sized regions that stay in place are detected "
         "(mk_tracker.detection.still_people)")
