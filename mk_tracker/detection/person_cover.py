@@ -56,9 +56,9 @@ class PersonCoverConfig:
     """The constants of the person cover (``detector.person_cover.*``)."""
 
     enabled: bool = parameter(
-        False, "replace a detection as wide or tall as several people (at the learnt person "
+        True, "replace a detection as wide or tall as several people (at the learnt person "
         "size of its row) by whole-person boxes that cover its warm pixels "
-        "(mk_tracker.detection.person_cover; not in the paper)")
+        "(mk_tracker.detection.person_cover; not in the paper; docs/benchmark_groups.md)")
     width_ratio: float = parameter(
         1.4, "a detection wider than this many expected person widths at its bottom row is "
         "a group", minimum=1.0, maximum=10.0)
