@@ -19,19 +19,17 @@ situations", TPAMI 2004, reduced to boxes):
 * a detection wider than ``width_ratio`` expected widths, or taller than ``height_ratio``
   expected heights, at its bottom row is a group;
 * its warm pixels (the newest frame, warmer than the scene's background by the similarity
-  radius of (3.6)) are covered greedily by person boxes: every box with feet on a row
-  inside the detection and its centre on a column across it (every ``resolution`` person
-  widths) is a candidate
-  when at least ``min_fill`` of it is warm; the candidate that holds the most warm pixels
-  no chosen box holds yet is chosen, while they are at least ``min_gain`` of its area, up
-  to ``max_people`` boxes;
+  radius of (3.6)) are covered greedily by person boxes.  Every box with its feet on a row
+  inside the detection and its centre on a column across it (rows and columns every
+  ``resolution`` person widths) is a candidate when at least ``min_fill`` of it is warm;
+  the candidate that holds the most warm pixels no chosen box holds yet is chosen, while
+  they are at least ``min_gain`` of its area, up to ``max_people`` boxes;
 * a person hidden behind another is found when enough of them shows above or beside the
   front person; one fully hidden is not (nothing shows);
 * the premise is a ground plane: the cover acts only while the image row explains
   ``min_explained`` of the learnt heights' variance, over at least ``min_samples``
-  samples.  In a near view (BU-TIV-lab, R^2
-  0.003) a person's height does not follow the row, and person boxes of the row's size
-  would cut people into pieces.
+  samples.  In a near view (BU-TIV-lab, R^2 0.003) a person's height does not follow the
+  row, and person boxes of the row's size would cut people into pieces.
 
 :func:`cover_people` is the pure step (numpy, one vectorised pass over all candidates per
 chosen box); :class:`PersonCover` is the thermal detector's mixin that applies it to a
@@ -75,17 +73,17 @@ class PersonCoverConfig:
         0.1, "candidate feet rows and centre columns every this fraction of the expected "
         "person width at the detection's bottom row (at least 1 px)", minimum=0.01,
         maximum=1.0)
+    min_explained: float = parameter(
+        0.3, "the cover acts only while the image row explains at least this share of the "
+        "learnt person heights' variance (R^2 of the height-per-row fit): a ground plane "
+        "seen from above; a near indoor view, where heights do not follow the row, has "
+        "none (BU-TIV-lab: 0.003; generated crowds 0.4-0.98)", minimum=0.0, maximum=1.0)
     min_samples: float = parameter(
         50.0, "... and only once the height fit rests on at least this weight of samples "
         "(person-shaped detections, forgotten as the heights are): a line through the "
         "samples of the first two or three people explains them whatever the scene "
         "(BU-TIV-lab: R^2 1.0 over its first 25 samples, 0.001 at 30)", minimum=0.0,
         maximum=1e6)
-    min_explained: float = parameter(
-        0.3, "the cover acts only while the image row explains at least this share of the "
-        "learnt person heights' variance (R^2 of the height-per-row fit): a ground plane "
-        "seen from above; a near indoor view, where heights do not follow the row, has "
-        "none (BU-TIV-lab: 0.003; generated crowds 0.4-0.98)", minimum=0.0, maximum=1.0)
     max_people: int = parameter(10, "most person boxes one detection is replaced by",
                                 minimum=1, maximum=100)
 
