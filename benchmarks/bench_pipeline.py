@@ -76,6 +76,25 @@ def merged_boxes(boxes: list, overlap: float) -> list:
     return out
 
 
+def with_detections(src: Path, dst: Path, detections_of) -> None:
+    """A copy of ``src`` without thermal images, with ``/detections`` beside each
+    ``/ground_truth`` message: ``detections_of(index, ground_truth_msg)`` (the frame's index
+    among the ground-truth messages) gives the list of
+    :class:`~mk_tracker.messages.detection_messages.Detection`, written with that message's
+    header and stamp."""
+    with open_bag(src) as reader, BagWriter(dst, typestore=reader.typestore) as writer:
+        types = bag_message_types(reader.typestore)
+        index = 0
+        for m in copied_without_thermal(reader, writer):
+            if m.topic == "/ground_truth":
+                msg = reader.deserialize(m)
+                dets = detections_of(index, msg)
+                index += 1
+                writer.add_topic("/detections", m.msgtype)
+                writer.write("/detections", m.timestamp_ns,
+                             make_detection_array(dets, msg.header, types))
+
+
 def with_truth_as_detections(src: Path, dst: Path, min_visible: float = 0.0,
                              merge_overlap: float | None = None) -> None:
     """A copy of ``src`` without thermal images, with ``/detections`` = ground truth.
@@ -83,18 +102,13 @@ def with_truth_as_detections(src: Path, dst: Path, min_visible: float = 0.0,
     ``min_visible`` leaves out people less visible than that fraction (the generator writes
     each person's visible fraction as the score of its ground-truth box); ``merge_overlap``
     (``None``: off) joins the boxes of people who overlap, :func:`merged_boxes`."""
-    with open_bag(src) as reader, BagWriter(dst, typestore=reader.typestore) as writer:
-        types = bag_message_types(reader.typestore)
-        for m in copied_without_thermal(reader, writer):
-            if m.topic == "/ground_truth":
-                msg = reader.deserialize(m)
-                boxes = [d.box for d in read_detection_array(msg) if d.score >= min_visible]
-                if merge_overlap is not None:
-                    boxes = merged_boxes(boxes, merge_overlap)
-                dets = [Detection(tuple(b), 1.0) for b in boxes]
-                writer.add_topic("/detections", m.msgtype)
-                writer.write("/detections", m.timestamp_ns,
-                             make_detection_array(dets, msg.header, types))
+    def truth(_index, msg):
+        boxes = [d.box for d in read_detection_array(msg) if d.score >= min_visible]
+        if merge_overlap is not None:
+            boxes = merged_boxes(boxes, merge_overlap)
+        return [Detection(tuple(b), 1.0) for b in boxes]
+
+    with_detections(src, dst, truth)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -34,15 +34,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_groups import detector_pass  # noqa: E402
-from bench_pipeline import copied_without_thermal  # noqa: E402
+from bench_pipeline import with_detections  # noqa: E402
 from bench_thermal_detector import MIN_VISIBLE  # noqa: E402
 from setting_values import setting_changes  # noqa: E402
 
-from mk_tracker.bags.bag_io import open_bag  # noqa: E402
-from mk_tracker.bags.bag_writer import BagWriter  # noqa: E402
 from mk_tracker.boxes import transform_box  # noqa: E402
-from mk_tracker.messages.detection_messages import Detection, make_detection_array  # noqa: E402
-from mk_tracker.messages.message_types import bag_message_types  # noqa: E402
+from mk_tracker.messages.detection_messages import Detection  # noqa: E402
 from mk_tracker.parameters import updated  # noqa: E402
 from mk_tracker.synthetic.scene_bag import build_preset, write_scene_bag  # noqa: E402
 from mk_tracker.tools.pipeline import PipelineOptions, process_bag  # noqa: E402
@@ -100,22 +97,10 @@ def main(argv: list[str] | None = None) -> int:
             _, frames = detector_pass(scene, "kernel", base.detector)
             for rule in args.rules:
                 dst = tmp / f"{name}_{rule}"
-                with open_bag(bag) as reader, BagWriter(dst, typestore=reader.typestore) \
-                        as writer:
-                    types = bag_message_types(reader.typestore)
-                    index = 0
-                    for m in copied_without_thermal(reader, writer):
-                        if m.topic != "/ground_truth":
-                            continue
-                        msg = reader.deserialize(m)
-                        boxes = corrected([d.box for d in frames[index][1]],
-                                          scene.frame(index).objects, rule)
-                        index += 1
-                        dets = [Detection(transform_box(b, scene.homography), 1.0)
-                                for b in boxes]
-                        writer.add_topic("/detections", m.msgtype)
-                        writer.write("/detections", m.timestamp_ns,
-                                     make_detection_array(dets, msg.header, types))
+                with_detections(bag, dst, lambda index, _msg, rule=rule: [
+                    Detection(transform_box(b, scene.homography), 1.0)
+                    for b in corrected([d.box for d in frames[index][1]],
+                                       scene.frame(index).objects, rule)])
                 result = process_bag(dst, tmp / f"run_{name}_{rule}", base,
                                      PipelineOptions(detections="topic:/detections",
                                                      progress=False, tracker_profile="own",

@@ -106,13 +106,14 @@ def _sums(table: np.ndarray, x0, y0, x1, y1) -> np.ndarray:
 
 
 def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
-                 expected_height: Callable[[float], float | None], aspect: float,
+                 expected_heights: Callable[[np.ndarray], np.ndarray | None], aspect: float,
                  config: PersonCoverConfig, step: int = 1
                  ) -> list[tuple[float, float, float, float]]:
     """Whole-person boxes ``(x, y, w, h)`` that cover the warm pixels of ``warm`` (bool
     image) inside ``box``, chosen greedily (module docstring); ``[]`` when no candidate
-    qualifies (the caller keeps ``box``).  ``expected_height(y)`` is the height of a person
-    whose feet are at row ``y`` (None: unknown there); ``aspect`` their width / height;
+    qualifies (the caller keeps ``box``).  ``expected_heights(rows)`` are the heights of
+    people whose feet are at those rows (an array; None: no size known); ``aspect`` their
+    width / height;
     ``step`` the px between candidate feet rows and centre columns."""
     rows, cols = warm.shape
     bx, by, bw, bh = (float(v) for v in box)
@@ -120,18 +121,18 @@ def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
     y0, y1 = max(int(np.floor(by)), 0), min(int(np.ceil(by + bh)), rows)
     if x1 - x0 < 2 or y1 - y0 < 2:
         return []
-    feet, heights = [], []
-    for y in range(y1, y0, -step):                 # feet rows, bottom up
-        h = expected_height(float(y))
-        if h is not None and h >= 4.0:
-            feet.append(y)
-            heights.append(h)
-    if not feet:
+    feet = np.arange(y1, y0, -step, dtype=np.float64)      # feet rows, bottom up
+    heights = expected_heights(feet)
+    if heights is None:
+        return []
+    tall = heights >= 4.0
+    feet, heights = feet[tall], heights[tall]
+    if feet.size == 0:
         return []
     centres = np.arange(x0, x1 + 1, step, dtype=np.float64)
-    yb = np.repeat(np.array(feet, dtype=np.float64), centres.size)
-    hh = np.repeat(np.array(heights), centres.size)
-    xc = np.tile(centres, len(feet))
+    yb = np.repeat(feet, centres.size)
+    hh = np.repeat(heights, centres.size)
+    xc = np.tile(centres, feet.size)
     ww = aspect * hh
     # candidate boxes in pixel edges; sums over the part inside the image, in a window
     # that holds every candidate (integral images of the window only), while the fill is
@@ -200,6 +201,6 @@ class PersonCover:
             if warm is None:
                 warm = warm_mask(self._newest(), self._raw_radius())
             step = max(1, int(round(c.resolution * aspect * expected)))
-            boxes = cover_people(warm, d.box, self.heights.height_at, aspect, c, step)
+            boxes = cover_people(warm, d.box, self.heights.heights_at, aspect, c, step)
             out.extend([make(d, b) for b in boxes] if boxes else [d])
         return out

@@ -138,6 +138,14 @@ class PersonHeightModel:
         mean_y, mean_h, b, _ = line
         return float(mean_h + b * (y_bottom - mean_y))
 
+    def heights_at(self, rows: np.ndarray) -> np.ndarray | None:
+        """:meth:`height_at` of every feet row in ``rows`` from one fit (None as there)."""
+        line = self._line()
+        if line is None or not self.valid():
+            return None
+        mean_y, mean_h, b, _ = line
+        return mean_h + b * (np.asarray(rows, dtype=np.float64) - mean_y)
+
 
 def is_person_shaped(width: float, height: float, aspect: float) -> bool:
     """Whether a ``width x height`` box is one upright person of width/height ``aspect``

@@ -223,18 +223,18 @@ class _Track:
     passes: int = 0      # full passes that found it as an object of its own (keep_apart)
 
 
-def _still_detection(box: tuple, score: float, pixels: int) -> ThermalDetection:
-    """A detection of ``still_people`` (no Kalman filter of its own: ``object_id`` -1)."""
+def _box_detection(box: tuple, score: float, pixels: int, object_id: int = -1
+                   ) -> ThermalDetection:
+    """A detection known by its box only, centred in it: a ``still_people`` region (no
+    Kalman filter of its own: ``object_id`` -1) or a person box of ``person_cover``."""
     return ThermalDetection(box=box, centroid=(box[0] + box[2] / 2.0, box[1] + box[3] / 2.0),
-                            score=score, pixel_count=pixels)
+                            score=score, pixel_count=pixels, object_id=object_id)
 
 
 def _piece(group: ThermalDetection, box: tuple) -> ThermalDetection:
     """One person box of ``person_cover`` in a group detection: the group's score, pixel
     count and object id (its Kalman filter follows the group)."""
-    x, y, w, h = box
-    return ThermalDetection(box=box, centroid=(x + w / 2.0, y + h / 2.0), score=group.score,
-                            pixel_count=group.pixel_count, object_id=group.object_id)
+    return _box_detection(box, group.score, group.pixel_count, group.object_id)
 
 
 def _overlap(a: tuple, b: tuple) -> bool:
@@ -389,7 +389,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         if not self.config.still_people.enabled:
             return found
         return self._still.step(self._newest(), self._raw_radius(), found, self._last_stamp,
-                                full_pass, _still_detection)
+                                full_pass, _box_detection)
 
     # -- normalisation ---------------------------------------------------------------------
     def _gain_compensated(self, frame: np.ndarray, enc: str, stamp: float) -> np.ndarray:

@@ -308,3 +308,14 @@ def test_valley_columns_overlap_decides_between_neighbours_and_stacked_parts(ove
 
 def test_valley_columns_of_an_empty_footprint_is_empty():
     assert valley_columns(np.zeros((4, 4), dtype=np.int32), 0) == []
+
+
+def test_heights_at_is_height_at_for_every_row_from_one_fit():
+    model = PersonHeightModel(memory=100.0)
+    rows = np.array([100.0, 150.0, 230.0])
+    assert model.heights_at(rows) is None                 # no samples yet: no size
+    for y in (120.0, 160.0, 200.0, 240.0):
+        model.add(y, 20.0 + 0.3 * y + (1.0 if y == 160.0 else 0.0))
+    heights = model.heights_at(rows)
+    assert heights.shape == (3,)
+    assert heights == pytest.approx([model.height_at(y) for y in rows])
