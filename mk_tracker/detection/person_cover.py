@@ -86,10 +86,6 @@ class PersonCoverConfig:
         maximum=1e6)
     max_people: int = parameter(10, "most person boxes one detection is replaced by",
                                 minimum=1, maximum=100)
-    refine_passes: int = parameter(
-        2, "passes of local search after the greedy cover: each chosen box in turn moves to "
-        "the candidate that holds the most warm pixels the other chosen boxes do not (0 = "
-        "greedy only)", minimum=0, maximum=20)
 
 
 def warm_mask(frame: np.ndarray, radius: float) -> np.ndarray:
@@ -157,68 +153,17 @@ def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
         return []
     cx0, cx1, cy0, cy1, area = cx0[keep], cx1[keep], cy0[keep], cy1[keep], area[keep]
     sx0, sx1, sy0, sy1 = sx0[keep], sx1[keep], sy0[keep], sy1[keep]
-    fill = fill[keep]
     residual = window.copy()
-    picked: list[int] = []
+    chosen: list[tuple[float, float, float, float]] = []
     for _ in range(config.max_people):
         gain = _sums(_integral(residual), sx0, sy0, sx1, sy1)
-        k = _best(gain, fill)
+        k = int(np.argmax(gain))
         if gain[k] < config.min_gain * area[k]:
             break
-        picked.append(k)
+        chosen.append((float(cx0[k]), float(cy0[k]), float(cx1[k] - cx0[k]),
+                       float(cy1[k] - cy0[k])))
         residual[sy0[k]:sy1[k], sx0[k]:sx1[k]] = False
-    picked = _refined(window, picked, (sx0, sy0, sx1, sy1), area, fill, config)
-    return [(float(cx0[k]), float(cy0[k]), float(cx1[k] - cx0[k]), float(cy1[k] - cy0[k]))
-            for k in picked]
-
-
-def _best(gain: np.ndarray, fill: np.ndarray) -> int:
-    """The candidate that holds the most uncovered warm pixels; among equals, the one whose
-    box is the most warm.  Equals are common: a person whose legs are hidden behind a
-    nearer one adds the same pixels to every box from their true feet row down to the
-    nearer person's; the warmest of those ends at the head instead of above it."""
-    return int(np.argmax(gain + 0.5 * fill))
-
-
-def _refined(window: np.ndarray, picked: list[int], edges, area: np.ndarray,
-             fill: np.ndarray, config: PersonCoverConfig) -> list[int]:
-    """Local search on the greedy cover (``refine_passes``).  The greedy choice of the
-    first box is blind to the boxes after it: two people side by side, legs cooler than
-    bodies, with a third behind them, get a first box across the middle (it holds some of
-    the third) and then one box on each side.  So each chosen candidate in turn is replaced
-    by the candidate that holds the most warm pixels of ``window`` that the *other* chosen
-    ones do not, while that holds more than the one it replaces (coordinate ascent on the
-    covered area); then the box that adds the least is dropped while it adds less than
-    ``min_gain`` of its area (it duplicates the others)."""
-    if len(picked) < 2 or config.refine_passes <= 0:
-        return picked
-    sx0, sy0, sx1, sy1 = edges
-    picked = list(picked)
-
-    def exclusive(i: int) -> np.ndarray:
-        residual = window.copy()
-        for j, k in enumerate(picked):
-            if j != i:
-                residual[sy0[k]:sy1[k], sx0[k]:sx1[k]] = False
-        return _sums(_integral(residual), sx0, sy0, sx1, sy1)
-
-    for _ in range(config.refine_passes):
-        moved = False
-        for i in range(len(picked)):
-            gain = exclusive(i)
-            best = _best(gain, fill)
-            if gain[best] + 0.5 * fill[best] > gain[picked[i]] + 0.5 * fill[picked[i]]:
-                picked[i] = best
-                moved = True
-        if not moved:
-            break
-    while len(picked) > 1:
-        share = [exclusive(i)[k] / area[k] for i, k in enumerate(picked)]
-        weakest = int(np.argmin(share))
-        if share[weakest] >= config.min_gain:
-            break
-        del picked[weakest]
-    return picked
+    return chosen
 
 
 class PersonCover:

@@ -62,29 +62,6 @@ def test_a_person_partly_behind_another_is_found_from_what_shows():
     assert _matched(found, [front, back], level=0.6), found
 
 
-def _cool_legs(mask: np.ndarray, person) -> None:
-    """Cold between the legs: the lower body of a person holds fewer warm pixels."""
-    x, y, w, h = person
-    mask[y + int(0.55 * h):y + h, x + int(0.3 * w):x + int(0.7 * w) + 1] = False
-
-
-def test_two_people_side_by_side_with_a_third_behind_get_one_box_each():
-    """The greedy cover alone puts its first box across the middle of the front pair (it
-    holds part of the person behind), then one on each side: four boxes for three people.
-    The local search moves and drops boxes until each person has one."""
-    a = _person(250, 150)
-    b = _person(250, 150 + a[2])
-    back = _person(215, 150 + a[2] // 2)
-    warm = _warm(back, a, b)
-    _cool_legs(warm, a)
-    _cool_legs(warm, b)
-    box = _union(a, b, back)
-    greedy = cover_people(warm, box, _height, ASPECT, PersonCoverConfig(refine_passes=0))
-    assert not _matched(greedy, [a, b, back], level=0.6), greedy     # the failure shown
-    found = cover_people(warm, box, _height, ASPECT, PersonCoverConfig())
-    assert _matched(found, [a, b, back], level=0.7), found
-
-
 def test_one_person_in_a_loose_box_gets_one_tight_box():
     p = _person(220, 120)
     loose = (p[0] - 20, p[1] - 5, p[2] + 40, p[3] + 10)
