@@ -26,13 +26,6 @@ situations", TPAMI 2004, reduced to boxes):
   they are at least ``min_gain`` of its area, up to ``max_people`` boxes;
 * a person hidden behind another is found when enough of them shows above or beside the
   front person; one fully hidden is not (nothing shows);
-* the frame is covered as a whole: the boxes of the detections that are not groups, then
-  the person boxes of each group in turn (nearest first: lowest bottom row), mark the
-  warm pixels they hold as explained, and a later group's candidates gain only from
-  pixels not yet explained.  Covered one by one, a group whose box reaches into a
-  neighbour's detection, or two group boxes of one crowd (the detector may cut a crowd
-  across), put a second box on the same person: 0.20-0.34 pairs of detections
-  overlapping at IoU > 0.5 per frame on development crowds, none covered as a whole;
 * the premise is a ground plane: the cover acts only while the image row explains
   ``min_explained`` of the learnt heights' variance, over at least ``min_samples``
   samples.  In a near view (BU-TIV-lab, R^2 0.003) a person's height does not follow the
@@ -114,17 +107,14 @@ def _sums(table: np.ndarray, x0, y0, x1, y1) -> np.ndarray:
 
 def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
                  expected_heights: Callable[[np.ndarray], np.ndarray | None], aspect: float,
-                 config: PersonCoverConfig, step: int = 1,
-                 explained: np.ndarray | None = None
+                 config: PersonCoverConfig, step: int = 1
                  ) -> list[tuple[float, float, float, float]]:
     """Whole-person boxes ``(x, y, w, h)`` that cover the warm pixels of ``warm`` (bool
     image) inside ``box``, chosen greedily (module docstring); ``[]`` when no candidate
     qualifies (the caller keeps ``box``).  ``expected_heights(rows)`` are the heights of
     people whose feet are at those rows (an array; None: no size known); ``aspect`` their
     width / height;
-    ``step`` the px between candidate feet rows and centre columns; ``explained`` (bool
-    image, updated in place) the pixels other boxes of the frame already hold: they count
-    for a candidate's fill but not for its gain, and the chosen boxes are added."""
+    ``step`` the px between candidate feet rows and centre columns."""
     rows, cols = warm.shape
     bx, by, bw, bh = (float(v) for v in box)
     x0, x1 = max(int(np.floor(bx)), 0), min(int(np.ceil(bx + bw)), cols)
@@ -164,8 +154,6 @@ def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
     cx0, cx1, cy0, cy1, area = cx0[keep], cx1[keep], cy0[keep], cy1[keep], area[keep]
     sx0, sx1, sy0, sy1 = sx0[keep], sx1[keep], sy0[keep], sy1[keep]
     residual = window.copy()
-    if explained is not None:
-        residual &= ~explained[wy0:wy1, wx0:wx1]
     chosen: list[tuple[float, float, float, float]] = []
     for _ in range(config.max_people):
         gain = _sums(_integral(residual), sx0, sy0, sx1, sy1)
@@ -175,19 +163,7 @@ def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
         chosen.append((float(cx0[k]), float(cy0[k]), float(cx1[k] - cx0[k]),
                        float(cy1[k] - cy0[k])))
         residual[sy0[k]:sy1[k], sx0[k]:sx1[k]] = False
-        if explained is not None:
-            explained[wy0 + sy0[k]:wy0 + sy1[k], wx0 + sx0[k]:wx0 + sx1[k]] = True
     return chosen
-
-
-def _mark(mask: np.ndarray, box: tuple) -> None:
-    """Set the pixels of ``box`` ``(x, y, w, h)`` (clipped to ``mask``) in ``mask``."""
-    rows, cols = mask.shape
-    x0, y0 = max(int(np.floor(box[0])), 0), max(int(np.floor(box[1])), 0)
-    x1 = min(int(np.ceil(box[0] + box[2])), cols)
-    y1 = min(int(np.ceil(box[1] + box[3])), rows)
-    if x1 > x0 and y1 > y0:
-        mask[y0:y1, x0:x1] = True
 
 
 class PersonCover:
@@ -208,37 +184,23 @@ class PersonCover:
         c = self.config.person_cover
         if not c.enabled or not detections:
             return detections
-        r2 = self.heights.explained()
-        if r2 is None or r2 < c.min_explained or \
+        explained = self.heights.explained()
+        if explained is None or explained < c.min_explained or \
                 self.heights.samples < c.min_samples:
             return detections
         aspect = self._cover_aspect()
-        groups = []
-        for i, d in enumerate(detections):
+        warm = None
+        out = []
+        for d in detections:
             x, y, w, h = d.box
             expected = self.heights.height_at(y + h)
-            if expected is not None and (w > c.width_ratio * aspect * expected
-                                         or h > c.height_ratio * expected):
-                groups.append((y + h, i, expected))
-        if not groups:
-            return detections
-        warm = warm_mask(self._newest(), self._raw_radius())
-        # what the frame's other boxes hold is not a further person of a group: the single
-        # people's boxes first, then the groups nearest first (lowest bottom row), each
-        # adding its person boxes
-        explained = np.zeros(warm.shape, dtype=bool)
-        grouped = {i for _, i, _ in groups}
-        for i, d in enumerate(detections):
-            if i not in grouped:
-                _mark(explained, d.box)
-        pieces: dict[int, list[Any]] = {}
-        for _, i, expected in sorted(groups, reverse=True):
-            d = detections[i]
+            if expected is None or not (w > c.width_ratio * aspect * expected
+                                        or h > c.height_ratio * expected):
+                out.append(d)
+                continue
+            if warm is None:
+                warm = warm_mask(self._newest(), self._raw_radius())
             step = max(1, int(round(c.resolution * aspect * expected)))
-            boxes = cover_people(warm, d.box, self.heights.heights_at, aspect, c, step,
-                                 explained)
-            pieces[i] = [make(d, b) for b in boxes] if boxes else [d]
-        out = []
-        for i, d in enumerate(detections):
-            out.extend(pieces.get(i, [d]))
+            boxes = cover_people(warm, d.box, self.heights.heights_at, aspect, c, step)
+            out.extend([make(d, b) for b in boxes] if boxes else [d])
         return out

@@ -62,28 +62,6 @@ def test_a_person_partly_behind_another_is_found_from_what_shows():
     assert _matched(found, [front, back], level=0.6), found
 
 
-def test_a_person_another_box_holds_is_not_covered_again():
-    """A group box that reaches into a neighbour detected on their own: without the
-    frame's other boxes the cover puts a third box on the neighbour (a duplicate
-    detection); with the pixels those boxes hold marked as explained it does not, and it
-    marks its own boxes for the groups after it."""
-    a = _person(240, 150)
-    b = _person(240, 150 + a[2])
-    c = _person(240, 150 + 2 * a[2])
-    ab = _union(a, b)
-    group = (ab[0], ab[1], ab[2] + 0.5 * c[2], ab[3])
-    warm = _warm(a, b, c)
-    alone = cover_people(warm, group, _height, ASPECT, PersonCoverConfig())
-    assert _matched(alone, [a, b, c]), alone          # c twice: here and on its own
-    explained = np.zeros(warm.shape, dtype=bool)
-    explained[c[1]:c[1] + c[3], c[0]:c[0] + c[2]] = True
-    found = cover_people(warm, group, _height, ASPECT, PersonCoverConfig(),
-                         explained=explained)
-    assert _matched(found, [a, b]), found
-    assert explained[a[1] + a[3] // 2, a[0] + a[2] // 2]      # a's box marked for the next
-    assert explained[b[1] + b[3] // 2, b[0] + b[2] // 2]
-
-
 def test_one_person_in_a_loose_box_gets_one_tight_box():
     p = _person(220, 120)
     loose = (p[0] - 20, p[1] - 5, p[2] + 40, p[3] + 10)
