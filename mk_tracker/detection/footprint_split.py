@@ -26,6 +26,10 @@ from mk_tracker.detection.pixel_clustering import describe_parts, describe_pixel
 
 __all__ = ["FootprintSplitting"]
 
+#: object ids of size samples kept (``person_cover.min_people`` is at most 100): a bound on
+#: the set over a long run
+MAX_SIZE_OBJECTS = 100
+
 
 @dataclass
 class _Candidate:
@@ -77,6 +81,8 @@ class FootprintSplitting:
             if is_person_shaped(w, h, c.person_aspect):
                 self.heights.add(y + h, h)
                 self._add_aspect(w, h)
+                if d.object_id >= 0 and len(self.size_objects) < MAX_SIZE_OBJECTS:
+                    self.size_objects.add(d.object_id)
             elif not group:
                 expected = self.heights.height_at(y + h)
                 group = expected is not None and people_in_width(

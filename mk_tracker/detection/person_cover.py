@@ -27,9 +27,14 @@ situations", TPAMI 2004, reduced to boxes):
 * a person hidden behind another is found when enough of them shows above or beside the
   front person; one fully hidden is not (nothing shows);
 * the premise is a ground plane: the cover acts only while the image row explains
-  ``min_explained`` of the learnt heights' variance, over at least ``min_samples``
-  samples.  In a near view (BU-TIV-lab, R^2 0.003) a person's height does not follow the
-  row, and person boxes of the row's size would cut people into pieces.
+  ``min_explained`` of the learnt heights' variance, with samples from at least
+  ``min_people`` of the detector's objects.  In a near view (BU-TIV-lab, R^2 0.003) a
+  person's height does not follow the row, and person boxes of the row's size would cut
+  people into pieces.  One person is not enough: a person who walks towards the camera
+  gives heights on a line in any scene (BU-TIV-lab's first 25 samples are one person,
+  whose box top stays on one row: R^2 1.0).  This gate replaced a count of 50 samples,
+  set after that clip: the count waited the same for a crowd as for that one person
+  (docs/benchmark_groups.md, "The person cover").
 
 :func:`cover_people` is the pure step (numpy, one vectorised pass over all candidates per
 chosen box); :class:`PersonCover` is the thermal detector's mixin that applies it to a
@@ -78,12 +83,11 @@ class PersonCoverConfig:
         "learnt person heights' variance (R^2 of the height-per-row fit): a ground plane "
         "seen from above; a near indoor view, where heights do not follow the row, has "
         "none (BU-TIV-lab: 0.003; generated crowds 0.4-0.98)", minimum=0.0, maximum=1.0)
-    min_samples: float = parameter(
-        50.0, "... and only once the height fit rests on at least this weight of samples "
-        "(person-shaped detections, forgotten as the heights are): a line through the "
-        "samples of the first two or three people explains them whatever the scene "
-        "(BU-TIV-lab: R^2 1.0 over its first 25 samples, 0.001 at 30)", minimum=0.0,
-        maximum=1e6)
+    min_people: int = parameter(
+        3, "... and only once the samples come from at least this many of the detector's "
+        "objects: one person walking towards the camera gives heights on a line that the "
+        "row explains in any scene (BU-TIV-lab: its first 25 samples, R^2 1.0, are one "
+        "person, whose box top stays on one row)", minimum=1, maximum=100)
     max_people: int = parameter(10, "most person boxes one detection is replaced by",
                                 minimum=1, maximum=100)
 
@@ -168,7 +172,8 @@ def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
 
 class PersonCover:
     """``person_cover`` on a frame's detections (mixin of the thermal detector, which
-    provides ``config``, ``heights``, ``aspects``, ``_newest`` and ``_raw_radius``)."""
+    provides ``config``, ``heights``, ``aspects``, ``size_objects``, ``_newest`` and
+    ``_raw_radius``)."""
 
     def _cover_aspect(self) -> float:
         """Width / height of one person: the mean of the learnt size samples (once there
@@ -186,7 +191,7 @@ class PersonCover:
             return detections
         explained = self.heights.explained()
         if explained is None or explained < c.min_explained or \
-                self.heights.samples < c.min_samples:
+                len(self.size_objects) < c.min_people:
             return detections
         aspect = self._cover_aspect()
         warm = None

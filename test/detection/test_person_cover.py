@@ -121,33 +121,53 @@ class _Detection:
         self.box = box
 
 
-def _detector_with_heights(samples) -> ThermalDetector:
+def _detector_with_heights(samples, people: int = 5) -> ThermalDetector:
+    """A detector that has learnt ``samples`` ``(feet row, height)`` from ``people`` of its
+    objects."""
     detector = ThermalDetector(updated(ThermalDetectorConfig(),
                                        {"person_cover.enabled": True}))
     for y_bottom, height in samples:
         detector.heights.add(y_bottom, height)
         detector._add_aspect(ASPECT * height, height)
+    detector.size_objects.update(range(1, people + 1))
     return detector
 
 
 def test_the_cover_acts_only_where_person_heights_follow_the_row():
     """A group box is covered when the learnt heights follow the image row (a ground
-    plane) over enough samples; where they do not (a near view: R^2 about 0), or too few
-    samples back the fit, it is left as it is."""
+    plane) in samples of several people; where they do not (a near view: R^2 about 0), or
+    the samples are of one person, it is left as it is."""
     a, b = _person(240, 150), _person(244, 180)
     group = _Detection(_union(a, b))
     frame = np.where(_warm(a, b), 200.0, 40.0).astype(np.float32)
     rows = [150 + (7 * k) % 140 for k in range(60)]            # 60 samples
     ground = _detector_with_heights([(y, _height(y)) for y in rows])
     near = _detector_with_heights([(y, 80.0 + (13 * y) % 17) for y in rows])
-    few = _detector_with_heights([(y, _height(y)) for y in rows[:10]])
+    one = _detector_with_heights([(y, _height(y)) for y in rows], people=1)
     assert ground.heights.explained() > 0.9 and near.heights.explained() < 0.3
-    for detector in (ground, near, few):
+    for detector in (ground, near, one):
         detector._newest = lambda: frame
         detector._raw_radius = lambda: 20.0
     pieces = ground._covered([group], lambda d, box: _Detection(box))
     assert _matched([p.box for p in pieces], [a, b]), [p.box for p in pieces]
     assert near._covered([group], lambda d, box: _Detection(box)) == [group]
-    # ten samples on a line explain it perfectly, but are too few to trust (min_samples)
-    assert few.heights.explained() > 0.9
-    assert few._covered([group], lambda d, box: _Detection(box)) == [group]
+    # sixty samples on a line, but all of one person (min_people): one person walking
+    # towards the camera is such a line in any scene
+    assert one.heights.explained() > 0.9
+    assert one._covered([group], lambda d, box: _Detection(box)) == [group]
+
+
+def test_the_detector_counts_the_objects_its_size_samples_come_from():
+    """Size samples are counted per detector object: a person followed over many frames is
+    one, whatever the number of samples."""
+    scene = build_preset("crowd", seed=101, people=3, frames=60, width=320, height=240)
+    detector = ThermalDetector(updated(ThermalDetectorConfig(),
+                                       {"person_cover.enabled": True}))
+    for i in range(len(scene)):
+        frame = scene.frame(i)
+        detector.process(frame.thermal, frame.stamp)
+    assert 1 <= len(detector.size_objects) <= 6, detector.size_objects
+    assert detector.heights.samples > 3 * len(detector.size_objects)
+    assert max(detector.size_objects) < detector._next_id      # ids the detector gave
+    detector.reset()
+    assert detector.size_objects == set()
