@@ -26,10 +26,6 @@ from mk_tracker.detection.pixel_clustering import describe_parts, describe_pixel
 
 __all__ = ["FootprintSplitting"]
 
-#: object ids of size samples kept (``person_cover.min_people`` is at most 100): a bound on
-#: the set over a long run
-MAX_SIZE_OBJECTS = 100
-
 
 @dataclass
 class _Candidate:
@@ -81,8 +77,7 @@ class FootprintSplitting:
             if is_person_shaped(w, h, c.person_aspect):
                 self.heights.add(y + h, h)
                 self._add_aspect(w, h)
-                if d.object_id >= 0 and len(self.size_objects) < MAX_SIZE_OBJECTS:
-                    self.size_objects.add(d.object_id)
+                self._note_size_object(d.object_id)
             elif not group:
                 expected = self.heights.height_at(y + h)
                 group = expected is not None and people_in_width(
@@ -91,6 +86,24 @@ class FootprintSplitting:
         self._group_seen = group and self.last_mode == "tracking" and (
             c.split_by_person_size or c.split_clusters)
         return detections
+
+    def _note_size_object(self, object_id: int) -> None:
+        """Record that the newest size sample came from detector object ``object_id`` (-1:
+        none); objects whose latest sample is a whole ``size_memory`` of samples old are
+        dropped, as the size model has mostly forgotten them (weight below 1/e)."""
+        self._size_samples += 1
+        if object_id >= 0:
+            self.size_objects[object_id] = self._size_samples
+        if len(self.size_objects) > 8:
+            horizon = self._size_samples - self.config.size_memory
+            for oid in [o for o, n in self.size_objects.items() if n <= horizon]:
+                del self.size_objects[oid]
+
+    def sampled_objects(self) -> int:
+        """How many detector objects the size model's remembered samples came from: those
+        with a sample in the last ``size_memory`` samples."""
+        horizon = self._size_samples - self.config.size_memory
+        return sum(1 for n in self.size_objects.values() if n > horizon)
 
     def _whole_height(self, y: float, h: float) -> bool:
         """Whether a box ``y .. y + h`` is clear of the image's top and bottom rows."""

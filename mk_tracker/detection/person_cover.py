@@ -28,7 +28,7 @@ situations", TPAMI 2004, reduced to boxes):
   front person; one fully hidden is not (nothing shows);
 * the premise is a ground plane: the cover acts only while the image row explains
   ``min_explained`` of the learnt heights' variance, with samples from at least
-  ``min_people`` of the detector's objects.  In a near view (BU-TIV-lab, R^2 0.003) a
+  ``min_people`` of the detector's objects among the samples it remembers.  In a near view (BU-TIV-lab, R^2 0.003) a
   person's height does not follow the row, and person boxes of the row's size would cut
   people into pieces.  One person is not enough: a person who walks towards the camera
   gives heights on a line in any scene (BU-TIV-lab's first 25 samples are one person,
@@ -172,7 +172,7 @@ def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
 
 class PersonCover:
     """``person_cover`` on a frame's detections (mixin of the thermal detector, which
-    provides ``config``, ``heights``, ``aspects``, ``size_objects``, ``_newest`` and
+    provides ``config``, ``heights``, ``aspects``, ``sampled_objects``, ``_newest`` and
     ``_raw_radius``)."""
 
     def _cover_aspect(self) -> float:
@@ -191,7 +191,7 @@ class PersonCover:
             return detections
         explained = self.heights.explained()
         if explained is None or explained < c.min_explained or \
-                len(self.size_objects) < c.min_people:
+                self.sampled_objects() < c.min_people:
             return detections
         aspect = self._cover_aspect()
         warm = None

@@ -126,10 +126,10 @@ def _detector_with_heights(samples, people: int = 5) -> ThermalDetector:
     objects."""
     detector = ThermalDetector(updated(ThermalDetectorConfig(),
                                        {"person_cover.enabled": True}))
-    for y_bottom, height in samples:
+    for k, (y_bottom, height) in enumerate(samples):
         detector.heights.add(y_bottom, height)
         detector._add_aspect(ASPECT * height, height)
-    detector.size_objects.update(range(1, people + 1))
+        detector._note_size_object(1 + k % people)
     return detector
 
 
@@ -166,8 +166,32 @@ def test_the_detector_counts_the_objects_its_size_samples_come_from():
     for i in range(len(scene)):
         frame = scene.frame(i)
         detector.process(frame.thermal, frame.stamp)
-    assert 1 <= len(detector.size_objects) <= 6, detector.size_objects
-    assert detector.heights.samples > 3 * len(detector.size_objects)
+    people = detector.sampled_objects()
+    assert 1 <= people <= 6, detector.size_objects
+    assert detector.heights.samples > 3 * people
     assert max(detector.size_objects) < detector._next_id      # ids the detector gave
     detector.reset()
-    assert detector.size_objects == set()
+    assert detector.sampled_objects() == 0
+
+
+def test_people_the_size_model_has_forgotten_no_longer_count():
+    """After a whole ``size_memory`` of samples from one person, the people sampled before
+    no longer count: the fit is that one person's again, and the cover waits."""
+    config = updated(ThermalDetectorConfig(), {"person_cover.enabled": True,
+                                               "size_memory": 20.0})
+    detector = ThermalDetector(config)
+    for k in range(30):
+        detector._note_size_object(1 + k % 3)
+    assert detector.sampled_objects() == 3
+    for _ in range(17):
+        detector._note_size_object(7)
+    assert detector.sampled_objects() == 4          # 1-3's last samples 17-19 ago, and 7
+    detector._note_size_object(7)
+    assert detector.sampled_objects() == 3          # object 1's last sample, 20 ago, is out
+    detector._note_size_object(7)
+    detector._note_size_object(7)
+    assert detector.sampled_objects() == 1          # only the one person left
+    for oid in range(100, 400):                     # a long run of passers-by: the
+        detector._note_size_object(oid)             # forgotten ids are dropped too
+    assert detector.sampled_objects() == 20
+    assert len(detector.size_objects) <= 21
