@@ -94,16 +94,15 @@ class FootprintSplitting:
         self._size_samples += 1
         if object_id >= 0:
             self.size_objects[object_id] = self._size_samples
-        if len(self.size_objects) > 8:
-            horizon = self._size_samples - self.config.size_memory
-            for oid in [o for o, n in self.size_objects.items() if n <= horizon]:
-                del self.size_objects[oid]
+        horizon = self._size_samples - self.config.size_memory
+        for oid in [o for o, n in self.size_objects.items() if n <= horizon]:
+            del self.size_objects[oid]
 
     def sampled_objects(self) -> int:
         """How many detector objects the size model's remembered samples came from: those
-        with a sample in the last ``size_memory`` samples."""
-        horizon = self._size_samples - self.config.size_memory
-        return sum(1 for n in self.size_objects.values() if n > horizon)
+        with a sample in the last ``size_memory`` samples (the others were dropped when the
+        newest sample came)."""
+        return len(self.size_objects)
 
     def _whole_height(self, y: float, h: float) -> bool:
         """Whether a box ``y .. y + h`` is clear of the image's top and bottom rows."""

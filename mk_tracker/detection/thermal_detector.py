@@ -298,8 +298,9 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
                                          c.size_max_residual < 100 else math.inf,
                                          c.size_min_samples)
         self.aspects = np.zeros(2)      # forgetting sums of (1, width / height) of samples
-        self.size_objects: dict[int, int] = {}   # object id -> number of its newest size
-        self._size_samples = 0                    # sample (_note_size_object)
+        # object id -> number of its newest size sample (_note_size_object)
+        self.size_objects: dict[int, int] = {}
+        self._size_samples = 0
         self._group_seen = False        # a tracking pass saw a footprint of several people
         self._oversize_seen = False     # extent.bound: a tracking pass met a group
         self._extents: dict = {}        # body_extent: object id -> its person's extent
