@@ -68,7 +68,6 @@ import numpy as np
 from mk_tracker.tracking.association import assign, association_cost, mahalanobis_matrix
 from mk_tracker.tracking.body_parts import is_other_part
 from mk_tracker.tracking.camera_motion import CameraMotionEstimator, compensate
-from mk_tracker.tracking.still_template import grey_template, template_correlation
 # FrameDetection, PLANES and TrackerInputError are re-exported from here
 from mk_tracker.tracking.detection_input import (PLANES, FrameDetection,  # noqa: F401
                                                  PreparedDetection, TrackerInputError,
@@ -550,13 +549,6 @@ class MultiObjectTracker:
                 math.sqrt(max(found[1], 0.0) * refiner.peak_contrast(image, t.target, res)) \
                 >= contrast_level:
             found = (found[0], found[1], True)      # a still person in another light
-        if (found is None or not found[2]) and t.config.still_template > 0.0 \
-                and not t.manual and t.detected_template is not None and t.is_still():
-            level = template_correlation(image, t.detected_template)
-            if level >= t.config.still_template:
-                # the pixels where the person was last detected have not changed: they stand
-                # there (still_template.py); measured at that box, not at the search's
-                found = (t.detected_box.copy(), level, True)
         floor = self.config.manual_track.min_column_similarity
         if t.manual and self.config.manual_track.column_recentre and found is not None \
                 and found[2] and not columns_cover(res, floor):
@@ -746,8 +738,6 @@ class MultiObjectTracker:
             if not group:
                 t.detected_box = np.array(det_box, dtype=np.float64)
                 t.detected_stamp = stamp
-                if cfg.still_template > 0.0 and not t.manual:
-                    t.detected_template = grey_template(image, t.detected_box)
             t.last_seen = stamp
             t.score = sim if sim is not None else _quality(det.score)
         else:

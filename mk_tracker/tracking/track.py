@@ -99,12 +99,6 @@ class LifecycleConfig:
         "a ring of copies one box size away (peak_contrast.py: it stands out whatever the "
         "light; a person who left leaves a flat neighbourhood); 0 = off", minimum=0.0,
         maximum=1.0)
-    still_template: float = parameter(
-        0.0, "A still track (still_speed) that the multiple-kernel refinement calls unseen "
-        "still counts as visible, measured at its last detected box, while the grey pixels "
-        "there correlate at least this much (normalised cross-correlation, the central 0.6 "
-        "of the width) with those of the frame of that detection (still_template.py: the "
-        "person has not left); 0 = off", minimum=0.0, maximum=1.0)
     still_needs_visible: bool = parameter(
         True, "The still_speed exemption from max_undetected_time holds only in frames where "
         "the multiple-kernel refinement sees the track (visible); false: a still track that "
@@ -237,9 +231,6 @@ class Track:
         #: the filtered box), for re-acquisition from the last detection
         self.detected_box = np.array([x, y, w, h])
         self.detected_stamp = float(stamp)     # when detected_box was observed
-        #: grey pixels of detected_box in the frame it was observed in, kept with
-        #: lifecycle.still_template > 0 (still_template.grey_template)
-        self.detected_template: tuple[tuple[int, int, int, int], np.ndarray] | None = None
         self.last_seen = float(stamp)
         self.lost_since: float | None = None
         self.hits = 1
