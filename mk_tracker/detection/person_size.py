@@ -104,6 +104,22 @@ class PersonHeightModel:
             return None
         return math.sqrt(line[3]) / line[1]
 
+    def is_level(self, tolerance: float) -> bool:
+        """Whether the samples say one height for every row: their feet rows span at least
+        one mean height, and over that span the fitted line changes, and the samples
+        scatter about it (residual std), by at most ``tolerance`` of the mean height.  A
+        person whose height stays the same while their feet cross many rows is not on a
+        ground plane seen from above (where height follows the row) but on stairs or a
+        facade-like layout, or far away: the row then says nothing of their depth, and one
+        height serves every row (False with fewer than about 3 samples)."""
+        line = self._line()
+        if line is None or self.rows is None or not line[1] > 0 or tolerance <= 0:
+            return False
+        _mean_y, mean_h, b, var = line
+        span = self.rows[1] - self.rows[0]
+        return bool(span >= mean_h and abs(b) * span <= tolerance * mean_h
+                    and math.sqrt(var) <= tolerance * mean_h)
+
     def explained(self) -> float | None:
         """Share of the samples' height variance the line explains (R^2, 0 without a slope
         or spread); None with fewer than about 3 samples."""

@@ -142,9 +142,12 @@ def test_the_cover_acts_only_where_person_heights_follow_the_row():
     frame = np.where(_warm(a, b), 200.0, 40.0).astype(np.float32)
     rows = [150 + (7 * k) % 140 for k in range(60)]            # 60 samples
     ground = _detector_with_heights([(y, _height(y)) for y in rows])
-    near = _detector_with_heights([(y, 80.0 + (13 * y) % 17) for y in rows])
+    # a near view: half- and whole-body boxes end on any row, heights scatter by a quarter
+    # of their mean (BU-TIV-lab: 0.26-0.37), so the level form of the gate stays shut too
+    near = _detector_with_heights([(y, 60.0 + 5 * ((13 * y) % 17)) for y in rows])
     one = _detector_with_heights([(y, _height(y)) for y in rows], people=1)
     assert ground.heights.explained() > 0.9 and near.heights.explained() < 0.3
+    assert near.heights.relative_residual() > 0.2
     for detector in (ground, near, one):
         detector._newest = lambda: frame
         detector._raw_radius = lambda: 20.0
@@ -195,3 +198,75 @@ def test_people_the_size_model_has_forgotten_no_longer_count():
         detector._note_size_object(oid)             # forgotten ids are dropped too
     assert detector.sampled_objects() == 20
     assert len(detector.size_objects) <= 21
+
+
+def _level_group():
+    """Two people of one height (90 px) touching along a diagonal, one box around both."""
+    a = (150, 100, 32, 90)
+    b = (176, 130, 32, 90)
+    return a, b, _Detection(_union(a, b)), np.where(_warm(a, b), 200.0, 40.0).astype(
+        np.float32)
+
+
+@pytest.mark.parametrize("tolerance, span, scatter, change, covered", [
+    (0.1, 200, 0.0, 0.0, True),      # one height over 200 rows (> 90 px): a queue on stairs
+    (0.0, 200, 0.0, 0.0, False),     # the level form off: R^2 is 0, the gate stays shut
+    (0.1, 60, 0.0, 0.0, False),      # feet over fewer rows than a person's height
+    (0.1, 200, 0.2, 0.0, False),     # heights scattered by 20% (a near view, BU-TIV-lab)
+    (0.1, 200, 0.0, 0.3, False),     # heights that grow by 30% over the rows: not level
+])
+def test_one_height_for_every_row_opens_the_cover_with_one_person(
+        tolerance, span, scatter, change, covered):
+    """R^2 is 0 when the heights do not vary with the row, yet the size is then known best:
+    the level form of the gate covers the group from one person's samples, and only when
+    their feet spread over a person's height of rows at one height."""
+    a, b, group, frame = _level_group()
+    rng = np.random.default_rng(3)
+    rows = 150.0 + span * np.linspace(0.0, 1.0, 60)
+    heights = 90.0 * (1.0 + change * (rows - rows[0]) / span
+                      + scatter * rng.standard_normal(rows.size))
+    detector = _detector_with_heights(list(zip(rows, heights)), people=1)
+    detector.config = updated(detector.config, {"person_cover.level_tolerance": tolerance})
+    detector._newest = lambda: frame
+    detector._raw_radius = lambda: 20.0
+    assert detector.heights.explained() < 0.3 or change > 0
+    pieces = detector._covered([group], lambda d, box: _Detection(box))
+    if covered:
+        assert _matched([p.box for p in pieces], [a, b]), [p.box for p in pieces]
+    else:
+        assert pieces == [group]
+
+
+def _queue_recall(level_tolerance: float) -> float:
+    """Share of the fully visible people of a generated queue coming down stairs
+    (benchmarks/bench_queue.py, 6 people, seed 1) that a detection matches at IoU >= 0.5,
+    from frame 150 on (the first person has been seen alone by then)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from bench_queue import queue_scene
+
+    scene = queue_scene(6, 1, 220, 30.0)
+    detector = ThermalDetector(updated(ThermalDetectorConfig(),
+                                       {"person_cover.level_tolerance": level_tolerance}))
+    found = total = 0
+    for i in range(len(scene)):
+        frame = scene.frame(i)
+        out = detector.process(frame.thermal, frame.stamp)
+        if i < 150:
+            continue
+        for obj in frame.objects:
+            if obj.visible_fraction > 0.9:
+                total += 1
+                found += any(iou(obj.box_thermal, d.box) >= 0.5 for d in out)
+    assert total > 100
+    return found / total
+
+
+def test_a_queue_on_stairs_is_cut_into_people_by_the_level_form():
+    """People of one height touching along a diagonal merge into one or two objects; the
+    first of them, seen alone over many rows at one height, opens the cover's level form
+    and the queue is cut into people (0.2 of them found without it, 0.86 with it)."""
+    assert _queue_recall(0.1) > 0.7
+    assert _queue_recall(0.0) < 0.35
