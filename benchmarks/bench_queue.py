@@ -42,26 +42,26 @@ from mk_tracker.synthetic.scene_bag import write_scene_bag  # noqa: E402
 from mk_tracker.synthetic.scene_config import PersonSpec, SceneConfig  # noqa: E402
 
 SIZE = 512
-HEIGHT = 120.0          # px: a person near the camera of a 512 x 512 LWIR frame
-WIDTH = 0.4 * HEIGHT    # about a person's box width
+HEIGHT = 120.0          # px: a person near the camera of a 512 x 512 LWIR frame (default)
 #: gap between consecutive people along the path, in body widths (uniform)
 SPACING = (1.0, 2.0)
 #: foot points: from outside the frame (top right), down the stairs, then off to the left
 PATH = ((SIZE + 60.0, 10.0), (440.0, 140.0), (140.0, 440.0), (-150.0, 470.0))
 
 
-def queue_scene(n_people: int, seed: int, frames: int, fps: float):
-    """The queue (module docstring): start frames spaced so consecutive people are 0.5-1.2
-    body widths apart along the path; one walking speed for the queue (0.5-0.7 body heights
-    per second: nobody overtakes on stairs)."""
+def queue_scene(n_people: int, seed: int, frames: int, fps: float, height: float = HEIGHT):
+    """The queue (module docstring): start frames spaced so consecutive people are
+    ``SPACING`` body widths apart along the path; one walking speed for the queue (0.5-0.7
+    body heights per second: nobody overtakes on stairs); people ``height`` px tall."""
+    width = 0.4 * height
     rng = np.random.default_rng([seed, 0x57A1])
     people, start = [], 0
-    speed = float(rng.uniform(0.5, 0.7)) * HEIGHT / fps              # px per frame
+    speed = float(rng.uniform(0.5, 0.7)) * height / fps              # px per frame
     for _ in range(n_people):
-        people.append(PersonSpec(waypoints=PATH, speed=round(speed, 3), height=HEIGHT,
+        people.append(PersonSpec(waypoints=PATH, speed=round(speed, 3), height=height,
                                  start_frame=start, after_last="continue",
                                  torso_temperature=float(rng.uniform(301.5, 304.0))))
-        start += int(round(float(rng.uniform(SPACING[0], SPACING[1])) * WIDTH / speed))
+        start += int(round(float(rng.uniform(SPACING[0], SPACING[1])) * width / speed))
     return make_scene(SceneConfig(seed=seed, frames=frames, fps=fps, width=SIZE, height=SIZE,
                                   perspective=0.0, people=tuple(people)))
 
@@ -103,6 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--people", type=int, default=9)
     parser.add_argument("--frames", type=int, default=380)
     parser.add_argument("--fps", type=float, default=30.0)
+    parser.add_argument("--height", type=float, default=HEIGHT,
+                        help="people's height in px (a width is 0.4 of it)")
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                         help="override a tracker parameter (YAML value) in our runs")
     parser.add_argument("--set-detector", nargs="*", default=[], metavar="NAME=VALUE",
@@ -113,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for seed in args.seeds:
-            scene = queue_scene(args.people, seed, args.frames, args.fps)
+            scene = queue_scene(args.people, seed, args.frames, args.fps, args.height)
             truth = scene_truth(scene)
             middle = (args.people + 1) // 2
             bag = tmp / f"queue_{seed}"
@@ -141,8 +143,8 @@ def main(argv: list[str] | None = None) -> int:
     command = "nice -n 10 .venv/bin/python benchmarks/bench_queue.py " + shlex.join(
         argv if argv is not None else sys.argv[1:])
     print(f"\n{command.rstrip()}\n")
-    print(f"queue of {args.people} people, {args.frames} frames at {args.fps:g} fps, "
-          f"512 x 512, seeds {' '.join(map(str, args.seeds))}; sums / means over the seeds\n")
+    print(f"queue of {args.people} people {args.height:g} px tall, {args.frames} frames at "
+          f"{args.fps:g} fps, 512 x 512, seeds {' '.join(map(str, args.seeds))}; sums / means over the seeds\n")
     print("| run | MOTA | IDF1 | ID sw. | ids / people | duplicate pairs / frame | tracks / "
           "frame | detections / frame | middle person covered (IoU >= 0.5) | its ids |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
