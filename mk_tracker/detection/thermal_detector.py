@@ -152,7 +152,6 @@ module holds the logic of Algorithm 2; the per-pixel and per-block loops live in
 from __future__ import annotations
 
 import collections
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -176,7 +175,6 @@ from mk_tracker.detection.gain_compensation import (GAIN_MODELS, IntensityMap,
 from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate,
                                                  _footprint_levels)
 from mk_tracker.detection.keep_apart import KeepApart
-from mk_tracker.detection.lower_body import LowerBody
 from mk_tracker.detection.object_extent import ObjectExtent
 from mk_tracker.detection.person_cover import PersonCover
 from mk_tracker.detection.person_size import PersonHeightModel
@@ -239,11 +237,6 @@ def _piece(group: ThermalDetection, box: tuple) -> ThermalDetection:
     return _box_detection(box, group.score, group.pixel_count, group.object_id)
 
 
-def _regrown(detection: ThermalDetection, box: tuple) -> ThermalDetection:
-    """``detection`` with the box ``lower_body`` grew (everything else kept)."""
-    return dataclasses.replace(detection, box=tuple(float(v) for v in box))
-
-
 def _overlap(a: tuple, b: tuple) -> bool:
     """Whether boxes ``(x, y, w, h)`` share area: the test of
     :func:`mk_tracker.boxes.intersection_area` (False there means an IoU of 0)."""
@@ -252,7 +245,7 @@ def _overlap(a: tuple, b: tuple) -> bool:
 
 
 class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExtent,
-                      KeepApart, PersonCover, LowerBody):
+                      KeepApart, PersonCover):
     """Streaming detector (Algorithm 2).  Feed frames in time order with :meth:`process`.
 
     Counters the node can log: ``resets`` (frame size or encoding changed, or time went
@@ -393,10 +386,9 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
 
     def _finish(self, detections: list[ThermalDetection], full_pass: bool
                 ) -> list[ThermalDetection]:
-        """Lower bodies grown (``lower_body``), sizes learnt, whole bodies joined, groups
-        covered by person boxes (``person_cover``), still people added (``still_people``)."""
-        found = self._covered(self._whole_bodies(self._learn_sizes(
-            self._lower_bodies(detections, _regrown))), _piece)
+        """Sizes learnt, whole bodies joined, groups covered by person boxes
+        (``person_cover``), still people added (``still_people``)."""
+        found = self._covered(self._whole_bodies(self._learn_sizes(detections)), _piece)
         if not self.config.still_people.enabled:
             return found
         return self._still.step(self._newest(), self._raw_radius(), found, self._last_stamp,

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mk_tracker.detection.body_extent import BodyExtentConfig
-from mk_tracker.detection.lower_body import LowerBodyConfig
 from mk_tracker.detection.gain_compensation import GainConfig
 from mk_tracker.detection.keep_apart import KeepApartConfig
 from mk_tracker.detection.object_extent import ObjectExtentConfig
@@ -196,9 +195,6 @@ class ThermalDetectorConfig:
     keep_apart: KeepApartConfig = parameter(
         KeepApartConfig(), "objects followed apart before they met are kept apart at "
         "full-frame passes (mk_tracker.detection.keep_apart)")
-    lower_body: LowerBodyConfig = parameter(
-        LowerBodyConfig(), "detections grown down over the legs that differ from the rows "
-        "beside them (mk_tracker.detection.lower_body)")
     person_cover: PersonCoverConfig = parameter(
         PersonCoverConfig(), "a detection as large as several people replaced by "
         "whole-person boxes (mk_tracker.detection.person_cover)")
