@@ -6,7 +6,7 @@ One generated crowd (:func:`mk_tracker.synthetic.presets.crowd_scene`, ``--peopl
 640x480, ``--frames`` frames, ``--seed``) is rendered again with one scene constant changed
 at a time (the people are the same: torso 301.5-304 K, head 4 K warmer, legs 2.5 K cooler;
 mono8 maps 288-318 K to 0-255, or, in the "gain" rows, a 15 K range around the scene as a
-camera's automatic gain would).  The shipped detector runs on each; from frame 20 on, every
+camera's automatic gain would, or the frame's histogram is equalised).  The shipped detector runs on each; from frame 20 on, every
 person at least half visible is matched to the detections (IoU >= 0.5), and for the people
 whose column holds a detection starting above their middle, the detection's height over
 theirs is the "box height / person height" (1 = the whole body).  Not a test: nothing is
@@ -22,6 +22,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -47,19 +48,27 @@ CONDITIONS = (
                                        "mono8_min_kelvin": 296.0, "mono8_max_kelvin": 311.0}),
     ("warm 301 K, gain on 298-313 K", {"background_temperature": 301.0,
                                        "mono8_min_kelvin": 298.0, "mono8_max_kelvin": 313.0}),
+    # ... or equalises its histogram (many LWIR cameras' 8-bit output): globally
+    # (cv2.equalizeHist) or with a clip limit on the amplification (CLAHE, clip 2, 8x8 tiles)
+    ("warm 299 K, equalised", {"background_temperature": 299.0, "equalise": "global"}),
+    ("warm 299 K, CLAHE", {"background_temperature": 299.0, "equalise": "clahe"}),
+    ("warm 301 K, CLAHE", {"background_temperature": 301.0, "equalise": "clahe"}),
     ("textured background 1.5 K", {"background_texture": 1.5}),
     ("sensor noise 0.8 K", {"thermal_noise_std": 0.8}),
 )
 WARM_UP = 20
 
 
-def measure(scene, config: ThermalDetectorConfig) -> dict:
+def measure(scene, config: ThermalDetectorConfig, equalise: str = "") -> dict:
     detector = ThermalDetector(config)
+    clahe = cv2.createCLAHE(clipLimit=2.0, tileGridSize=(8, 8))
     matched = people = detections = 0
     ratios = []
     for i in range(len(scene)):
         frame = scene.frame(i)
-        found = detector.process(frame.thermal, frame.stamp)
+        image = (cv2.equalizeHist(frame.thermal) if equalise == "global" else
+                 clahe.apply(frame.thermal) if equalise == "clahe" else frame.thermal)
+        found = detector.process(image, frame.stamp)
         if i < WARM_UP:
             continue
         truth = np.array([o.box_thermal for o in frame.objects if o.visible_fraction > 0.5],
@@ -95,7 +104,9 @@ def main(argv: list[str] | None = None) -> int:
           "height / person height (median) |")
     print("|---|---:|---:|---:|---:|")
     for name, changes in CONDITIONS:
-        m = measure(make_scene(dataclasses.replace(base.config, **changes)), config)
+        changes = dict(changes)
+        equalise = changes.pop("equalise", "")
+        m = measure(make_scene(dataclasses.replace(base.config, **changes)), config, equalise)
         print(f"| {name} | {m['recall']:.3f} | {m['detections']:.2f} | {m['people']:.2f} | "
               f"{m['height']:.2f} |", flush=True)
     return 0
