@@ -144,7 +144,8 @@ def main(argv: list[str] | None = None) -> int:
         argv if argv is not None else sys.argv[1:])
     print(f"\n{command.rstrip()}\n")
     print(f"queue of {args.people} people {args.height:g} px tall, {args.frames} frames at "
-          f"{args.fps:g} fps, 512 x 512, seeds {' '.join(map(str, args.seeds))}; sums / means over the seeds\n")
+          f"{args.fps:g} fps, 512 x 512, seeds {' '.join(map(str, args.seeds))}; sums / "
+          "means over the seeds\n")
     print("| run | MOTA | IDF1 | ID sw. | ids / people | duplicate pairs / frame | tracks / "
           "frame | detections / frame | middle person covered (IoU >= 0.5) | its ids |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")

@@ -2,15 +2,15 @@
 or cold background, a textured one, more sensor noise (issue #19: outdoor LWIR is not the
 lab).
 
-One generated crowd (:func:`mk_tracker.synthetic.presets.crowd_scene`, ``--people`` people,
-640x480, ``--frames`` frames, ``--seed``) is rendered again with one scene constant changed
-at a time (the people are the same: torso 301.5-304 K, head 4 K warmer, legs 2.5 K cooler;
-mono8 maps 288-318 K to 0-255, or, in the "gain" rows, a 15 K range around the scene as a
-camera's automatic gain would, or the frame's histogram is equalised).  The shipped detector runs on each; from frame 20 on, every
-person at least half visible is matched to the detections (IoU >= 0.5), and for the people
-whose column holds a detection starting above their middle, the detection's height over
-theirs is the "box height / person height" (1 = the whole body).  Not a test: nothing is
-asserted.
+One generated crowd (:func:`mk_tracker.synthetic.presets.crowd_scene`, ``--people``
+people, 640x480, ``--frames`` frames, ``--seed``) is rendered again with one scene
+constant changed at a time (the people are the same: torso 301.5-304 K, head 4 K warmer,
+legs 2.5 K cooler; mono8 maps 288-318 K to 0-255, or, in the "gain" rows, a 15 K range
+around the scene as a camera's automatic gain would, or the frame's histogram is
+equalised).  The shipped detector runs on each; from frame 20 on, every person at least
+half visible is matched to the detections (IoU >= 0.5), and for the people whose column
+holds a detection starting above their middle, the detection's height over theirs is the
+"box height / person height" (1 = the whole body).  Not a test: nothing is asserted.
 
     nice -n 10 .venv/bin/python benchmarks/bench_thermal_conditions.py
 """
