@@ -30,9 +30,9 @@ situations", TPAMI 2004, reduced to boxes):
   ``min_explained`` of the learnt heights' variance, with samples from at least
   ``min_people`` of the detector's objects among the samples it remembers.  In a near
   view (BU-TIV-lab, R^2 0.003) a person's height does not follow the row, and person
-  boxes of the row's size would cut people into pieces.  One person is not enough: a person who walks towards the camera
-  gives heights on a line in any scene (BU-TIV-lab's first 25 samples are one person,
-  whose box top stays on one row: R^2 1.0).  This gate replaced a count of 50 samples,
+  boxes of the row's size would cut people into pieces.  One person is not enough: a
+  person who walks towards the camera gives heights on a line in any scene (BU-TIV-lab's
+  first 25 samples are one person, whose box top stays on one row: R^2 1.0).  This gate replaced a count of 50 samples,
   set after that clip: the count waited the same for a crowd as for that one person
   (docs/benchmark_groups.md, "The person cover");
 * or one height for every row (``level_tolerance``): the samples' feet span at least one
