@@ -28,22 +28,22 @@ situations", TPAMI 2004, reduced to boxes):
   front person; one fully hidden is not (nothing shows);
 * the premise is a ground plane: the cover acts only while the image row explains
   ``min_explained`` of the learnt heights' variance, with samples from at least
-  ``min_people`` of the detector's objects among the samples it remembers.  In a near
-  view (BU-TIV-lab, R^2 0.003) a person's height does not follow the row, and person
-  boxes of the row's size would cut people into pieces.  One person is not enough: a
-  person who walks towards the camera gives heights on a line in any scene (BU-TIV-lab's
-  first 25 samples are one person, whose box top stays on one row: R^2 1.0).  This gate replaced a count of 50 samples,
-  set after that clip: the count waited the same for a crowd as for that one person
-  (docs/benchmark_groups.md, "The person cover");
+  ``min_people`` of the detector's objects among the samples it remembers.  In a near view
+  (BU-TIV-lab, R^2 0.003) a person's height does not follow the row, and person boxes of
+  the row's size would cut people into pieces.  One person is not enough: a person who
+  walks towards the camera gives heights on a line in any scene (BU-TIV-lab's first 25
+  samples are one person, whose box top stays on one row: R^2 1.0). This gate replaced a
+  count of 50 samples, set after that clip: the count waited the same for a crowd as for
+  that one person (docs/benchmark_groups.md, "The person cover");
 * or one height for every row (``level_tolerance``): the samples' feet span at least one
   person height while their heights stay within the tolerance of one value.  R^2 is 0
   there (nothing varies to explain), yet the size is known best: a queue coming down
   stairs, seen from the front, whose people touch along a diagonal and merge into one
   object, while only the first of them is ever seen alone (benchmarks/bench_queue.py:
-  2.3-2.4 -> 4.0 detections a frame for 6-9 people).  One person suffices here: walking across
-  rows at one height is what a ground plane seen from above never shows (a person walking
-  towards the camera grows; BU-TIV-lab never passes: its samples span 0.4-0.8 heights and
-  scatter by 0.26-0.37).
+  2.3-2.4 -> 4.0 detections a frame for 6-9 people). One person suffices here: walking
+  across rows at one height is what a ground plane seen from above never shows (a person
+  walking towards the camera grows; BU-TIV-lab never passes: its samples span 0.4-0.8
+  heights and scatter by 0.26-0.37).
 
 :func:`cover_people` is the pure step (numpy, one vectorised pass over all candidates per
 chosen box); :class:`PersonCover` is the thermal detector's mixin that applies it to a
