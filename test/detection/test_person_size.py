@@ -67,6 +67,23 @@ def test_height_model_keeps_the_range_of_its_sample_rows():
     assert model.height_at(50.0) == pytest.approx(25.0)
 
 
+@pytest.mark.parametrize("rows, heights, tolerance, level", [
+    ((100, 150, 200, 250), (80, 80, 80, 80), 0.1, True),      # one height over 150 rows
+    ((100, 150, 200, 250), (80, 84, 78, 82), 0.1, True),      # scatter of a few per cent
+    ((100, 150, 200, 250), (80, 80, 80, 80), 0.0, False),     # tolerance 0: off
+    ((100, 120, 140, 160), (80, 80, 80, 80), 0.1, False),     # 60 rows < one height (80)
+    ((100, 150, 200, 250), (40, 60, 80, 100), 0.1, False),    # heights follow the row
+    ((100, 150, 200, 250), (60, 100, 100, 60), 0.1, False),   # no slope, scattered by 1/4
+    ((100, 250), (80, 80), 0.1, False),                       # fewer than about 3 samples
+])
+def test_one_height_for_every_row_is_told_from_a_ground_plane_and_from_scatter(
+        rows, heights, tolerance, level):
+    model = PersonHeightModel(memory=1e9)
+    for y, h in zip(rows, heights):
+        model.add(float(y), float(h))
+    assert model.is_level(tolerance) is level
+
+
 def _walkers(n_frames, people, shape=(200, 320)):
     """mono8 frames of warm 16x40 people (a 16x30 body under an 8x10 head) walking right
     2 px/frame on a textured background; ``people`` = list of (x0, y0) start corners."""
