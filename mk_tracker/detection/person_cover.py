@@ -58,7 +58,6 @@ from typing import Any, Callable
 import cv2
 import numpy as np
 
-from mk_tracker.boxes import iou
 from mk_tracker.parameters import parameter
 
 __all__ = ["PersonCoverConfig", "PersonCover", "cover_people", "warm_mask"]
@@ -105,10 +104,6 @@ class PersonCoverConfig:
         "the mean height over that span (a queue on stairs, a far or level view: R^2 is 0 "
         "there because nothing varies; BU-TIV-lab: span 0.4-0.8 heights, scatter 0.26-0.37); "
         "0 = off", minimum=0.0, maximum=1.0)
-    max_overlap: float = parameter(
-        0.5, "a candidate box that overlaps an already chosen person box by more than this "
-        "IoU is not chosen (non-maximum suppression: the same person again; 0.5, the "
-        "tracker's duplicates.min_iou); 1 = off", minimum=0.0, maximum=1.0)
     max_people: int = parameter(10, "most person boxes one detection is replaced by",
                                 minimum=1, maximum=100)
 
@@ -179,22 +174,15 @@ def cover_people(warm: np.ndarray, box: tuple[float, float, float, float],
     cx0, cx1, cy0, cy1, area = cx0[keep], cx1[keep], cy0[keep], cy1[keep], area[keep]
     sx0, sx1, sy0, sy1 = sx0[keep], sx1[keep], sy0[keep], sy1[keep]
     residual = window.copy()
-    open_ = np.ones(keep.size, dtype=bool)      # not suppressed by a chosen box
     chosen: list[tuple[float, float, float, float]] = []
     for _ in range(config.max_people):
-        gain = np.where(open_, _sums(_integral(residual), sx0, sy0, sx1, sy1), -1.0)
+        gain = _sums(_integral(residual), sx0, sy0, sx1, sy1)
         k = int(np.argmax(gain))
         if gain[k] < config.min_gain * area[k]:
             break
         chosen.append((float(cx0[k]), float(cy0[k]), float(cx1[k] - cx0[k]),
                        float(cy1[k] - cy0[k])))
         residual[sy0[k]:sy1[k], sx0[k]:sx1[k]] = False
-        if config.max_overlap < 1.0:
-            # non-maximum suppression: a candidate that overlaps a chosen box by more than
-            # max_overlap (IoU) is that person again, not another one
-            inter = (np.clip(np.minimum(cx1, cx1[k]) - np.maximum(cx0, cx0[k]), 0, None)
-                     * np.clip(np.minimum(cy1, cy1[k]) - np.maximum(cy0, cy0[k]), 0, None))
-            open_ &= inter <= config.max_overlap * (area + area[k] - inter)
     return chosen
 
 
@@ -237,12 +225,4 @@ class PersonCover:
             step = max(1, int(round(c.resolution * aspect * expected)))
             boxes = cover_people(warm, d.box, self.heights.heights_at, aspect, c, step)
             out.extend([make(d, b) for b in boxes] if boxes else [d])
-        if c.max_overlap >= 1.0:
-            return out
-        # the person boxes of different groups, and a group's boxes and the detections
-        # beside it, can be one person too: the same suppression over the frame
-        kept: list[Any] = []
-        for d in out:
-            if all(iou(d.box, k.box) <= c.max_overlap for k in kept):
-                kept.append(d)
-        return kept
+        return out
