@@ -28,6 +28,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -105,11 +106,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fps", type=float, default=30.0)
     parser.add_argument("--height", type=float, default=HEIGHT,
                         help="people's height in px (a width is 0.4 of it)")
+    parser.add_argument("--video", type=Path, default=None,
+                        help="only write the first seed's thermal frames to this video (mp4, "
+                             "mono as BGR) and stop: input for benchmarks/latency.py "
+                             "--thermal-clip or mk_tracker process --thermal")
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                         help="override a tracker parameter (YAML value) in our runs")
     parser.add_argument("--set-detector", nargs="*", default=[], metavar="NAME=VALUE",
                         help="override a detector parameter (YAML value) in our runs")
     args = parser.parse_args(argv)
+    if args.video is not None:
+        scene = queue_scene(args.people, args.seeds[0], args.frames, args.fps, args.height)
+        writer = cv2.VideoWriter(str(args.video), cv2.VideoWriter_fourcc(*"mp4v"), args.fps,
+                                 (SIZE, SIZE))
+        for i in range(len(scene)):
+            writer.write(cv2.cvtColor(scene.frame(i).thermal, cv2.COLOR_GRAY2BGR))
+        writer.release()
+        print(f"wrote {args.video}")
+        return 0
     config = config_with(args.set, args.set_detector)
     rows: dict[str, list[dict]] = {}
     with tempfile.TemporaryDirectory() as tmp:
