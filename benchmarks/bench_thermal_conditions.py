@@ -55,6 +55,8 @@ CONDITIONS = (
     ("warm 301 K, CLAHE", {"background_temperature": 301.0, "equalise": "clahe"}),
     ("textured background 1.5 K", {"background_texture": 1.5}),
     ("sensor noise 0.8 K", {"thermal_noise_std": 0.8}),
+    ("sensor noise 1.2 K", {"thermal_noise_std": 1.2}),
+    ("sensor noise 1.6 K", {"thermal_noise_std": 1.6}),
 )
 WARM_UP = 20
 

@@ -119,15 +119,16 @@ def _block_list(nby: int, nbx: int, block_mask: np.ndarray | None
 def _support(frames: np.ndarray, order: np.ndarray, offset: float,
              config: ThermalDetectorConfig, scale: float, integer_levels: bool,
              block_mask: np.ndarray | None, chunk: int = 512,
-             backend: str = "auto") -> SupportResult:
+             backend: str = "auto", sigma2: float | None = None) -> SupportResult:
     """:func:`support_in_frame` of the window ``frames[order] - offset`` (``frames`` may be
-    the detector's ring buffer: the compiled path reads it in place)."""
+    the detector's ring buffer: the compiled path reads it in place); ``sigma2`` (unit
+    scale) replaces ``config.sigma2`` when given."""
     if backend not in ("auto", "numpy", "compiled"):
         raise ThermalInputError(f"unknown backend {backend!r}")
     rho = config.block_size
     _, h, w = frames.shape
     nby, nbx = -(-h // rho), -(-w // rho)
-    sigma2 = config.sigma2 / (scale * scale)
+    sigma2 = (config.sigma2 if sigma2 is None else sigma2) / (scale * scale)
     threshold = zero_factor_threshold(config.lam)
     fused = _fused_kernel() if backend != "numpy" else None
     if backend == "compiled" and (fused is None or not integer_levels):

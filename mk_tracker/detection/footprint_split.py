@@ -203,7 +203,7 @@ class FootprintSplitting:
         polarity = 1.0
         if off.size:
             polarity = 1.0 if float(patch[mask].mean()) >= float(_median(off)) else -1.0
-        depth = _similarity_radius(c.sigma2) / self._map[1]          # window units
+        depth = _similarity_radius(self._bandwidth.sigma2) / self._map[1]          # window units
         n, labels = valley_split(patch * np.float32(polarity), mask, depth,
                                  min_area=c.min_object_pixels,
                                  min_peak_fraction=c.valley_min_peak_fraction)

@@ -113,6 +113,11 @@ Where the paper is silent, and what we add (each switchable):
   object whose window has no support for more than ``max_missed`` frames is dropped until
   the next full-frame pass finds it again (a person who stands still has no temporal change
   and is, as in the paper, not detected by the support).
+* **Bandwidth and noise** (``noise_bandwidth``, on).  The kernel (3.6) keeps the paper's
+  ``sigma2`` unless the stream's temporal noise, measured at each full-frame pass, is more
+  than a third of its ``sigma``; then ``sigma`` is widened to ``noise_bandwidth`` noise
+  stds, so that a noisy stream does not make every block change
+  (:mod:`mk_tracker.detection.stream_noise`; docs/benchmark_thermal_conditions.md).
 * **Still people** (``still_people.enabled``, on): a warm region of a detected person's
   shape, size and warmth that stays in place for ``still_people.min_time`` is reported too
   (:mod:`mk_tracker.detection.still_people`; docs/benchmark_real_thermal.md).
@@ -179,6 +184,7 @@ from mk_tracker.detection.object_extent import ObjectExtent
 from mk_tracker.detection.person_cover import PersonCover
 from mk_tracker.detection.person_size import PersonHeightModel
 from mk_tracker.detection.still_people import StillPeople
+from mk_tracker.detection.stream_noise import NoiseBandwidth
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
                                                    link_groups, merge_linked)
 from mk_tracker.stamps import checked_stamp
@@ -305,6 +311,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._oversize_seen = False     # extent.bound: a tracking pass met a group
         self._extents: dict = {}        # body_extent: object id -> its person's extent
         self._still = StillPeople(c.still_people, c.person_aspect)
+        self._bandwidth = NoiseBandwidth(c.sigma2, c.noise_bandwidth)
 
     def reset(self) -> None:
         """Forget every frame and object (counters are kept)."""
@@ -444,7 +451,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         else:
             rng = robust_range(self._newest())
             scale = normalization_map(self._encoding, rng if rng else (0.0, 1.0))[1]
-        return float(_similarity_radius(self.config.sigma2)) / scale
+        return float(_similarity_radius(self._bandwidth.sigma2)) / scale
 
     def _update_map(self, frames: list[np.ndarray]) -> None:
         """Choose ``(offset, scale)`` for the next windows; integer offsets for integer
@@ -482,7 +489,9 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._oversize_seen = False
         order = self._order(c.startup_frames)
         self._update_map([self._ring[i] for i in order])
-        result = _support(self._ring, order, self._map[0], c, self._map[1], self._integer, None)
+        self._bandwidth.observe([self._ring[i] for i in order], self._map[1])
+        result = _support(self._ring, order, self._map[0], c, self._map[1], self._integer, None,
+                          sigma2=self._bandwidth.sigma2)
         frame = self._newest()
         bounds = (0, frame.shape[0], 0, frame.shape[1])
         rows, cols = np.nonzero(result.support)
@@ -595,7 +604,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
 
     def _radius(self) -> np.float32:
         """The similarity radius of (3.6) in window units (the map's scale)."""
-        return np.float32(_similarity_radius(self.config.sigma2) / self._map[1])
+        return np.float32(_similarity_radius(self._bandwidth.sigma2) / self._map[1])
 
     def _candidate(self, frame: np.ndarray, result: SupportResult, rows: np.ndarray,
                    cols: np.ndarray, bounds: tuple[int, int, int, int],
@@ -728,7 +737,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
             mask[by0:by1, bx0:bx1] = True
             regions.append((by0 * rho, min(by1 * rho, h), bx0 * rho, min(bx1 * rho, w)))
         result = _support(self._ring, self._order(c.window_frames), self._map[0], c,
-                          self._map[1], self._integer, mask)
+                          self._map[1], self._integer, mask, sigma2=self._bandwidth.sigma2)
         centres = np.array([(s[0], s[1]) for s in preds])
         frame = self._newest()
         # the compiled path does ownership, variances and footprint of an object in one call

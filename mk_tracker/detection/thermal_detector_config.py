@@ -28,7 +28,14 @@ class ThermalDetectorConfig:
     """Every constant of the detector (paper symbol in brackets)."""
 
     sigma2: float = parameter(0.01, "[sigma^2] RBF kernel variance (3.6) on the unit "
-                              "intensity scale (Sec. 6: 0.01)", minimum=1e-6, maximum=10.0)
+                              "intensity scale (Sec. 6: 0.01); noise_bandwidth widens it on "
+                              "a noisy stream", minimum=1e-6, maximum=10.0)
+    noise_bandwidth: float = parameter(
+        3.0, "the kernel's bandwidth sigma of (3.6) is at least this many times the "
+        "stream's temporal noise std, measured at each full-frame pass "
+        "(mk_tracker.detection.stream_noise): a noisy stream is not one frame-sized object; "
+        "sigma2 stays the bandwidth of quiet streams; 0 = sigma2 always",
+        minimum=0.0, maximum=100.0)
     lam: float = parameter(0.15, "[lambda] sparsity weight of (3.7); a pixel whose kernel "
                            "variance is below 3/2 (lambda/2)^(2/3) can never start a support",
                            minimum=0.0, maximum=10.0)
