@@ -319,6 +319,17 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self.last_mode = "warming_up"
 
     @property
+    def kernel_sigma2(self) -> float:
+        """The kernel variance (3.6) in use (unit scale): ``sigma2``, or wider on a noisy
+        stream (``noise_bandwidth``)."""
+        return self._bandwidth.sigma2
+
+    @property
+    def stream_noise(self) -> float:
+        """The temporal noise std measured at the recent full-frame passes (unit scale)."""
+        return self._bandwidth.noise
+
+    @property
     def tracks(self) -> list[tuple[int, np.ndarray]]:
         """``(object_id, Kalman state)`` of the objects currently followed."""
         return [(t.object_id, t.kf.state) for t in self._tracks]
@@ -489,7 +500,11 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._oversize_seen = False
         order = self._order(c.startup_frames)
         self._update_map([self._ring[i] for i in order])
-        self._bandwidth.observe([self._ring[i] for i in order], self._map[1])
+        before = self._bandwidth.sigma2
+        if self._bandwidth.observe([self._ring[i] for i in order], self._map[1]) != before:
+            self.last_event = (f"stream noise {self._bandwidth.noise:.3g} (unit intensity "
+                               f"scale): kernel bandwidth sigma2 {before:.3g} -> "
+                               f"{self._bandwidth.sigma2:.3g} (noise_bandwidth)")
         result = _support(self._ring, order, self._map[0], c, self._map[1], self._integer, None,
                           sigma2=self._bandwidth.sigma2)
         frame = self._newest()

@@ -66,15 +66,18 @@ def test_bandwidth_follows_the_median_of_recent_passes():
     assert bw.sigma2 == 0.01                                          # then it follows
 
 
-def _run(scene, config: ThermalDetectorConfig) -> tuple[int, float]:
+def _run(scene, config: ThermalDetectorConfig, events: list | None = None
+         ) -> tuple[int, float]:
     """(boxes larger than a quarter of the frame, recall at IoU 0.5 of people at least half
-    visible) from frame 15 on."""
+    visible) from frame 15 on; the detector's events are appended to ``events``."""
     det = ThermalDetector(config)
     h, w = scene.frame(0).thermal.shape
     large = matched = people = 0
     for i in range(len(scene)):
         frame = scene.frame(i)
         found = det.process(frame.thermal, frame.stamp)
+        if events is not None and det.last_event:
+            events.append((det.last_event, det.kernel_sigma2, det.stream_noise))
         if i < 15:
             continue
         boxes = np.array([d.box for d in found], dtype=float).reshape(-1, 4)
@@ -95,12 +98,20 @@ def crowd():
 def test_noisy_stream_is_people_not_one_frame_sized_object(crowd):
     noisy = make_scene(dataclasses.replace(crowd.config, thermal_noise_std=1.2))
     large_off, recall_off = _run(noisy, ThermalDetectorConfig(noise_bandwidth=0.0))
-    large_on, recall_on = _run(noisy, ThermalDetectorConfig())
+    events: list = []
+    large_on, recall_on = _run(noisy, ThermalDetectorConfig(), events)
     assert large_off > 20 and recall_off < 0.1          # the paper's bandwidth collapses
     assert large_on == 0 and recall_on > 0.7
+    # the widening is said once (the first full pass), with the noise that caused it:
+    # 1.2 K on the generator's 30 K mono8 scale is about 10 of 255 levels
+    assert len(events) == 1 and "kernel bandwidth" in events[0][0]
+    assert events[0][1] > 0.01
+    assert 8.0 / 255 < events[0][2] < 13.0 / 255
 
 
 def test_quiet_stream_is_unchanged(crowd):
     quiet_off = _run(crowd, ThermalDetectorConfig(noise_bandwidth=0.0))
-    assert quiet_off == _run(crowd, ThermalDetectorConfig())
+    events: list = []
+    assert quiet_off == _run(crowd, ThermalDetectorConfig(), events)
+    assert events == []
     assert quiet_off[1] > 0.7
