@@ -89,6 +89,24 @@ def run_pipeline(bag: Path, out: Path, regions: tuple, extra: tuple = ()
     return tracks, detections, stamps
 
 
+class EveryNth:
+    """A frame source (:class:`~mk_tracker.bags.video_source.FrameSource`) that keeps every
+    ``step``-th frame, at ``1 / step`` of the rate."""
+
+    def __init__(self, source, step: int) -> None:
+        self.source, self.step = source, step
+        self.path, self.kind = source.path, source.kind
+        self.fps = source.fps / step
+        self.declared = -(-source.declared // step)
+        self.unreadable = 0
+
+    def frames(self):
+        for k, frame in enumerate(self.source.frames()):
+            if k % self.step == 0:
+                yield frame
+        self.unreadable = self.source.unreadable
+
+
 def peers(fps: float) -> dict:
     from peers.norfair_peer import NorfairPeer
     from peers.sort_tracker import SortTracker
@@ -132,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="markdown report to write")
     parser.add_argument("--params", type=Path, nargs="*", default=[],
                         help="parameter files applied over the defaults (ablations)")
+    parser.add_argument("--frame-step", type=int, default=1,
+                        help="keep every N-th frame (the clip at 1/N of its frame rate: "
+                        "a slower camera)")
     parser.add_argument("--masked-only", action="store_true",
                         help="only the run with the counter masked (ablations)")
     args = parser.parse_args(argv)
@@ -142,6 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         source = open_recording(args.clip, None)
+        if args.frame_step > 1:
+            source = EveryNth(source, args.frame_step)
         bag = tmp / "bag"
         import_recording(source, bag, thermal=True)
         masked = None

@@ -58,7 +58,6 @@ why); a stamp going backwards restarts it too; a repeated stamp is skipped
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -71,7 +70,7 @@ from mk_tracker.detection.person_size import (PersonHeightModel, is_person_shape
 from mk_tracker.detection.shadows import shadow_or_highlight
 from mk_tracker.detection.thermal_image import ThermalInputError
 from mk_tracker.parameters import parameter, validate_config
-from mk_tracker.stamps import checked_stamp
+from mk_tracker.stamps import FrameRate, checked_stamp
 
 MODELS = ("mog2", "knn")
 SHADOW_METHODS = ("model", "ratio", "none")
@@ -202,26 +201,15 @@ class BackgroundDetector:
         self._mono16_map: tuple[float, float] | None = None
         self._buffer: list[np.ndarray] = []
         self._seeded = False
-        #: the last ``rate_window`` stamp differences (s), for the measured frame rate
-        self._intervals: deque[float] = deque(maxlen=self.config.rate_window)
+        #: the frame rate from the last ``rate_window`` stamp differences
+        self._rate = FrameRate(self.config.rate_window, self.config.max_frame_rate)
 
     # -- frame rate ----------------------------------------------------------------------
     def frames_for(self, count: int) -> int:
         """``count`` frames counted at ``counts_fps``, in frames at the measured frame rate
         (the same duration in seconds); ``count`` itself with ``counts_fps`` 0 or before two
         stamps gave a rate.  A positive count stays at least 1 frame."""
-        scale = self._rate_scale()
-        if scale is None or count <= 0:
-            return count
-        return max(1, int(np.floor(count * scale + 0.5)))
-
-    def _rate_scale(self) -> float | None:
-        """Measured frame rate / ``counts_fps`` (None: off or not measured yet)."""
-        if self.config.counts_fps <= 0.0 or not self._intervals:
-            return None
-        c = self.config
-        rate = 1.0 / max(float(np.median(self._intervals)), 1.0 / c.max_frame_rate)
-        return rate / c.counts_fps
+        return self._rate.frames(count, self.config.counts_fps)
 
     # -- model ---------------------------------------------------------------------------
     def _new_model(self) -> Any:
@@ -329,7 +317,7 @@ class BackgroundDetector:
             self.last_event = "time went backwards: background model restarted"
             self.reset()
         elif self._last_stamp is not None and self.config.counts_fps > 0.0:
-            self._intervals.append(t - self._last_stamp)
+            self._rate.add(t - self._last_stamp)
         self._shape = image.shape
         self._last_stamp = t
         height, width = image.shape[:2]

@@ -369,7 +369,7 @@ class CrowdSplitting:
                   & (predictions[:, 1] >= y0) & (predictions[:, 1] <= y1))
         if not inside.any():
             return 0.0
-        n = min(self.config.startup_frames, len(self._buffer))
+        n = min(self._count(self.config.startup_frames, 2), len(self._buffer))
         span = self._buffer[-1][1] - self._buffer[-n][1]
         return float(np.hypot(predictions[inside, 2], predictions[inside, 3]).max() * span)
 

@@ -187,7 +187,7 @@ from mk_tracker.detection.still_people import StillPeople
 from mk_tracker.detection.stream_noise import NoiseBandwidth
 from mk_tracker.detection.pixel_clustering import (cluster_support_pixels, describe_pixels,
                                                    link_groups, merge_linked)
-from mk_tracker.stamps import checked_stamp
+from mk_tracker.stamps import FrameRate, checked_stamp
 from mk_tracker.detection.thermal_detector_config import ThermalDetectorConfig
 from mk_tracker.detection.thermal_image import (ThermalInputError, as_thermal_array, fill_missing,
                                       normalization_map, robust_range, thermal_view)
@@ -274,6 +274,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         # live in the ring buffer self._ring (one array, no per-frame stacking)
         self._buffer: collections.deque = collections.deque(
             maxlen=max(c.window_frames, c.startup_frames))
+        self._rate = FrameRate(c.rate_window)
         self.resets = 0
         self.time_resets = 0
         self.last_event: str | None = None
@@ -379,6 +380,8 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
             self._last_filled = None      # only float frames are filled from the previous one
         if c.gain.model != "off":
             filled = self._gain_compensated(filled, enc, t)
+        if self._last_stamp is not None:
+            self._rate.add(t - self._last_stamp)
         self._shape, self._encoding, self._last_stamp = raw.shape, enc, t
         n_slots = self._buffer.maxlen
         if self._ring is None or self._ring.shape[1:] != filled.shape:
@@ -388,15 +391,15 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._ring[slot] = filled
         self._buffer.append((slot, t))
         if self._since_full is None:
-            if len(self._buffer) < c.startup_frames:
+            if len(self._buffer) < self._count(c.startup_frames, 2):
                 self.last_mode = "warming_up"
                 return []
             self.last_mode = "startup"
             return self._finish(self._full_pass(), True)
         self._since_full += 1
-        if self._since_full >= c.reconfigure_period or (
+        if self._since_full >= self._count(c.reconfigure_period) or (
                 (self._group_seen or self._oversize_seen)
-                and self._since_full >= c.group_recheck_frames):
+                and self._since_full >= self._count(c.group_recheck_frames)):
             self.last_mode = "reconfiguration"
             return self._finish(self._full_pass(), True)
         self.last_mode = "tracking"
@@ -481,6 +484,11 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._map = (offset, scale)
         self._integer = integer and float(offset).is_integer()
 
+    def _count(self, frames: int, minimum: int = 1) -> int:
+        """``frames`` counted at ``counts_fps``, in frames of this stream: the same duration
+        on a slower stream (at least ``minimum``), the count itself otherwise."""
+        return self._rate.frames(frames, self.config.counts_fps, minimum, slower_only=True)
+
     def _order(self, n_frames: int) -> np.ndarray:
         """Ring slots of the last ``n_frames`` frames, oldest first."""
         n = min(n_frames, len(self._buffer))
@@ -498,7 +506,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self.full_passes += 1
         self._since_full = 0
         self._oversize_seen = False
-        order = self._order(c.startup_frames)
+        order = self._order(self._count(c.startup_frames, 2))
         self._update_map([self._ring[i] for i in order])
         before = self._bandwidth.sigma2
         if self._bandwidth.observe([self._ring[i] for i in order], self._map[1]) != before:
@@ -731,7 +739,8 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         h, w = self._shape
         rho = c.block_size
         stamp = self._last_stamp
-        span = self._buffer[-1][1] - self._buffer[-min(c.window_frames, len(self._buffer))][1]
+        window = self._count(c.window_frames, 2)
+        span = self._buffer[-1][1] - self._buffer[-min(window, len(self._buffer))][1]
         nby, nbx = -(-h // rho), -(-w // rho)
         mask = np.zeros((nby, nbx), dtype=bool)
         regions, preds = [], []
@@ -751,7 +760,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
                 continue
             mask[by0:by1, bx0:bx1] = True
             regions.append((by0 * rho, min(by1 * rho, h), bx0 * rho, min(bx1 * rho, w)))
-        result = _support(self._ring, self._order(c.window_frames), self._map[0], c,
+        result = _support(self._ring, self._order(window), self._map[0], c,
                           self._map[1], self._integer, mask, sigma2=self._bandwidth.sigma2)
         centres = np.array([(s[0], s[1]) for s in preds])
         frame = self._newest()

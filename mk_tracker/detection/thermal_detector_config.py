@@ -53,6 +53,14 @@ class ThermalDetectorConfig:
                                     minimum=2, maximum=64)
     reconfigure_period: int = parameter(25, "[T_c] frames between full-frame passes",
                                         minimum=1, maximum=100000)
+    counts_fps: float = parameter(
+        25.0, "frame rate at which window_frames, startup_frames, reconfigure_period and "
+        "group_recheck_frames are counted: on a slower stream (rate measured from the "
+        "stamps) they are converted to the same durations, windows at least 2 frames "
+        "(a 9 Hz thermal camera); faster streams keep the counts; 0 = frames at any rate",
+        minimum=0.0, maximum=1000.0)
+    rate_window: int = parameter(25, "stamp differences whose median is the measured frame "
+                                 "rate (counts_fps)", minimum=1, maximum=10000)
     merge_distance_sq: float = parameter(150.0, "[epsilon_d] K-means clusters whose centroids "
                                          "are closer than this (px^2) are merged (3.13)",
                                          minimum=0.0, maximum=1e8)

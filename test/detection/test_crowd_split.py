@@ -1,6 +1,8 @@
 """Grouping K-means clusters into people in full-frame passes (``split_clusters``, issue
 #15): :mod:`mk_tracker.detection.crowd_split`."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -98,7 +100,7 @@ def _two_people_frames(n_frames=6, gap=0):
 
 
 def _startup(config, frames, heights=None):
-    det = ThermalDetector(config)
+    det = ThermalDetector(replace(config, counts_fps=0.0))   # stamps at 10 Hz, frames counted
     if heights:
         for y_bottom, h in heights:
             det.heights.add(y_bottom, h)
@@ -246,7 +248,8 @@ def test_known_objects_without_a_learnt_size_are_not_kept_apart():
     # split_clusters)
     from mk_tracker.detection.person_size import PersonHeightModel
     config = ThermalDetectorConfig(split_clusters=True, person_aspect=0.25,
-                                   reconfigure_period=1, window_margin=0)
+                                   reconfigure_period=1, window_margin=0,
+                                   counts_fps=0.0)      # stamps at 10 Hz, frames counted
     frames = _two_people_frames(n_frames=7, gap=3)
     det = ThermalDetector(config)
     for _ in range(5):

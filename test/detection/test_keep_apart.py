@@ -41,9 +41,10 @@ def _truth(k: int) -> tuple[tuple[float, float], tuple[float, float]]:
 def _run(enabled: bool, **kw) -> tuple[ThermalDetector, list]:
     # the person cover (on by default) would split the joined pair into person boxes after
     # the pass; these tests are about the objects of the pass itself
+    # (stamps at 10 Hz; the passes are counted in frames: counts_fps 0)
     det = ThermalDetector(ThermalDetectorConfig(
         keep_apart=KeepApartConfig(enabled=enabled, **kw),
-        person_cover=PersonCoverConfig(enabled=False)))
+        person_cover=PersonCoverConfig(enabled=False), counts_fps=0.0))
     out = []
     for k, f in enumerate(_passing()):
         found = det.process(f, k / 10.0)

@@ -34,9 +34,9 @@ def _frames(n: int = 40, join: int = 0, others: int = 1) -> list[np.ndarray]:
 
 def _run(bound: bool, frames: list[np.ndarray], max_parts: int = 8, **kw
          ) -> tuple[ThermalDetector, list]:
-    det = ThermalDetector(ThermalDetectorConfig(
+    det = ThermalDetector(ThermalDetectorConfig(       # stamps at 10 Hz, frames counted
         extent=ObjectExtentConfig(bound=bound, max_width_fraction=FRACTION,
-                                  max_parts=max_parts), **kw))
+                                  max_parts=max_parts), counts_fps=0.0, **kw))
     out = []
     for k, f in enumerate(frames):
         found = det.process(f, k / 10.0)

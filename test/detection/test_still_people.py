@@ -29,8 +29,8 @@ def _scene(n: int = 90, walker: bool = True) -> list[np.ndarray]:
 
 
 def _run(enabled: bool, walker: bool = True, **kw) -> list[list]:
-    det = ThermalDetector(ThermalDetectorConfig(
-        still_people=StillPeopleConfig(enabled=enabled, **kw)))
+    det = ThermalDetector(ThermalDetectorConfig(       # passes counted in frames
+        still_people=StillPeopleConfig(enabled=enabled, **kw), counts_fps=0.0))
     return [det.process(f, k / FPS) for k, f in enumerate(_scene(walker=walker))]
 
 

@@ -549,7 +549,8 @@ def test_a_walking_person_passing_one_who_stands_still_keeps_its_own_box():
     def widths(**over):
         # the valley split alone (the person-size split would bring a full-frame pass
         # forward when the fused box appears)
-        det = ThermalDetector(ThermalDetectorConfig(split_by_person_size=False, **over))
+        det = ThermalDetector(ThermalDetectorConfig(split_by_person_size=False,  # 10 Hz stamps,
+                                                    counts_fps=0.0, **over))  # frames counted
         out = []
         for t, f, x in frames():
             dets = det.process(f, float(t) / 10.0)
