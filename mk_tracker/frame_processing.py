@@ -54,6 +54,8 @@ BACKGROUND_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8", "mono16", "16
 SKIPPED_MODES = {
     "invalid_frame": "too few finite pixels (NaN-filled or empty frame)",
     "out_of_order": "its stamp equals the previous frame's (a repeated frame)",
+    "repeated_frame": "identical to the previous frame (the camera froze: shutter / "
+                      "flat-field correction, or a driver repeating a frame)",
 }
 
 

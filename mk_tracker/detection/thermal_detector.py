@@ -279,6 +279,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self.time_resets = 0
         self.last_event: str | None = None
         self.skipped_frames = 0
+        self.repeated_frames = 0          # of them, identical to the frame before
         self.gain_resets = 0
         self.gain_map: IntensityMap | None = None
         self.full_passes = 0
@@ -293,6 +294,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._encoding: str | None = None
         self._last_stamp: float | None = None
         self._last_filled: np.ndarray | None = None
+        self._last_raw: np.ndarray | None = None     # the last frame used, as received
         self._tracks: list[_Track] = []
         self._next_id = 1
         self._since_full: int | None = None
@@ -371,6 +373,16 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
             self.skipped_frames += 1
             self.last_mode = "out_of_order"
             return []
+        if self._last_raw is not None and raw.shape == self._last_raw.shape and \
+                np.array_equal(raw, self._last_raw, equal_nan=enc == "32FC1"):
+            # a frozen camera (an uncooled core's shutter / flat-field correction holds the
+            # image for a few tenths of a second; a driver that repeats its last frame): no
+            # new information, and in the window it would look like people who stopped
+            self.skipped_frames += 1
+            self.repeated_frames += 1
+            self.last_mode = "repeated_frame"
+            return []
+        self._last_raw = np.array(raw, copy=True)
         c = self.config
         filled = raw
         if enc == "32FC1":

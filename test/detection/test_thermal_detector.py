@@ -191,7 +191,8 @@ def test_constant_and_all_nan_frames_give_no_detections():
     det = ThermalDetector()
     for i in range(12):
         assert det.process(np.full((32, 32), 77, np.uint8), i * 0.04) == []
-    assert det.last_mode == "tracking" or det.last_mode == "reconfiguration"
+    # a constant stream repeats its first frame: a frozen camera, skipped
+    assert det.last_mode == "repeated_frame" and det.repeated_frames == 11
     det = ThermalDetector()
     for i in range(12):
         assert det.process(np.full((32, 32), np.nan, np.float32), i * 0.04) == []
