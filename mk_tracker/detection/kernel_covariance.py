@@ -218,8 +218,8 @@ def _levels_block_covariance(x, table, same, cross, o):
     (see :func:`compiled_level_kernels`); the batch function and the detector's fused
     per-block loop both call it, so there is one implementation.  The look-ups of a row
     go ``_LANES`` at a time (:func:`_gather_add`), each entry still summed over the frame
-    pairs in the same order; ``same`` is summed over whole rows, of which only the entries
-    right of the diagonal are read.
+    pairs in the same order; ``same`` is summed from the lane group holding the entry right
+    of the diagonal (only those entries are read).
     """
     n_frames, p = x.shape
     inv_f = 1.0 / n_frames
@@ -232,7 +232,9 @@ def _levels_block_covariance(x, table, same, cross, o):
         for i in range(p):
             xi = xa[i]
             row = same[i]
-            for j in range(0, vector_end, _LANES):
+            # only the entries right of the diagonal are read: start at the lane group
+            # that holds i + 1
+            for j in range(((i + 1) // _LANES) * _LANES, vector_end, _LANES):
                 _gather_add(table, xa, xi, row, j)
             for j in range(max(vector_end, i + 1), p):
                 row[j] += table[abs(xi - xa[j])]
