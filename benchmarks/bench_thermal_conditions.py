@@ -7,7 +7,8 @@ people, 640x480, ``--frames`` frames, ``--seed``) is rendered again with one sce
 constant changed at a time (the people are the same: torso 301.5-304 K, head 4 K warmer,
 legs 2.5 K cooler; mono8 maps 288-318 K to 0-255, or, in the "gain" rows, a 15 K range
 around the scene as a camera's automatic gain would, or the frame's histogram is
-equalised).  The shipped detector runs on each; from frame 20 on, every person at least
+equalised, or every column's offset flickers from frame to frame as on uncooled sensors).
+The shipped detector runs on each; from frame 20 on, every person at least
 half visible is matched to the detections (IoU >= 0.5), and for the people whose column
 holds a detection starting above their middle, the detection's height over theirs is the
 "box height / person height" (1 = the whole body).  Not a test: nothing is asserted.
@@ -57,19 +58,27 @@ CONDITIONS = (
     ("sensor noise 0.8 K", {"thermal_noise_std": 0.8}),
     ("sensor noise 1.2 K", {"thermal_noise_std": 1.2}),
     ("sensor noise 1.6 K", {"thermal_noise_std": 1.6}),
+    # uncooled sensors' column offsets flicker from frame to frame (grey levels, per column)
+    ("column flicker 6 levels", {"column_noise": 6.0}),
+    ("column flicker 10 levels", {"column_noise": 10.0}),
 )
 WARM_UP = 20
 
 
-def measure(scene, config: ThermalDetectorConfig, equalise: str = "") -> dict:
+def measure(scene, config: ThermalDetectorConfig, equalise: str = "",
+            column_noise: float = 0.0) -> dict:
     detector = ThermalDetector(config)
     clahe = cv2.createCLAHE(clipLimit=2.0, tileGridSize=(8, 8))
+    rng = np.random.default_rng(0)
     matched = people = detections = 0
     ratios = []
     for i in range(len(scene)):
         frame = scene.frame(i)
         image = (cv2.equalizeHist(frame.thermal) if equalise == "global" else
                  clahe.apply(frame.thermal) if equalise == "clahe" else frame.thermal)
+        if column_noise > 0.0:
+            offsets = rng.normal(0.0, column_noise, (1, image.shape[1]))
+            image = np.clip(np.rint(image + offsets), 0, 255).astype(np.uint8)
         found = detector.process(image, frame.stamp)
         if i < WARM_UP:
             continue
@@ -108,7 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     for name, changes in CONDITIONS:
         changes = dict(changes)
         equalise = changes.pop("equalise", "")
-        m = measure(make_scene(dataclasses.replace(base.config, **changes)), config, equalise)
+        column_noise = changes.pop("column_noise", 0.0)
+        m = measure(make_scene(dataclasses.replace(base.config, **changes)), config, equalise,
+                    column_noise)
         print(f"| {name} | {m['recall']:.3f} | {m['detections']:.2f} | {m['people']:.2f} | "
               f"{m['height']:.2f} |", flush=True)
     return 0
