@@ -70,6 +70,7 @@ from mk_tracker.evaluation.metrics import MotRow
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_detector,
                                          detector_outputs,
                                          kernel_drawings, skipped_reason, detector_input,
+                                         detector_event,
                                          tracker_config_for_encoding, tracker_debug_image,
                                          tracker_input, tracker_inputs,
                                          tracks_to_detections)
@@ -156,6 +157,15 @@ class PipelineResult:
     files: dict[str, str] = field(default_factory=dict)
     homography: tuple = IDENTITY_HOMOGRAPHY
     video_frames: int = 0
+    #: what the detector changed in its own state, in words (a reset when time went
+    #: backwards, a kernel bandwidth widened to a noisy stream): the node logs the same
+    detector_events: list[str] = field(default_factory=list)
+
+    def event(self, text: str) -> None:
+        if len(self.detector_events) < 50:
+            self.detector_events.append(text)
+        if len(self.detector_events) <= 10:
+            print(f"mk_tracker process: {text}", file=sys.stderr)
 
     def problem(self, text: str) -> None:
         self.bad_messages += 1
@@ -286,6 +296,9 @@ class _Run:
         if reason:
             r.rejected_detector_frames += 1
             r.problem(f"detector skipped the frame of stamp {stamp:.3f}: {reason}")
+        event = detector_event(self.detector)
+        if event:
+            r.event(f"thermal detector at stamp {stamp:.3f}: {event}")
         dets, errors = detector_outputs(found, self.config.detector_class_id)
         for e in errors:
             r.problem(e)

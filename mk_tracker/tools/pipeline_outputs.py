@@ -83,6 +83,7 @@ def write_outputs(result: PipelineResult, bag: Path, out: Path, options: Pipelin
         "tracker_profile": r.tracker_profile, "thermal_only": r.thermal_only,
         "frames": r.frames, "tracked_frames": r.tracked_frames, "bad_frames": r.bad_frames,
         "bad_messages": r.bad_messages, "problems": r.problems,
+        "detector_events": r.detector_events,
         "detections": r.detections, "detection_frames": r.detection_frames,
         "rejected_detector_frames": r.rejected_detector_frames,
         "unknown_frame_batches": r.unknown_frame_batches,

@@ -590,3 +590,25 @@ def test_background_detections_overlay_sets_the_protocols_choice_and_nothing_els
     _assert_overlay_changes_only("tracker_background_detections.yaml", {
         "max_reported_coast_time": 0.0, "group.member_min_height": 0.3,
         "lifecycle.still_contrast": 0.6})
+
+
+def test_detector_events_are_reported_by_the_offline_pipeline(tmp_path):
+    """A noisy thermal stream makes the detector widen its kernel (noise_bandwidth); the
+    pipeline says so, as the node does, in its summary and on stderr."""
+    from mk_tracker.synthetic.scene import make_scene
+    scene = build_preset("crowd", seed=0, people=PEOPLE, frames=FRAMES, width=320, height=240)
+    noisy = make_scene(dataclasses.replace(scene.config, thermal_noise_std=1.2))
+    bag = tmp_path / "noisy"
+    write_scene_bag(noisy, bag, preset="crowd")
+    result = process_bag(bag, tmp_path / "out", options=PipelineOptions(
+        progress=False, write_video=False, write_plots=False, write_bag=False))
+    assert result.detector_events and "kernel bandwidth" in result.detector_events[0]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["detector_events"] == result.detector_events
+    assert result.bad_messages == 0          # an event is not a bad message
+
+
+def test_a_quiet_stream_has_no_detector_events(thermal_run):
+    out, result = thermal_run
+    assert result.detector_events == []
+    assert json.loads((out / "summary.json").read_text())["detector_events"] == []
