@@ -298,7 +298,7 @@ class _Run:
             r.problem(f"detector skipped the frame of stamp {stamp:.3f}: {reason}")
         event = detector_event(self.detector)
         if event:
-            r.event(f"thermal detector at stamp {stamp:.3f}: {event}")
+            r.event(f"detector at stamp {stamp:.3f}: {event}")
         dets, errors = detector_outputs(found, self.config.detector_class_id)
         for e in errors:
             r.problem(e)
