@@ -114,10 +114,15 @@ Where the paper is silent, and what we add (each switchable):
   the next full-frame pass finds it again (a person who stands still has no temporal change
   and is, as in the paper, not detected by the support).
 * **Bandwidth and noise** (``noise_bandwidth``, on).  The kernel (3.6) keeps the paper's
-  ``sigma2`` unless the stream's temporal noise, measured at each full-frame pass, is more
-  than a third of its ``sigma``; then ``sigma`` is widened to ``noise_bandwidth`` noise
-  stds, so that a noisy stream does not make every block change
+  ``sigma2`` unless ``noise_bandwidth`` (3) times the stream's temporal noise std, measured
+  at each full-frame pass, exceeds its ``sigma``; then ``sigma`` is widened to that, so
+  that a noisy stream does not make every block change
   (:mod:`mk_tracker.detection.stream_noise`; docs/benchmark_thermal_conditions.md).
+* **Windows in seconds** (``counts_fps``, on).  ``window_frames``, ``startup_frames``,
+  ``reconfigure_period`` and ``group_recheck_frames`` are counted at 25 fps; on a slower
+  stream (rate from the stamps, :class:`mk_tracker.stamps.FrameRate`) they keep their
+  durations (docs/benchmark_thermal_frame_rate.md).  A frame identical to the one before
+  (a frozen camera) is skipped (``last_mode`` ``repeated_frame``).
 * **Still people** (``still_people.enabled``, on): a warm region of a detected person's
   shape, size and warmth that stays in place for ``still_people.min_time`` is reported too
   (:mod:`mk_tracker.detection.still_people`; docs/benchmark_real_thermal.md).
