@@ -121,13 +121,15 @@ def iou_matches(detections, objects, threshold: float = 0.5) -> tuple[int, int, 
     return tp, len(result.unmatched_rows), fn
 
 
-def detector_pass(scene, method: str, config) -> tuple[tuple[float, ...], list]:
-    """The detector alone over ``scene``: ``((recall, precision, IoU recall, IoU precision),
-    per frame (stamp, detections))``; warm-up frames are not scored."""
+def detector_pass(scene, method: str, config, step: int = 1
+                  ) -> tuple[tuple[float, ...], list]:
+    """The detector alone over every ``step``-th frame of ``scene``: ``((recall, precision,
+    IoU recall, IoU precision), per frame (stamp, detections))``; warm-up frames are not
+    scored."""
     detector = ThermalDetector(config) if method == "kernel" else ThresholdDetector(config)
     counts = np.zeros(6)
     frames = []
-    for i in range(len(scene)):
+    for i in range(0, len(scene), step):
         fr = scene.frame(i)
         dets = detector.process(fr.thermal, fr.stamp)
         frames.append((fr.stamp, dets))
@@ -165,6 +167,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=150)
     parser.add_argument("--configs", nargs="+", default=None,
                         help="names of the configurations to run (default: all)")
+    parser.add_argument("--thermal-step", type=int, default=1,
+                        help="write the thermal image of every N-th frame only (a slower "
+                        "thermal camera beside the RGB one)")
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--no-peers", dest="peers", action="store_false",
                         help="leave out the peer trackers fed the default detector's boxes")
@@ -194,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
                     scene = build_preset("crowd", seed=seed, people=people,
                                          frames=args.frames, width=width, height=height)
                     bag = tmp / f"scene_{size}_{people}_{seed}"
-                    write_scene_bag(scene, bag, preset="crowd")
+                    write_scene_bag(scene, bag, preset="crowd",
+                                    thermal_step=args.thermal_step)
                     truth = {}
                     for name, kwargs in TRUTH_ROWS.items():
                         if any(c[0] == name for c in configs):
@@ -209,11 +215,12 @@ def main(argv: list[str] | None = None) -> int:
                                                            _joining(base.detector)),
                                  "threshold": ("threshold", base.threshold)}
                     # the detector alone, for the configurations that run
-                    passes = {name: detector_pass(scene, *detectors[name])
+                    passes = {name: detector_pass(scene, *detectors[name],
+                                                  step=args.thermal_step)
                               for name in {c[0].split(",")[0] for c in configs}
                               if name in detectors}
                     det = {name: scores for name, (scores, _) in passes.items()}
-                    if "kernel" in passes and args.peers:
+                    if "kernel" in passes and args.peers and args.thermal_step == 1:
                         for peer, (mota, idf1, sw) in peer_scores(
                                 scene, passes["kernel"][1]).items():
                             rows.append((size, people, seed, f"kernel -> {peer}",

@@ -288,6 +288,14 @@ def tracker_inputs(batches: Iterable[DetectionBatch], image_frame_id: str,
     return dets, unknown
 
 
+def step_detections(dets: list[FrameDetection], batches: Sequence[DetectionBatch]
+                    ) -> list[FrameDetection] | None:
+    """What :meth:`MultiObjectTracker.step` takes for a frame: its detections, or None when
+    no detection message was paired with it (the detector is slower than the camera, or
+    late): a frame the detector did not report on is not a frame in which it found nobody."""
+    return dets if batches else None
+
+
 def _finite(box: Sequence[float]) -> bool:
     return all(math.isfinite(float(v)) for v in box) and box[2] > 0 and box[3] > 0
 

@@ -67,7 +67,8 @@ from mk_tracker.messages.detection_messages import (DetectionMessageError,
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, detection_plane,
                                          kernel_drawings, tracker_config_for_encoding,
                                          tracker_debug_image, tracker_input,
-                                         tracker_inputs, tracks_to_detections)
+                                         tracker_inputs, tracks_to_detections,
+                                         step_detections)
 from mk_tracker.messages.compressed_image import as_image
 from mk_tracker.messages.image_transport import (image_transport_parameter,
                                                  no_image_warning_parameter)
@@ -442,7 +443,7 @@ class TrackerNode(Node):
             self._last_stamp = stamp
             try:
                 self._start_tracks(tracker, bgr, stamp, frame, starts)
-                result = tracker.step(bgr, stamp, dets)
+                result = tracker.step(bgr, stamp, step_detections(dets, batches))
             except (TrackerInputError, ValueError) as exc:
                 counters.bad_images += 1
                 self._warn(f"tracker rejected a frame: {exc}")

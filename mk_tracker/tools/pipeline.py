@@ -70,7 +70,7 @@ from mk_tracker.evaluation.metrics import MotRow
 from mk_tracker.frame_processing import (DetectionBatch, DetectionBuffer, build_detector,
                                          detector_outputs,
                                          kernel_drawings, skipped_reason, detector_input,
-                                         detector_event,
+                                         detector_event, step_detections,
                                          tracker_config_for_encoding, tracker_debug_image,
                                          tracker_input, tracker_inputs,
                                          tracks_to_detections)
@@ -412,7 +412,8 @@ class _Run:
                 raise PipelineError(f"tracker configuration rejected: {exc}") from exc
             r.homography = tuple(self.tracker_config.homography)
         discarded = self.detections.discarded
-        dets, unknown = tracker_inputs(self.detections.take(stamp), msg.header.frame_id,
+        batches = self.detections.take(stamp)
+        dets, unknown = tracker_inputs(batches, msg.header.frame_id,
                                        self.config.thermal_frame_id)
         if self.detections.discarded > discarded:
             r.problem(f"image #{frame_no}: time went backwards; dropped "
@@ -426,7 +427,7 @@ class _Run:
         try:
             if self.options.single_target and self.pending_start != ():
                 self._start_single_target(bgr, stamp, ns, truth)
-            result = self.tracker.step(bgr, stamp, dets)
+            result = self.tracker.step(bgr, stamp, step_detections(dets, batches))
         except (TrackerInputError, ValueError) as exc:
             if isinstance(exc, PipelineError):
                 raise

@@ -176,6 +176,8 @@ class MultiObjectTracker:
         #: this frame's published box of a track whose stacked twin was detected last
         self._published_box: dict[int, np.ndarray] = {}
         self._frame_interval = 0.0       # seconds between the last two frames
+        #: whether a detector reported for this frame (``step(..., detections=None)``: not)
+        self._detector_reported = True
         self.frame_size: tuple[int, int] | None = None
         self.camera_motion = CameraMotionEstimator(self.config.camera_motion) \
             if self.config.camera_motion.enabled else None
@@ -248,8 +250,17 @@ class MultiObjectTracker:
         return False
 
     def step(self, image_bgr: np.ndarray, stamp: float,
-             detections: Iterable[Any] = ()) -> FrameResult:
-        """Process one RGB frame at ``stamp`` (seconds) with its detections."""
+             detections: Iterable[Any] | None = ()) -> FrameResult:
+        """Process one RGB frame at ``stamp`` (seconds) with its detections.
+
+        ``detections=None``: no detector reported for this frame (a thermal camera slower
+        than the RGB one), which is not "the detector found nobody" (an empty list): the
+        tracks are refined and coast as in any frame without a detection, but a tentative
+        track does not count the frame as a miss (``lifecycle.max_tentative_misses``), or
+        at 9 Hz beside 25 fps no track would ever be confirmed."""
+        self._detector_reported = detections is not None
+        if detections is None:
+            detections = ()
         self._check_image(image_bgr)
         stamp = self._check_stamp(stamp)
         result = FrameResult(stamp=stamp,
@@ -741,7 +752,8 @@ class MultiObjectTracker:
             t.last_seen = stamp
             t.score = sim if sim is not None else _quality(det.score)
         else:
-            t.tentative_misses += 1
+            if self._detector_reported:
+                t.tentative_misses += 1
             if visible:
                 t.correct(refined[0], quality * measurement.undetected_quality_factor,
                           size_weight=cfg.refinement_size_weight)

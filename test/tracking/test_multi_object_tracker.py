@@ -156,6 +156,24 @@ def test_tentative_until_min_hits_and_false_positive_never_reported():
     assert 2 in results[2].deleted_ids or 2 in results[1].deleted_ids
 
 
+def test_frames_without_a_detector_report_are_not_tentative_misses():
+    """A thermal detector at a third of the RGB rate: two of three frames have no
+    detection message (``None``), which is not a detection missed (``[]``)."""
+    def run(absent):
+        trk = MultiObjectTracker(plain())
+        results = []
+        for i in range(9):
+            dets = [FrameDetection((100 + 3 * i, 100, 30, 60), 0.9)] if i % 3 == 0 \
+                else absent
+            results.append(trk.step(IMG, i * DT, dets))
+        return results
+    slow = run(None)
+    assert [len(r.reported()) for r in slow] == [0] * 6 + [1] * 3      # third detection
+    empty = run([])
+    assert all(len(r.reported()) == 0 for r in empty)                 # deleted each time
+    assert any(empty[i].deleted_ids for i in range(9))
+
+
 def test_coasting_lost_and_deleted_after_timeouts_ids_never_reused():
     life = LifecycleConfig(max_coast_time=0.4, max_lost_time=1.0)
     trk = MultiObjectTracker(dataclasses.replace(plain(), lifecycle=life))
