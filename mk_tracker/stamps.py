@@ -36,21 +36,22 @@ class FrameRate:
     def __init__(self, window: int = 25, max_rate: float = 1000.0) -> None:
         self._intervals: deque[float] = deque(maxlen=max(int(window), 1))
         self.max_rate = float(max_rate)
+        self._rate: float | None = None          # kept with the intervals: read per count
 
     def add(self, interval: float) -> None:
         """One stamp difference (s); zero or negative ones are not intervals."""
         if interval > 0.0:
             self._intervals.append(float(interval))
+            self._rate = 1.0 / max(float(median(self._intervals)), 1.0 / self.max_rate)
 
     def clear(self) -> None:
         self._intervals.clear()
+        self._rate = None
 
     @property
     def rate(self) -> float | None:
         """Frames per second, or None before two stamps."""
-        if not self._intervals:
-            return None
-        return 1.0 / max(float(median(self._intervals)), 1.0 / self.max_rate)
+        return self._rate
 
     def frames(self, count: int, reference_fps: float, minimum: int = 1,
                slower_only: bool = False) -> int:
