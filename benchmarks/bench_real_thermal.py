@@ -91,18 +91,18 @@ def run_pipeline(bag: Path, out: Path, regions: tuple, extra: tuple = ()
 
 class EveryNth:
     """A frame source (:class:`~mk_tracker.bags.video_source.FrameSource`) that keeps every
-    ``step``-th frame, at ``1 / step`` of the rate."""
+    ``step``-th frame from frame ``offset`` on, at ``1 / step`` of the rate."""
 
-    def __init__(self, source, step: int) -> None:
-        self.source, self.step = source, step
+    def __init__(self, source, step: int, offset: int = 0) -> None:
+        self.source, self.step, self.offset = source, step, offset
         self.path, self.kind = source.path, source.kind
         self.fps = source.fps / step
-        self.declared = -(-source.declared // step)
+        self.declared = -(-max(source.declared - offset, 0) // step)
         self.unreadable = 0
 
     def frames(self):
         for k, frame in enumerate(self.source.frames()):
-            if k % self.step == 0:
+            if k >= self.offset and (k - self.offset) % self.step == 0:
                 yield frame
         self.unreadable = self.source.unreadable
 
@@ -153,6 +153,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frame-step", type=int, default=1,
                         help="keep every N-th frame (the clip at 1/N of its frame rate: "
                         "a slower camera)")
+    parser.add_argument("--frame-offset", type=int, default=0,
+                        help="with --frame-step N: start at this frame (0..N-1), another "
+                        "sampling of the same clip")
     parser.add_argument("--masked-only", action="store_true",
                         help="only the run with the counter masked (ablations)")
     args = parser.parse_args(argv)
@@ -163,8 +166,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         source = open_recording(args.clip, None)
-        if args.frame_step > 1:
-            source = EveryNth(source, args.frame_step)
+        if args.frame_step > 1 or args.frame_offset:
+            source = EveryNth(source, max(args.frame_step, 1), args.frame_offset)
         bag = tmp / "bag"
         import_recording(source, bag, thermal=True)
         masked = None
