@@ -153,7 +153,7 @@ class ChangedPixels:
 
     def update(self, detector) -> None:
         inner = getattr(detector, "detector", detector)      # an ignore-region wrapper
-        if not inner._buffer:
+        if not len(inner._window):
             self.previous = None
             return
         stored = inner._newest()

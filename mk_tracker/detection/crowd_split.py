@@ -369,8 +369,7 @@ class CrowdSplitting:
                   & (predictions[:, 1] >= y0) & (predictions[:, 1] <= y1))
         if not inside.any():
             return 0.0
-        n = min(self._count(self.config.startup_frames, 2), len(self._buffer))
-        span = self._buffer[-1][1] - self._buffer[-n][1]
+        span = self._window.span(self._count(self.config.startup_frames, 2))
         return float(np.hypot(predictions[inside, 2], predictions[inside, 3]).max() * span)
 
     def _apart(self, boxes: list[Box], predictions: np.ndarray

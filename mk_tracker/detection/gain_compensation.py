@@ -56,11 +56,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from mk_tracker.parameters import parameter
 
-__all__ = ["GainConfig", "IntensityMap", "fit_intensity_map", "GAIN_MODELS"]
+__all__ = ["GainConfig", "IntensityMap", "fit_intensity_map", "compensate", "GAIN_MODELS"]
 
 #: ``gain.model`` values -> polynomial degree (``off``: no compensation).
 GAIN_MODELS = {"off": -1, "affine": 1, "quadratic": 2}
@@ -205,3 +206,29 @@ def _quantile_fit(u: np.ndarray, y: np.ndarray, keep: np.ndarray, degree: int) -
 def _similar(mapped: np.ndarray, reference: np.ndarray, radius: float) -> float:
     """Fraction of samples whose mapped value is within ``radius`` of the reference."""
     return float(np.count_nonzero(np.abs(mapped - reference) <= radius)) / max(mapped.size, 1)
+
+
+def compensate(frame: np.ndarray, reference: np.ndarray, config: GainConfig, radius: float
+               ) -> tuple[np.ndarray | None, IntensityMap]:
+    """``(frame mapped onto reference, the fitted map)`` for the detector's window (steps 1-3
+    of the module docstring, then the relaxation); the frame is None when the change is too
+    large to compensate (fewer than ``min_similar_fraction`` similar pixels after the fit,
+    or a gain outside ``[1 / max_gain_ratio, max_gain_ratio]``): the caller starts a new
+    window from ``frame`` as it is.  ``radius``: the similarity radius of (3.6) in the
+    frame's units.  Integer frames are mapped by one look-up table of rounded levels, with
+    0 kept at 0 (clipped, or masked by an ignore region: kept constant)."""
+    integer = np.issubdtype(frame.dtype, np.integer)
+    limits = (0.0, float(np.iinfo(frame.dtype).max)) if integer else None
+    fit = fit_intensity_map(frame, reference, GAIN_MODELS[config.model], radius,
+                            step=config.sample_step, iterations=config.iterations,
+                            limits=limits, resolution=1.0 if integer else 0.0)
+    if fit.similar_fraction < config.min_similar_fraction or not (
+            1.0 / config.max_gain_ratio <= fit.gain <= config.max_gain_ratio):
+        return None, fit
+    mapped = fit.relaxed(config.relaxation)
+    if not integer:
+        return mapped(frame), fit
+    table = mapped(np.arange(int(limits[1]) + 1, dtype=np.float32))
+    np.rint(table, out=table)
+    table[0] = 0.0
+    return (cv2.LUT(frame, table) if frame.dtype == np.uint8 else np.take(table, frame)), fit

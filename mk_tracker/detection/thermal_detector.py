@@ -48,50 +48,24 @@ Where the paper is silent, and what we add (each switchable):
   make the default scale-free at the price of merging people who touch (the optional
   valley split below separates them again; ``link_gap=0, merge_by_footprint=False`` with a
   large ``merge_distance_sq`` is the paper's rule alone).
-* **Valley split** (``split_by_valleys``).  A footprint of people who touch is split where
-  its intensity has a valley: going down through its threshold sets, a component whose
-  maximum stands ``r`` above the level is a peak, ``r = sigma sqrt(2 ln 2)`` being the
-  similarity radius of (3.6) (the test that made the pixels foreground against the
-  background); peaks with a small core (``valley_min_peak_fraction``: a person's warm
-  hands beside the head) are dropped; the footprint is flooded from the peaks, highest
-  pixels first (a watershed), one detection per part
-  (:func:`mk_tracker.detection.pixel_clustering.valley_split`, compiled).  Full-frame passes split
-  every footprint; in a tracking pass an object whose box grew by ``valley_grow_ratio``
-  over its last box or its box at the last full-frame pass (it fused with someone it
-  touches) keeps the part nearest its prediction.  With ``valley_columns`` the parts are
-  upright people's column ranges instead (stacked parts joined, neighbours cut at the
-  emptiest column, whole rows kept:
-  :func:`mk_tracker.detection.person_size.valley_columns`), so a split makes no head or
-  leg box; off by default (docs/benchmark_groups.md).
-* **Person-size split** (``split_by_person_size``).  The expected person height at each
-  image row is learnt online from the person-shaped detections
-  (:mod:`mk_tracker.detection.person_size`, a least-squares line in the row of the feet);
-  in full-frame passes a footprint wider than ``split_ratio`` expected widths is cut into
-  ``round(width / expected width)`` people at the emptiest columns of its mask.  When a
-  tracking pass reports such a wide footprint (two people met), the next full-frame pass
-  is brought forward to ``group_recheck_frames`` after the last one.  The valley split and
-  the size split live in :mod:`mk_tracker.detection.footprint_split`.
-* **Cluster split** (``split_clusters``).  In full-frame passes, instead of the link rule
-  and the footprint merge, the K-means clusters (3.12)-(3.13) of one footprint are grouped
-  into people by the learnt person size: a cluster mostly outside its newest-frame
-  footprint is a trailing band (where a person was) and gives no object, the pieces of
-  one band are joined while they fit one person, the footprint is shared by Voronoi cells
-  and slivers are joined to a neighbour; the previous pass's objects are kept apart
-  (:mod:`mk_tracker.detection.crowd_split`).  Off by default (docs/benchmark_groups.md).
-* **Extent bound** (``extent.bound``).  An object wider than half the frame (or, once a
-  person size is learnt, than three expected person widths) is a group the link rule made
-  one object: full-frame passes re-split its footprint into column ranges by K-means
-  (3.12) with more clusters; in tracking passes it keeps the part nearest its prediction
-  or is dropped (:mod:`mk_tracker.detection.object_extent`).  Off by default
-  (docs/benchmark_thermal_gain.md).
-* **Previous objects kept apart** (``keep_apart.enabled``).  In a full-frame pass an
-  object whose footprint box holds the Kalman predictions (4.2) of two or more objects
-  followed on their own (found alone at ``keep_apart.min_full_passes`` full passes and in
-  the newest frame) is split by K-means (3.12) of its footprint pixels started at those
-  predictions: people who were two objects before the link rule joined them stay two, with
-  no size prior.  Tracking passes already give each pixel to the nearest prediction
-  (below).  Off by default (:mod:`mk_tracker.detection.keep_apart`,
-  docs/benchmark_groups.md).
+* **Optional splits of groups**, off by default (each measured in
+  docs/benchmark_groups.md, and documented in its own module): the valley split
+  (``split_by_valleys``: a watershed from the intensity peaks of a footprint,
+  :func:`mk_tracker.detection.pixel_clustering.valley_split`; ``valley_columns``: column
+  ranges of upright people instead); the person-size split (``split_by_person_size``: a
+  footprint wider than ``split_ratio`` expected widths at its row is cut at the emptiest
+  columns, and the next full pass comes ``group_recheck_frames`` after the last one;
+  :mod:`mk_tracker.detection.footprint_split`); the cluster split (``split_clusters``: the
+  K-means clusters (3.12)-(3.13) grouped into people by the learnt size,
+  :mod:`mk_tracker.detection.crowd_split`); the extent bound (``extent.bound``: an object
+  wider than half the frame or three person widths re-split by K-means (3.12),
+  :mod:`mk_tracker.detection.object_extent`); previous objects kept apart
+  (``keep_apart.enabled``: K-means (3.12) started at the Kalman predictions (4.2) of the
+  objects a footprint holds, :mod:`mk_tracker.detection.keep_apart`); and stacked parts
+  joined (``body_extent.join_stacked``: an upper and a lower box of one person reported as
+  one, :mod:`mk_tracker.detection.body_extent`).  The expected person height at each image
+  row is learnt online from the person-shaped detections
+  (:mod:`mk_tracker.detection.person_size`, a least-squares line in the row of the feet).
 * **Person cover** (``person_cover.*``, on).  After every pass, a detection wider or taller
   than one person at the learnt person size of its bottom row is replaced by whole-person
   boxes that cover its warm pixels greedily (:mod:`mk_tracker.detection.person_cover`),
@@ -161,12 +135,10 @@ module holds the logic of Algorithm 2; the per-pixel and per-block loops live in
 
 from __future__ import annotations
 
-import collections
 import math
 from dataclasses import dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 
 from mk_tracker.tracking.association import assign
@@ -174,14 +146,14 @@ from mk_tracker.boxes import iou
 from mk_tracker.detection.block_support import SupportResult, _support, support_in_frame
 from mk_tracker.detection.body_extent import BodyExtent
 from mk_tracker.detection.crowd_split import CrowdSplitting
+from mk_tracker.detection.frame_window import FrameWindow
 from mk_tracker.detection.footprint import (_NO_CENTRES, _UNSET, _VoronoiCell, _median,
                                             _object_kernel, _owned_support,
                                             _similarity_radius, footprint_mask,
                                             footprint_stats, overlapping_footprints)
 from mk_tracker.kalman import ConstantVelocityKalman
 from mk_tracker.parameters import validate_config
-from mk_tracker.detection.gain_compensation import (GAIN_MODELS, IntensityMap,
-                                                    fit_intensity_map)
+from mk_tracker.detection.gain_compensation import IntensityMap, compensate
 from mk_tracker.detection.footprint_split import (FootprintSplitting, _Candidate,
                                                  _footprint_levels)
 from mk_tracker.detection.keep_apart import KeepApart
@@ -275,10 +247,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         c = self.config
         if c.normalization == "fixed" and not c.range_max > c.range_min:
             raise ThermalInputError("range_max must be above range_min for fixed normalisation")
-        # (ring slot, stamp) of the frames in the window, oldest first; the frames themselves
-        # live in the ring buffer self._ring (one array, no per-frame stacking)
-        self._buffer: collections.deque = collections.deque(
-            maxlen=max(c.window_frames, c.startup_frames))
+        self._window = FrameWindow(max(c.window_frames, c.startup_frames))
         self._rate = FrameRate(c.rate_window)
         self.resets = 0
         self.time_resets = 0
@@ -294,7 +263,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
 
     # -- state -----------------------------------------------------------------------------
     def _clear(self) -> None:
-        self._buffer.clear()
+        self._window.clear()
         self._shape: tuple[int, int] | None = None
         self._encoding: str | None = None
         self._last_stamp: float | None = None
@@ -305,8 +274,6 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._since_full: int | None = None
         self._map: tuple[float, float] | None = None
         self._integer = False
-        self._ring: np.ndarray | None = None
-        self._frames_seen = 0
         c = self.config
         self.heights = PersonHeightModel(c.size_memory, c.size_max_residual if
                                          c.size_max_residual < 100 else math.inf,
@@ -400,15 +367,9 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         if self._last_stamp is not None:
             self._rate.add(t - self._last_stamp)
         self._shape, self._encoding, self._last_stamp = raw.shape, enc, t
-        n_slots = self._buffer.maxlen
-        if self._ring is None or self._ring.shape[1:] != filled.shape:
-            self._ring = np.empty((n_slots,) + filled.shape, dtype=np.float32)
-        slot = self._frames_seen % n_slots
-        self._frames_seen += 1
-        self._ring[slot] = filled
-        self._buffer.append((slot, t))
+        self._window.add(filled, t)
         if self._since_full is None:
-            if len(self._buffer) < self._count(c.startup_frames, 2):
+            if len(self._window) < self._count(c.startup_frames, 2):
                 self.last_mode = "warming_up"
                 return []
             self.last_mode = "startup"
@@ -435,41 +396,28 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
     # -- normalisation ---------------------------------------------------------------------
     def _gain_compensated(self, frame: np.ndarray, enc: str, stamp: float) -> np.ndarray:
         """``gain.model``: ``frame`` mapped onto the newest frame of the window
-        (:mod:`mk_tracker.detection.gain_compensation`); a change too large to compensate
-        starts a new window from ``frame`` as it is (``gain_resets``, ``last_event``)."""
-        g = self.config.gain
-        if not self._buffer:
+        (:func:`mk_tracker.detection.gain_compensation.compensate`); a change too large to
+        compensate starts a new window from ``frame`` as it is (``gain_resets``,
+        ``last_event``)."""
+        if not len(self._window):
             self.gain_map = None
             return frame                 # the first frame of a window sets its photometry
-        integer = enc != "32FC1"
-        limits = (0.0, float(np.iinfo(frame.dtype).max)) if integer else None
-        fit = fit_intensity_map(frame, self._newest(), GAIN_MODELS[g.model],
-                                self._raw_radius(), step=g.sample_step,
-                                iterations=g.iterations, limits=limits,
-                                resolution=1.0 if integer else 0.0)
-        self.gain_map = fit
-        if fit.similar_fraction < g.min_similar_fraction or not (
-                1.0 / g.max_gain_ratio <= fit.gain <= g.max_gain_ratio):
-            self.last_event = (f"intensity change too large to compensate (gain "
-                               f"{fit.gain:.2f}, {100 * fit.similar_fraction:.0f} % of the "
-                               "pixels similar after the fit): new window")
-            last_filled = self._last_filled
-            self._clear()
-            self._last_filled = last_filled
-            self._shape, self._encoding, self._last_stamp = frame.shape, enc, stamp
-            self.resets += 1
-            self.gain_resets += 1
-            self.last_reset = True
-            return frame
-        mapped = fit.relaxed(g.relaxation)
-        if not integer:
-            return mapped(frame)
-        # integer levels: one look-up table of rounded levels, 0 kept at 0 (clipped or
-        # masked by an ignore region: kept constant)
-        table = mapped(np.arange(int(limits[1]) + 1, dtype=np.float32))
-        np.rint(table, out=table)
-        table[0] = 0.0
-        return cv2.LUT(frame, table) if frame.dtype == np.uint8 else np.take(table, frame)
+        mapped, self.gain_map = compensate(frame, self._newest(), self.config.gain,
+                                           self._raw_radius())
+        if mapped is not None:
+            return mapped
+        fit = self.gain_map
+        self.last_event = (f"intensity change too large to compensate (gain {fit.gain:.2f}, "
+                           f"{100 * fit.similar_fraction:.0f} % of the pixels similar after "
+                           "the fit): new window")
+        last_filled = self._last_filled
+        self._clear()
+        self._last_filled = last_filled
+        self._shape, self._encoding, self._last_stamp = frame.shape, enc, stamp
+        self.resets += 1
+        self.gain_resets += 1
+        self.last_reset = True
+        return frame
 
     def _raw_radius(self) -> float:
         """The similarity radius of (3.6) in raw units of the current encoding: by the
@@ -506,15 +454,9 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         on a slower stream (at least ``minimum``), the count itself otherwise."""
         return self._rate.frames(frames, self.config.counts_fps, minimum, slower_only=True)
 
-    def _order(self, n_frames: int) -> np.ndarray:
-        """Ring slots of the last ``n_frames`` frames, oldest first."""
-        n = min(n_frames, len(self._buffer))
-        return np.array([self._buffer[i][0] for i in range(len(self._buffer) - n,
-                                                             len(self._buffer))], dtype=np.int64)
-
     def _newest(self) -> np.ndarray:
         """The newest frame as stored (raw, float32; window units are ``raw - offset``)."""
-        return self._ring[self._buffer[-1][0]]
+        return self._window.newest()
 
     # -- passes ----------------------------------------------------------------------------
     def _full_pass(self) -> list[ThermalDetection]:
@@ -523,14 +465,14 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self.full_passes += 1
         self._since_full = 0
         self._oversize_seen = False
-        order = self._order(self._count(c.startup_frames, 2))
-        self._update_map([self._ring[i] for i in order])
+        order = self._window.order(self._count(c.startup_frames, 2))
+        self._update_map(self._window.frames(len(order)))
         before = self._bandwidth.sigma2
-        if self._bandwidth.observe([self._ring[i] for i in order], self._map[1]) != before:
+        if self._bandwidth.observe(self._window.frames(len(order)), self._map[1]) != before:
             self.last_event = (f"stream noise {self._bandwidth.noise:.3g} (unit intensity "
                                f"scale): kernel bandwidth sigma2 {before:.3g} -> "
                                f"{self._bandwidth.sigma2:.3g} (noise_bandwidth)")
-        result = _support(self._ring, order, self._map[0], c, self._map[1], self._integer, None,
+        result = _support(self._window.ring, order, self._map[0], c, self._map[1], self._integer, None,
                           sigma2=self._bandwidth.sigma2)
         frame = self._newest()
         bounds = (0, frame.shape[0], 0, frame.shape[1])
@@ -757,7 +699,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         rho = c.block_size
         stamp = self._last_stamp
         window = self._count(c.window_frames, 2)
-        span = self._buffer[-1][1] - self._buffer[-min(window, len(self._buffer))][1]
+        span = self._window.span(window)
         nby, nbx = -(-h // rho), -(-w // rho)
         mask = np.zeros((nby, nbx), dtype=bool)
         regions, preds = [], []
@@ -777,7 +719,7 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
                 continue
             mask[by0:by1, bx0:bx1] = True
             regions.append((by0 * rho, min(by1 * rho, h), bx0 * rho, min(bx1 * rho, w)))
-        result = _support(self._ring, self._order(window), self._map[0], c,
+        result = _support(self._window.ring, self._window.order(window), self._map[0], c,
                           self._map[1], self._integer, mask, sigma2=self._bandwidth.sigma2)
         centres = np.array([(s[0], s[1]) for s in preds])
         frame = self._newest()

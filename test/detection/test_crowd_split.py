@@ -232,7 +232,7 @@ def test_join_pieces_slack_widens_both_limits():
 def test_motion_slack_is_the_fastest_inside_object_times_the_window():
     det = ThermalDetector(ThermalDetectorConfig(startup_frames=6))
     for t in range(6):                          # stamps 0.0 .. 0.5 s: span 0.5 s
-        det._buffer.append((t, 0.1 * t))
+        det._window.add(np.zeros((4, 4), np.float32), 0.1 * t)
     # (x, y, vx, vy): 50 px/s and 30 * sqrt(2) px/s inside, 200 px/s outside
     preds = np.array([[5.0, 5.0, 30.0, 40.0], [15.0, 5.0, 30.0, 30.0],
                       [100.0, 5.0, 200.0, 0.0]])

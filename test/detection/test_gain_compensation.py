@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mk_tracker.detection.gain_compensation import GainConfig, fit_intensity_map
+from mk_tracker.detection.gain_compensation import GainConfig, compensate, fit_intensity_map
 from mk_tracker.detection.thermal_detector import ThermalDetector, ThermalDetectorConfig
 
 H, W = 96, 128
@@ -55,6 +55,31 @@ def test_affine_fit_maps_a_gain_and_offset_change_back():
     assert fit.similar_fraction > 0.95
     # without the map the same pixels are far apart
     assert np.abs(changed.astype(np.float32) - reference)[still].mean() > 10.0
+
+
+def test_compensate_maps_integer_frames_keeps_zero_and_refuses_too_large_a_change():
+    reference = scene_frame(0)
+    changed = scene_frame(1, gain=0.7, offset=10.0)
+    changed[:8, :8] = 0                                        # masked: an ignore region
+    cfg = GainConfig(model="affine", relaxation=0.0)
+    mapped, fit = compensate(changed, reference.astype(np.float32), cfg, 30.0)
+    # integer levels in, whole levels out (the detector's integer-level kernel tables)
+    assert np.all(mapped == np.rint(mapped)) and fit.gain == pytest.approx(1.0 / 0.7, rel=0.03)
+    assert np.all(mapped[:8, :8] == 0)
+    still = np.ones((H, W), dtype=bool)
+    still[40:40 + MOVER, 10:10 + MOVER + 3] = False
+    still[:8, :8] = False
+    diff = np.abs(mapped.astype(np.float32) - reference)[still]
+    assert diff.mean() < 2.0
+    # float frames: mapped without rounding
+    mapped_f, _ = compensate(changed.astype(np.float32), reference.astype(np.float32), cfg,
+                             30.0)
+    assert not np.all(mapped_f == np.rint(mapped_f))
+    # another scene altogether: no map, the caller starts a new window
+    other = np.ascontiguousarray(np.flipud(np.fliplr(scene_frame(0, seed=5))))
+    refused, fit = compensate(other, reference.astype(np.float32),
+                              GainConfig(model="affine", max_gain_ratio=1.2), 5.0)
+    assert refused is None and fit.similar_fraction < cfg.min_similar_fraction
 
 
 def test_quadratic_fit_follows_a_gamma_change_better_than_affine():

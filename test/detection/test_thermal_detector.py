@@ -236,7 +236,7 @@ def test_memory_stays_bounded_over_a_long_stream():
     frames = moving_square_frames(16)
     for i in range(160):
         det.process(frames[i % 16], i * 0.04)
-        assert len(det._buffer) <= max(cfg.window_frames, cfg.startup_frames)
+        assert len(det._window) <= max(cfg.window_frames, cfg.startup_frames)
         assert len(det.tracks) <= cfg.max_objects
     assert det.full_passes >= 160 // 7 - 1
 
