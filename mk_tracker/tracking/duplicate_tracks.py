@@ -11,9 +11,12 @@ detector, applied to tracks, with the persistence test of "two tracks are one ta
 
 * two reported tracks (confirmed or occluded, not started by hand) are *stacked* while their
   boxes overlap by more than ``min_iou`` (:func:`stacked_pairs`);
-* a stacked pair is *separated* in a frame in which both tracks were given distinct
-  detections: the detector then sees two people, and the pair's clock restarts
-  (:func:`update_stacked_since`);
+* a stacked pair is *separated* in a frame in which both tracks were given detections
+  that are not stacked themselves (IoU at most ``min_iou``): the detector then sees two
+  people, and the pair's clock restarts (:func:`update_stacked_since`).  Two detections
+  that overlap that much are the detector's two boxes of one person (the thermal
+  detector's person cover can give one person twice, from two neighbouring group boxes:
+  docs/benchmark_thermal_frame_rate.md), not two people;
 * a pair stacked for at least ``min_time`` seconds without being separated is one person,
   provided that each track's appearance model (the kernel-weighted histograms of Chu et al.
   Sec. III-A) matches the other track's box with a similarity of at least
@@ -59,8 +62,8 @@ class DuplicateConfig:
 
     enabled: bool = parameter(
         True, "Merge two reported tracks whose boxes stay stacked (IoU > min_iou) for "
-        "min_time seconds without both being detected by distinct detections in one frame: "
-        "the older id stays, the other track ends")
+        "min_time seconds without both being detected in one frame by detections that are "
+        "not stacked themselves: the older id stays, the other track ends")
     min_iou: float = parameter(
         0.5, "Overlap (IoU) above which two tracks' boxes are stacked", minimum=0.0,
         maximum=1.0)
@@ -107,8 +110,8 @@ def update_stacked_since(since: dict[Pair, float], stacked: Iterable[Pair],
     """The new ``{pair: first stamp of its current stacking}``.
 
     A pair stacked now keeps its start stamp (or starts at ``stamp``); a pair no longer
-    stacked, or ``detected_apart`` this frame (both tracks given distinct detections), is
-    forgotten, so its clock restarts the next time it is stacked."""
+    stacked, or ``detected_apart`` this frame (both tracks given detections that are not
+    stacked themselves), is forgotten, so its clock restarts the next time it is stacked."""
     apart = {_key(*p) for p in detected_apart}
     return {p: since.get(p, float(stamp)) for p in (_key(*q) for q in stacked)
             if p not in apart}

@@ -402,7 +402,8 @@ class MultiObjectTracker:
                                detected.get(t.id), refined.get(t.id), width, height,
                                blockers, hold=t.id in held, restart=t.id in recovered)
         # 6b. two tracks stacked on one person become one (tracking/duplicate_tracks.py)
-        self._merge_duplicates(live, set(matched_track.values()), image_bgr, stamp, result)
+        self._merge_duplicates(live, {tid: dets[k].box for k, tid in matched_track.items()},
+                               image_bgr, stamp, result)
         live = [t for t in live if t.state is not TrackState.DELETED]
         # new tentative tracks
         live_boxes = np.array([t.box for t in live if t.state is not TrackState.DELETED
@@ -453,19 +454,23 @@ class MultiObjectTracker:
         return result
 
     # -- internals ------------------------------------------------------------------------
-    def _merge_duplicates(self, live: list[Track], detected_ids: set[int], image: np.ndarray,
+    def _merge_duplicates(self, live: list[Track], detected: dict[int, Any], image: np.ndarray,
                           stamp: float, result: FrameResult) -> None:
         """Track-level suppression of duplicates (:mod:`~mk_tracker.tracking.duplicate_tracks`):
         reported tracks stacked for ``duplicates.min_time`` without being detected as two
-        people, and (``duplicates.min_similarity`` > 0) each matching the other's box by its
-        appearance model, are merged into the older one; the other is deleted."""
+        people (``detected``: track id -> box of its detection this frame), and
+        (``duplicates.min_similarity`` > 0) each matching the other's box by its appearance
+        model, are merged into the older one; the other is deleted."""
         cfg = self.config.duplicates
         if not cfg.enabled:
             self._stacked_since = {}
             return
         pool = [t for t in live if t.state in OUTPUT_STATES and not t.manual]
         stacked = stacked_pairs([t.id for t in pool], [t.box for t in pool], cfg.min_iou)
-        apart = [p for p in stacked if p[0] in detected_ids and p[1] in detected_ids]
+        # seen as two people: each given a detection, and the two detections not stacked
+        # themselves (a detector's two boxes of one person do not separate the pair)
+        apart = [p for p in stacked if p[0] in detected and p[1] in detected
+                 and iou(detected[p[0]], detected[p[1]]) <= cfg.min_iou]
         self._stacked_since = update_stacked_since(self._stacked_since, stacked, apart, stamp)
         by_id = {t.id: t for t in pool}
         for a_id, b_id in due_pairs(self._stacked_since, stamp, cfg.min_time):

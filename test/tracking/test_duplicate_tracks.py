@@ -112,15 +112,16 @@ def config(**changes) -> MultiObjectTrackerConfig:
 
 
 def _one_person_two_tracks(trk, frames_after=12):
-    """Person B walks in from x = 140 (track born first), stops at x = 104 next to person A
-    at x = 100 (born second); both are detected apart for 15 frames, stacked (IoU 26/34);
-    then the detector reports only A's box.  Returns (id of B, id of A, the results from
-    the frame B's detections stop)."""
-    a, b = (100, 100, 30, 60), lambda i: (max(140 - 2 * i, 104), 100, 30, 60)
+    """Person B walks in from x = 140 (track born first) towards person A at x = 100 (born
+    second), 1 px a frame, both detected, B's last detection at x = 111 (IoU 19/41, not
+    stacked); then the detector reports only A's box, and B's track coasts on onto it:
+    stacked (IoU > 0.5) from the second frame after (x = 109, IoU 21/39).  Returns (id of
+    B, id of A, the results from the frame B's detections stop)."""
+    a, b = (100, 100, 30, 60), lambda i: (140 - i, 100, 30, 60)
     for i in range(30):
         dets = [FrameDetection(b(i), 0.9)] + ([FrameDetection(a, 0.9)] if i >= 2 else [])
         r = trk.step(IMG, i * DT, dets)
-        if i >= 16:     # stacked and both detected: never merged
+        if i >= 16:     # two people, detected as two: never merged
             assert len(r.reported()) == 2, (i, r.events)
     by_x = sorted(r.reported(), key=lambda t: t.box[0])
     id_a, id_b = by_x[0].id, by_x[1].id
@@ -134,14 +135,14 @@ def test_two_tracks_stacked_on_one_detection_become_the_older_one():
     cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0,
                     "duplicates.report_one": "none"})      # both reported while waiting
     id_b, id_a, out = _one_person_two_tracks(MultiObjectTracker(cfg))
-    # 0.3 s of stacking at 25 fps: still two tracks in the first 7 frames (0.28 s), one
-    # from the frame at 0.32 s on (the 9th: 8 intervals of 0.04 s after the first)
-    for r in out[:7]:
+    # stacked from out[1]; 0.3 s of stacking at 25 fps: still two tracks up to 0.28 s
+    # later (out[8]), one from 0.32 s on (out[9]: 8 intervals of 0.04 s after out[1])
+    for r in out[:8]:
         assert {t.id for t in r.reported()} == {id_a, id_b}
     merged = [k for k, r in enumerate(out) if any("merged" in e for e in r.events)]
-    assert merged == [8], [r.events for r in out]
-    assert f"track {id_a} merged into track {id_b}" in out[8].events[0]
-    for r in out[8:]:
+    assert merged == [9], [r.events for r in out]
+    assert f"track {id_a} merged into track {id_b}" in out[9].events[0]
+    for r in out[9:]:
         (t,) = r.reported()
         assert t.id == id_b
         # the survivor took the estimate of the detected track: on A's box
@@ -242,21 +243,23 @@ def test_a_waiting_pair_is_reported_once_until_it_is_merged(mode):
     cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0,
                     "duplicates.report_one": mode})
     id_b, id_a, out = _one_person_two_tracks(MultiObjectTracker(cfg))
-    # while both were detected apart both were reported (asserted in the helper); from the
-    # first frame with A's box alone the pair waits 8 frames, reported as one track
-    for r in out[:8]:
+    # while both were detected both were reported (asserted in the helper), and in the
+    # first frame with A's box alone (not stacked yet); then the pair waits 8 frames,
+    # reported as one track
+    assert len(out[0].reported()) == 2 and not out[0].suppressed_ids
+    for r in out[1:9]:
         (t,) = r.reported()
         assert {o.id for o in r.tracks} >= {id_a, id_b}        # both are still tracked
         assert r.suppressed_ids == {id_a, id_b} - {t.id}
         # A (the younger, id_a) is detected: "detected" shows it; the others the older id
         assert t.id == (id_a if mode == "detected" else id_b)
         centre = t.box[0] + t.box[2] / 2
-        if mode == "survivor":       # B's own box: coasting from x = 104 + 15 = 119
-            assert centre > 117.0
+        if mode == "survivor":       # B's own box, coasting left from x = 109 (centre 124)
+            assert centre > 116.5
         else:                        # A's box, centred at 100 + 15 = 115
             assert centre == pytest.approx(115.0, abs=0.5)
-    assert any("merged" in e for e in out[8].events)
-    for r in out[8:]:
+    assert any("merged" in e for e in out[9].events)
+    for r in out[9:]:
         (t,) = r.reported()
         assert t.id == id_b and not r.suppressed_ids
 
@@ -275,7 +278,8 @@ def test_the_hidden_track_is_reported_again_once_both_are_detected():
     trk = MultiObjectTracker(cfg)
     id_b, id_a, out = _one_person_two_tracks(trk, frames_after=4)
     assert cfg.duplicates.report_one == "detected"               # the default
-    for r in out:                                                # A detected: only A shown
+    assert len(out[0].reported()) == 2                           # not stacked yet
+    for r in out[1:]:                                            # A detected: only A shown
         assert [t.id for t in r.reported()] == [id_a] and r.suppressed_ids == {id_b}
         # ~/tracks_detailed still lists the hidden twin, marked as not published
         detailed = {f.detection.id: f for f in tracked_objects(
@@ -283,7 +287,28 @@ def test_the_hidden_track_is_reported_again_once_both_are_detected():
         # (live: coasting, as nothing refines it without multiple kernels)
         assert detailed[str(id_b)].state == STATE_CODES["occluded"]
         assert not detailed[str(id_b)].published and detailed[str(id_a)].published
-    # both detected again (two people): both reported at once
+    # both detected again as two people (boxes at IoU 18/42): both reported at once
     r = trk.step(IMG, 34 * DT, [FrameDetection((100, 100, 30, 60), 0.9),
-                                FrameDetection((104, 100, 30, 60), 0.9)])
+                                FrameDetection((112, 100, 30, 60), 0.9)])
     assert {t.id for t in r.reported()} == {id_a, id_b} and not r.suppressed_ids
+
+
+def test_two_detections_of_one_person_do_not_keep_its_two_tracks_apart():
+    """B walks up to A and both stay detected, but their two boxes overlap by IoU 26/34:
+    the detector's two boxes of one person (a pair of tracks given detections that are
+    stacked themselves is not seen as two people), so the pair merges while both are
+    detected; two boxes at IoU 18/42 would keep them apart."""
+    cfg = config(**{"use_multi_kernel": False, "duplicates.min_similarity": 0.0,
+                    "duplicates.report_one": "none"})
+    trk = MultiObjectTracker(cfg)
+    a, b = (100, 100, 30, 60), lambda i: (max(140 - 2 * i, 104), 100, 30, 60)
+    merged_at = None
+    for i in range(40):
+        dets = [FrameDetection(b(i), 0.9)] + ([FrameDetection(a, 0.9)] if i >= 2 else [])
+        r = trk.step(IMG, i * DT, dets)
+        if merged_at is None and any("merged" in e for e in r.events):
+            merged_at = i
+    # B reaches x = 104 at frame 18; the tracks are stacked (IoU > 0.5) from x < 110, about
+    # frame 16; merged 0.3 s later, with both detections still coming
+    assert merged_at is not None and 22 <= merged_at <= 26, merged_at
+    assert len(r.reported()) == 1 and trk.totals["merged_duplicates"] == 1
