@@ -472,8 +472,8 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
             self.last_event = (f"stream noise {self._bandwidth.noise:.3g} (unit intensity "
                                f"scale): kernel bandwidth sigma2 {before:.3g} -> "
                                f"{self._bandwidth.sigma2:.3g} (noise_bandwidth)")
-        result = _support(self._window.ring, order, self._map[0], c, self._map[1], self._integer, None,
-                          sigma2=self._bandwidth.sigma2)
+        result = _support(self._window.ring, order, self._map[0], c, self._map[1],
+                          self._integer, None, sigma2=self._bandwidth.sigma2)
         frame = self._newest()
         bounds = (0, frame.shape[0], 0, frame.shape[1])
         rows, cols = np.nonzero(result.support)
