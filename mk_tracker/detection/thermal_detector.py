@@ -466,9 +466,10 @@ class ThermalDetector(FootprintSplitting, CrowdSplitting, BodyExtent, ObjectExte
         self._since_full = 0
         self._oversize_seen = False
         order = self._window.order(self._count(c.startup_frames, 2))
-        self._update_map(self._window.frames(len(order)))
+        frames = self._window.frames(len(order))
+        self._update_map(frames)
         before = self._bandwidth.sigma2
-        if self._bandwidth.observe(self._window.frames(len(order)), self._map[1]) != before:
+        if self._bandwidth.observe(frames, self._map[1]) != before:
             self.last_event = (f"stream noise {self._bandwidth.noise:.3g} (unit intensity "
                                f"scale): kernel bandwidth sigma2 {before:.3g} -> "
                                f"{self._bandwidth.sigma2:.3g} (noise_bandwidth)")
